@@ -1,0 +1,45 @@
+# murk: `make demo` and `make test` work on a fresh machine with nothing but Python 3.10+.
+# torch is installed first so that pip does not pull a multi-GB CUDA build where a CPU one is wanted:
+#   make test TORCH_INDEX=https://download.pytorch.org/whl/cpu      (official CPU wheels)
+#   make test TORCH_INDEX=https://download.pytorch.org/whl/cu128    (CUDA 12.8 wheels)
+PYTHON ?= python3
+VENV ?= .venv
+TORCH_SPEC ?= torch==2.13.0
+TORCH_INDEX ?=
+EXTRAS ?= dev,onnx,video
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.murk-installed
+PYTEST_ARGS ?=
+
+.PHONY: demo test test-slow browser-test lint bench install clean
+
+install: $(STAMP)
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q "$(TORCH_SPEC)" $(if $(TORCH_INDEX),--index-url $(TORCH_INDEX))
+	$(PY) -m pip install -q -e ".[$(EXTRAS)]"
+	@touch $(STAMP)
+
+demo: $(STAMP)
+	$(VENV)/bin/murk demo --out murk-demo
+
+test: $(STAMP)
+	$(PY) -m pytest -q $(PYTEST_ARGS)
+
+test-slow: $(STAMP)
+	$(PY) -m pytest -q -m slow $(PYTEST_ARGS)
+
+browser-test: $(STAMP)
+	command -v chromium >/dev/null || (apt-get update -qq && apt-get install -y -qq chromium)
+	$(PY) -m pytest -q -m browser $(PYTEST_ARGS)
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check src tests benchmarks
+	$(VENV)/bin/ruff format --check src tests benchmarks
+
+bench: $(STAMP)
+	for b in benchmarks/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
+
+clean:
+	rm -rf $(VENV) build dist src/*.egg-info .pytest_cache .ruff_cache

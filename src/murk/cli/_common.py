@@ -1,0 +1,62 @@
+"""Pieces shared by the command modules: options, console, error reporting and exit codes.
+
+Exit codes: 0 = everything succeeded; 1 = the job ran but some inputs failed (see ``errors.jsonl``);
+2 = bad usage or input (the message names the file and the problem).
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Annotated, Any
+
+import typer
+from rich.console import Console
+from rich.markup import escape
+from typer.core import TyperGroup
+
+EXIT_OK = 0
+EXIT_PARTIAL = 1
+EXIT_USAGE = 2
+
+QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="Print only errors and the final summary.")]
+DeviceOpt = Annotated[str, typer.Option("--device", help="cpu, cuda or cuda:N.")]
+
+
+class MurkGroup(TyperGroup):
+    """Turns ``ValueError``/``OSError`` raised by the library into a clean one-line error (exit code 2).
+
+    Set ``MURK_DEBUG=1`` to see the full traceback instead.
+    """
+
+    def invoke(self, ctx: Any) -> Any:
+        try:
+            return super().invoke(ctx)
+        except (ValueError, OSError) as exc:
+            if os.environ.get("MURK_DEBUG"):
+                raise
+            print_error(str(exc))
+            raise typer.Exit(EXIT_USAGE) from exc
+
+
+def print_error(message: str) -> None:
+    """Print ``error: message`` on stderr (one line, no traceback)."""
+    Console(stderr=True, highlight=False).print(f"[bold red]error:[/] {escape(message)}")
+
+
+def make_console(quiet: bool = False) -> Console:
+    """Console for progress and summaries (stderr, so stdout stays clean for tables and data)."""
+    return Console(stderr=True, quiet=quiet, highlight=False)
+
+
+def resolve_device(device: str) -> str:
+    """Validate a ``--device`` value; ``cuda`` without a GPU is an error that says so."""
+    import torch
+
+    dev = device.strip().lower()
+    if dev == "cpu":
+        return "cpu"
+    if dev.startswith("cuda"):
+        if not torch.cuda.is_available():
+            raise ValueError(f"--device {device}: CUDA is not available on this machine (torch {torch.__version__})")
+        return dev
+    raise ValueError(f"--device: expected cpu, cuda or cuda:N, got {device!r}")

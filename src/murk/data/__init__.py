@@ -1,0 +1,33 @@
+"""Data shipped inside the package (licences: ``DATA_LICENSES.md`` beside this file).
+
+- ``underwater/``: 13 real underwater photographs (MIT-licensed sources) for demos, marine-snow extraction
+  and metric checks.
+- ``rgbd/``: 3 clean RGB-D pairs (``rgb/``, ``depth/`` as uint16 millimetre PNGs), the ``murk synth`` input
+  layout.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+_HERE = Path(__file__).resolve().parent
+
+
+def data_dir() -> Path:
+    """Folder of the shipped data."""
+    return _HERE
+
+
+def sample_underwater_dir() -> Path:
+    """Folder of the shipped real underwater images (subfolders per source)."""
+    return _HERE / "underwater"
+
+
+def sample_underwater_images() -> list[Path]:
+    """Paths of the shipped real underwater images, sorted."""
+    return sorted(p for p in sample_underwater_dir().rglob("*") if p.suffix.lower() in (".jpg", ".png"))
+
+
+def sample_rgbd_dir() -> Path:
+    """Folder with ``rgb/`` and ``depth/`` (millimetre PNG) clean RGB-D pairs: a ``murk synth`` input."""
+    return _HERE / "rgbd"

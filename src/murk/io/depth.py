@@ -1,0 +1,181 @@
+"""Depth maps at the I/O edge: file formats, units, validity masks and invalid-pixel handling.
+
+Inside murk a depth map is float32 metres, shape (H, W). A pixel is *valid* when it is finite and > 0;
+sensors mark holes with 0 (Kinect, RealSense, TUM, Redwood, KITTI), NaN or inf.
+
+Supported encodings:
+
+- uint16 PNG/TIFF: metres = value / ``depth_scale`` (1000 = millimetres, the default; 5000 for TUM RGB-D;
+  256 for KITTI).
+- ``.npy``: float metres (or integers taken as metres), 2-D.
+- 8-bit images: *relative* depth (larger = farther), accepted only with ``relative=True``, mapped linearly to
+  0.3-15 m (:data:`RELATIVE_NEAR_M`, :data:`RELATIVE_FAR_M`); only the normalised distance mode of the
+  synthesis can use it meaningfully.
+- NYU-v2 ``nyu_depth_v2_labeled.mat`` (HDF5; arrays stored transposed), see :func:`read_nyu_mat`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Literal
+
+import cv2
+import numpy as np
+
+from murk.errors import InputFileError
+from murk.io.atomic import atomic_path
+
+InvalidDepthMode = Literal["fill", "far", "fail"]
+RELATIVE_NEAR_M = 0.3
+RELATIVE_FAR_M = 15.0
+
+
+def read_depth(path: str | Path, *, depth_scale: float = 1000.0, relative: bool = False) -> np.ndarray:
+    """Read a depth file as float32 metres, shape (H, W). Invalid pixels keep their raw value (0, NaN, inf).
+
+    Args:
+        path: a uint16 PNG/TIFF, an 8-bit image (with ``relative=True``) or a ``.npy`` file in metres.
+        depth_scale: raw units per metre for integer images (1000 = millimetres).
+        relative: accept 8-bit relative depth (larger = farther) and map it linearly to 0.3-15 m.
+
+    Raises:
+        InputFileError: missing/undecodable file, wrong number of channels, or 8-bit depth without
+            ``relative=True``.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputFileError(path, "depth file not found")
+    if not (np.isfinite(depth_scale) and depth_scale > 0):
+        raise ValueError(f"depth_scale: expected a finite number > 0, got {depth_scale}")
+    if path.suffix.lower() == ".npy":
+        try:
+            raw = np.load(path, allow_pickle=False)
+        except (ValueError, OSError) as exc:
+            raise InputFileError(path, f"cannot read .npy depth ({exc})") from None
+        if raw.ndim == 3 and raw.shape[2] == 1:
+            raw = raw[:, :, 0]
+        if raw.ndim != 2 or not (np.issubdtype(raw.dtype, np.floating) or np.issubdtype(raw.dtype, np.integer)):
+            raise InputFileError(path, f"expected a 2-D numeric array in metres, got {raw.dtype} {raw.shape}")
+        return raw.astype(np.float32)
+    data = np.fromfile(str(path), dtype=np.uint8)
+    raw = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    if raw is None:
+        raise InputFileError(path, "cannot decode depth image (unsupported format or corrupt file)")
+    if raw.ndim == 3:
+        if raw.shape[2] >= 3 and not (np.array_equal(raw[:, :, 0], raw[:, :, 1]) and
+                                      np.array_equal(raw[:, :, 0], raw[:, :, 2])):
+            raise InputFileError(path, f"depth must be single-channel, got {raw.shape[2]} different channels")
+        raw = raw[:, :, 0]
+    if relative:
+        peak = float(np.iinfo(raw.dtype).max) if np.issubdtype(raw.dtype, np.integer) else 1.0
+        u = raw.astype(np.float32) / np.float32(peak)
+        return (RELATIVE_NEAR_M + u * (RELATIVE_FAR_M - RELATIVE_NEAR_M)).astype(np.float32)
+    if raw.dtype == np.uint8:
+        raise InputFileError(
+            path,
+            "8-bit depth cannot be metric (a uint16 PNG is expected); if it is relative depth "
+            "(larger = farther) pass --depth-relative",
+        )
+    if np.issubdtype(raw.dtype, np.floating):
+        return raw.astype(np.float32)  # float TIFF/EXR: metres
+    return (raw.astype(np.float64) / depth_scale).astype(np.float32)
+
+
+def validity_mask(depth_m: np.ndarray) -> np.ndarray:
+    """Boolean mask of valid depth pixels: finite and > 0."""
+    return np.isfinite(depth_m) & (depth_m > 0)
+
+
+def resolve_invalid(
+    depth_m: np.ndarray, mode: InvalidDepthMode = "fill", *, source: str | Path = "depth"
+) -> tuple[np.ndarray, np.ndarray]:
+    """Replace invalid depth pixels and return ``(depth_m, valid_mask)``.
+
+    Modes: ``fill`` copies the nearest valid pixel (exact Euclidean nearest neighbour); ``far`` sets invalid
+    pixels to the farthest valid depth (holes read as open water); ``fail`` raises.
+
+    Raises:
+        InputFileError: no valid pixel at all, or invalid pixels with ``mode="fail"``.
+    """
+    if mode not in ("fill", "far", "fail"):
+        raise ValueError(f"invalid_depth: expected 'fill', 'far' or 'fail', got {mode!r}")
+    valid = validity_mask(depth_m)
+    n_bad = int(valid.size - np.count_nonzero(valid))
+    if n_bad == 0:
+        return depth_m.astype(np.float32, copy=False), valid
+    if n_bad == valid.size:
+        raise InputFileError(source, "depth has no valid pixel (all 0, NaN, inf or negative)")
+    if mode == "fail":
+        raise InputFileError(
+            source,
+            f"{n_bad} invalid depth pixels ({100.0 * n_bad / valid.size:.1f} %: 0, NaN, inf or negative); "
+            "use --invalid-depth fill or far to repair them",
+        )
+    out = depth_m.astype(np.float32, copy=True)
+    if mode == "far":
+        out[~valid] = out[valid].max()
+        return out, valid
+    from scipy import ndimage
+
+    idx = ndimage.distance_transform_edt(~valid, return_distances=False, return_indices=True)
+    out = out[idx[0], idx[1]]
+    return out, valid
+
+
+def write_depth_png(path: str | Path, depth_m: np.ndarray, *, depth_scale: float = 1000.0) -> Path:
+    """Write metres as a uint16 PNG (value = round(metres * depth_scale), clipped to 0-65535; invalid -> 0)."""
+    path = Path(path)
+    d = np.where(validity_mask(depth_m), depth_m, 0.0).astype(np.float64) * depth_scale
+    raw = np.clip(np.rint(d), 0, 65535).astype(np.uint16)
+    with atomic_path(path) as tmp:
+        if not cv2.imwrite(str(tmp), raw):
+            raise ValueError(f"{path}: could not write depth PNG")
+    return path
+
+
+def nyu_mat_count(path: str | Path) -> int:
+    """Number of frames in a NYU-v2 labeled ``.mat`` file."""
+    with _open_nyu(path) as f:
+        return int(f["images"].shape[0])
+
+
+def read_nyu_mat(path: str | Path, index: int) -> tuple[np.ndarray, np.ndarray]:
+    """Frame ``index`` of a NYU-v2 labeled ``.mat`` as (uint8 RGB (H, W, 3), float32 metres (H, W)).
+
+    The file is HDF5 (MATLAB v7.3): ``images`` is (N, 3, W, H) uint8 and ``depths`` (N, W, H) float32
+    metres, i.e. both transposed with respect to the usual (H, W) layout.
+    """
+    with _open_nyu(path) as f:
+        n = f["images"].shape[0]
+        if not 0 <= index < n:
+            raise IndexError(f"index: expected 0 <= index < {n}, got {index}")
+        rgb = np.ascontiguousarray(np.asarray(f["images"][index]).transpose(2, 1, 0))
+        depth = np.ascontiguousarray(np.asarray(f["depths"][index]).T).astype(np.float32)
+    return rgb, depth
+
+
+def iter_nyu_mat(path: str | Path) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
+    """Yield (index, rgb_uint8, depth_m) for every frame of a NYU-v2 labeled ``.mat`` file."""
+    for i in range(nyu_mat_count(path)):
+        rgb, depth = read_nyu_mat(path, i)
+        yield i, rgb, depth
+
+
+def _open_nyu(path: str | Path):
+    import h5py
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputFileError(path, "file not found")
+    try:
+        f = h5py.File(path, "r")
+    except OSError:
+        raise InputFileError(
+            path, "not an HDF5 (MATLAB v7.3) file; expected NYU-v2 nyu_depth_v2_labeled.mat"
+        ) from None
+    if "images" not in f or "depths" not in f:
+        keys = sorted(f.keys())
+        f.close()
+        raise InputFileError(path, f"expected datasets 'images' and 'depths' (NYU-v2 labeled), found {keys}")
+    return f

@@ -1,0 +1,141 @@
+"""Reading and writing RGB images at the I/O edge.
+
+Inside murk every image is float32 RGB in [0, 1] with shape (H, W, 3). This module is the only place where
+uint8/uint16 and OpenCV's BGR order appear. Reading honours EXIF orientation, keeps 16-bit precision, and
+converts grayscale or RGBA inputs to RGB, recording what it did in :class:`ImageInfo.notes`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import cv2
+import numpy as np
+
+from murk._checks import check_rgb
+from murk.errors import InputFileError
+from murk.io.atomic import atomic_path
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".ppm", ".webp")
+"""File suffixes treated as images when scanning folders."""
+
+BitDepth = Literal[8, 16]
+
+
+@dataclass(frozen=True)
+class ImageInfo:
+    """What :func:`read_image` found in a file."""
+
+    path: str
+    bit_depth: BitDepth
+    source_mode: str
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+
+def _source_mode(path: Path) -> str:
+    """The colour mode stored in the file header (Pillow's names: RGB, L, LA, RGBA, P, I;16, ...)."""
+    try:
+        from PIL import Image
+
+        with Image.open(path) as im:  # reads the header only
+            return str(im.mode)
+    except Exception:  # Pillow missing or unable to parse: the note is informative only
+        return "unknown"
+
+
+def read_image(path: str | Path) -> tuple[np.ndarray, ImageInfo]:
+    """Decode an image file to an RGB array of dtype uint8 or uint16, shape (H, W, 3).
+
+    EXIF orientation is applied. Grayscale is replicated to three channels and an alpha channel is dropped;
+    both are recorded in the returned info's ``notes``.
+
+    Raises:
+        InputFileError: the file does not exist, cannot be decoded, or has an unsupported sample type.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputFileError(path, "file not found")
+    # Decode from bytes so that non-ASCII paths work on every platform.
+    data = np.fromfile(str(path), dtype=np.uint8)
+    bgr = cv2.imdecode(data, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH) if data.size else None
+    if bgr is None:
+        raise InputFileError(path, "cannot decode image (unsupported format or corrupt file)")
+    if bgr.dtype not in (np.uint8, np.uint16):
+        raise InputFileError(path, f"unsupported sample type {bgr.dtype}; expected 8- or 16-bit integer samples")
+    mode = _source_mode(path)
+    notes: list[str] = []
+    if mode in ("L", "I;16", "I;16B", "I;16L", "I", "1"):
+        notes.append(f"grayscale ({mode}) converted to RGB")
+    elif mode in ("LA", "RGBA", "PA"):
+        notes.append(f"alpha channel of {mode} image dropped")
+    info = ImageInfo(str(path), 16 if bgr.dtype == np.uint16 else 8, mode, tuple(notes))
+    return np.ascontiguousarray(bgr[:, :, ::-1]), info
+
+
+def to_float(image: np.ndarray) -> np.ndarray:
+    """Convert a uint8 or uint16 RGB array to float32 in [0, 1] (scale from the dtype, never from the data)."""
+    if image.dtype == np.uint8:
+        return image.astype(np.float32) / np.float32(255.0)
+    if image.dtype == np.uint16:
+        return image.astype(np.float32) / np.float32(65535.0)
+    raise TypeError(f"image: expected dtype uint8 or uint16, got {image.dtype}")
+
+
+def to_uint(image: np.ndarray, bits: BitDepth = 8) -> np.ndarray:
+    """Convert a float image in [0, 1] to uint8 (bits=8) or uint16 (bits=16), clipping and rounding."""
+    if bits not in (8, 16):
+        raise ValueError(f"bits: expected 8 or 16, got {bits!r}")
+    peak = 255.0 if bits == 8 else 65535.0
+    out = np.clip(image, 0.0, 1.0) * np.float32(peak) + np.float32(0.5)
+    return out.astype(np.uint8 if bits == 8 else np.uint16)
+
+
+def read_rgb(path: str | Path) -> np.ndarray:
+    """Read an image file as float32 RGB in [0, 1], shape (H, W, 3). See :func:`read_image`."""
+    image, _ = read_image(path)
+    return to_float(image)
+
+
+def write_rgb(path: str | Path, image: np.ndarray, *, bits: BitDepth = 8, jpeg_quality: int = 95) -> Path:
+    """Write a float RGB image in [0, 1] atomically; the format follows the suffix (PNG, JPEG, TIFF, ...).
+
+    ``bits=16`` is only possible for PNG and TIFF.
+    """
+    path = Path(path)
+    image = check_rgb("image", image)
+    suffix = path.suffix.lower()
+    if bits == 16 and suffix not in (".png", ".tif", ".tiff"):
+        raise ValueError(f"bits: 16-bit output needs a .png or .tif path, got {path.name}")
+    write_uint(path, to_uint(image, bits), jpeg_quality=jpeg_quality)
+    return path
+
+
+def write_uint(path: str | Path, image: np.ndarray, *, jpeg_quality: int = 95) -> Path:
+    """Write a uint8/uint16 RGB (H, W, 3) or single-channel (H, W) array atomically."""
+    path = Path(path)
+    if image.ndim == 3:
+        image = np.ascontiguousarray(image[:, :, ::-1])
+    params: list[int] = []
+    if path.suffix.lower() in (".jpg", ".jpeg"):
+        params = [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)]
+    with atomic_path(path) as tmp:
+        ok = cv2.imwrite(str(tmp), image, params)
+        if not ok:
+            with contextlib.suppress(FileNotFoundError):
+                tmp.unlink()
+            raise ValueError(f"{path}: OpenCV could not write this format/dtype ({image.dtype}, {image.shape})")
+    return path
+
+
+def list_images(folder: str | Path, *, recursive: bool = False) -> list[Path]:
+    """Image files in ``folder`` (sorted), by suffix; hidden files and murk temporaries are skipped."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputFileError(folder, "not a folder")
+    it = folder.rglob("*") if recursive else folder.iterdir()
+    return sorted(
+        p for p in it if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".")
+    )

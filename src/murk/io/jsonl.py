@@ -1,0 +1,57 @@
+"""JSON-lines files: append one record per line, read back tolerating a torn last line.
+
+Appending a single line with one ``write`` call is the crash-safe way to grow a log; a process killed in the
+middle can leave only a partial last line, which :func:`read_jsonl` skips.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from murk.io.atomic import write_text_atomic
+
+
+def dumps(record: dict[str, Any]) -> str:
+    """Serialise one record as a single JSON line (sorted keys, no NaN)."""
+    return json.dumps(record, sort_keys=True, allow_nan=False, separators=(",", ":"))
+
+
+def append_jsonl(path: str | Path, records: Iterable[dict[str, Any]]) -> None:
+    """Append ``records`` to ``path`` in one write, flushed and fsynced."""
+    text = "".join(dumps(r) + "\n" for r in records)
+    if not text:
+        return
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a", encoding="utf-8") as f:
+        f.write(text)
+        f.flush()
+        os.fsync(f.fileno())
+
+
+def read_jsonl(path: str | Path) -> list[dict[str, Any]]:
+    """Read every complete record of ``path`` ([] if the file does not exist); a torn last line is skipped."""
+    path = Path(path)
+    if not path.exists():
+        return []
+    out = []
+    lines = path.read_text(encoding="utf-8").splitlines()
+    for i, line in enumerate(lines):
+        if not line.strip():
+            continue
+        try:
+            out.append(json.loads(line))
+        except json.JSONDecodeError:
+            if i == len(lines) - 1:
+                break  # torn last line of a killed run
+            raise ValueError(f"{path}: line {i + 1} is not valid JSON") from None
+    return out
+
+
+def write_jsonl(path: str | Path, records: Iterable[dict[str, Any]]) -> None:
+    """Replace ``path`` atomically with ``records``, one per line."""
+    write_text_atomic(path, "".join(dumps(r) + "\n" for r in records))

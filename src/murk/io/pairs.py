@@ -1,0 +1,152 @@
+"""Finding RGB-D pairs: a folder (``rgb/`` or ``color/`` beside ``depth/``), a list file, or a NYU ``.mat``.
+
+A pair is described by an :class:`RGBDSource` (paths only, cheap to pickle to worker processes) and loaded
+by :func:`load_pair`, which applies the depth options and checks that sizes agree.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from murk.errors import InputFileError
+from murk.io.depth import InvalidDepthMode, nyu_mat_count, read_depth, read_nyu_mat, resolve_invalid
+from murk.io.images import IMAGE_SUFFIXES, read_image, to_float
+
+DEPTH_SUFFIXES = (*IMAGE_SUFFIXES, ".npy")
+
+
+@dataclass(frozen=True)
+class RGBDSource:
+    """Where one clean RGB-D pair comes from. ``mat_index`` is set for frames of a NYU ``.mat`` file."""
+
+    stem: str
+    rgb_path: str
+    depth_path: str
+    mat_index: int | None = None
+
+
+@dataclass(frozen=True)
+class DepthOptions:
+    """How to interpret depth files (see :mod:`murk.io.depth`)."""
+
+    depth_scale: float = 1000.0
+    relative: bool = False
+    invalid: InvalidDepthMode = "fill"
+    crop_px: int = 0
+
+
+@dataclass(frozen=True)
+class Problem:
+    """An input that could not be paired or loaded; becomes a line of ``errors.jsonl``."""
+
+    path: str
+    error: str
+
+
+def discover(path: str | Path) -> tuple[list[RGBDSource], list[Problem]]:
+    """Find pairs in a folder with ``rgb/`` (or ``color/``) and ``depth/`` matched by file stem, or in a
+    NYU-v2 ``.mat`` file. Unmatched files are returned as problems, not raised.
+
+    Raises:
+        InputFileError: the path does not exist or has neither layout.
+    """
+    path = Path(path)
+    if path.is_file() and path.suffix.lower() == ".mat":
+        return [
+            RGBDSource(f"{path.stem}_{i:05d}", str(path), str(path), i) for i in range(nyu_mat_count(path))
+        ], []
+    if not path.exists():
+        raise InputFileError(path, "not found")
+    if not path.is_dir():
+        raise InputFileError(path, "expected a folder with rgb/ and depth/, a --list file, or a NYU .mat file")
+    rgb_dir = next((path / n for n in ("rgb", "color") if (path / n).is_dir()), None)
+    depth_dir = path / "depth"
+    if rgb_dir is None or not depth_dir.is_dir():
+        raise InputFileError(path, "expected subfolders rgb/ (or color/) and depth/ with files matched by stem")
+    rgbs = _by_stem(rgb_dir, IMAGE_SUFFIXES)
+    depths = _by_stem(depth_dir, DEPTH_SUFFIXES)
+    if not rgbs:
+        raise InputFileError(rgb_dir, "no images found")
+    sources, problems = [], []
+    for stem in sorted(rgbs):
+        if stem in depths:
+            sources.append(RGBDSource(stem, str(rgbs[stem]), str(depths[stem])))
+        else:
+            problems.append(Problem(str(rgbs[stem]), f"no depth file with stem '{stem}' in {depth_dir}"))
+    for stem in sorted(set(depths) - set(rgbs)):
+        problems.append(Problem(str(depths[stem]), f"no RGB image with stem '{stem}' in {rgb_dir}"))
+    return sources, problems
+
+
+def read_list(list_file: str | Path) -> list[RGBDSource]:
+    """Read a pair list: one ``rgb_path depth_path`` per line (``#`` comments; relative paths are resolved
+    against the list file's folder). Stems come from the RGB file names; duplicates get a numeric suffix.
+
+    Raises:
+        InputFileError: missing file, or a line without exactly two fields (the line number is named).
+    """
+    list_file = Path(list_file)
+    if not list_file.is_file():
+        raise InputFileError(list_file, "list file not found")
+    sources: list[RGBDSource] = []
+    seen: dict[str, int] = {}
+    for n, line in enumerate(list_file.read_text(encoding="utf-8").splitlines(), start=1):
+        line = line.split("#", 1)[0].strip()
+        if not line:
+            continue
+        fields = line.split()
+        if len(fields) != 2:
+            raise InputFileError(list_file, f"line {n}: expected 'rgb_path depth_path', got {len(fields)} fields")
+        rgb, depth = (Path(f) if Path(f).is_absolute() else list_file.parent / f for f in fields)
+        stem = rgb.stem
+        if stem in seen:
+            seen[stem] += 1
+            stem = f"{stem}_{seen[stem]}"
+        else:
+            seen[stem] = 0
+        sources.append(RGBDSource(stem, str(rgb), str(depth)))
+    if not sources:
+        raise InputFileError(list_file, "no pairs listed")
+    return sources
+
+
+def load_pair(source: RGBDSource, options: DepthOptions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Load a pair as (clean float32 RGB in [0, 1], depth float32 metres with invalid pixels resolved,
+    validity mask). ``crop_px`` trims that many pixels from every border of both.
+
+    Raises:
+        InputFileError: unreadable files, a size mismatch (both files named), a crop larger than the image,
+            or invalid depth under ``invalid="fail"``.
+    """
+    if source.mat_index is not None:
+        rgb_u, depth = read_nyu_mat(source.rgb_path, source.mat_index)
+        where = f"{source.rgb_path}[{source.mat_index}]"
+    else:
+        rgb_u, _ = read_image(source.rgb_path)
+        depth = read_depth(source.depth_path, depth_scale=options.depth_scale, relative=options.relative)
+        where = source.depth_path
+    if rgb_u.shape[:2] != depth.shape:
+        raise InputFileError(
+            source.rgb_path,
+            f"size {rgb_u.shape[1]}x{rgb_u.shape[0]} does not match depth {source.depth_path} "
+            f"({depth.shape[1]}x{depth.shape[0]})",
+        )
+    c = options.crop_px
+    if c:
+        h, w = depth.shape
+        if 2 * c >= min(h, w):
+            raise InputFileError(source.rgb_path, f"--crop {c} leaves nothing of a {w}x{h} image")
+        rgb_u, depth = rgb_u[c : h - c, c : w - c], depth[c : h - c, c : w - c]
+    depth, valid = resolve_invalid(depth, options.invalid, source=where)
+    return to_float(np.ascontiguousarray(rgb_u)), np.ascontiguousarray(depth), np.ascontiguousarray(valid)
+
+
+def _by_stem(folder: Path, suffixes: tuple[str, ...]) -> dict[str, Path]:
+    out: dict[str, Path] = {}
+    for p in sorted(folder.iterdir()):
+        if p.is_file() and p.suffix.lower() in suffixes and not p.name.startswith("."):
+            out.setdefault(p.stem, p)
+    return out
