@@ -37,7 +37,7 @@ def test_npy_metres_and_bad_shapes(tmp_path: Path) -> None:
 
 def test_8bit_depth_needs_relative_flag(tmp_path: Path) -> None:
     cv2.imwrite(str(tmp_path / "r.png"), np.array([[0, 255]], np.uint8))
-    with pytest.raises(InputFileError, match="8-bit depth cannot be metric.*--depth-relative"):
+    with pytest.raises(InputFileError, match=r"8-bit depth cannot be metric.*--depth-relative"):
         read_depth(tmp_path / "r.png")
     d = read_depth(tmp_path / "r.png", relative=True)
     np.testing.assert_allclose(d, [[RELATIVE_NEAR_M, RELATIVE_FAR_M]], rtol=1e-6)

@@ -60,7 +60,7 @@ def test_exif_orientation_is_honoured(tmp_path: Path) -> None:
 
 
 def test_tiff_16_bit(tmp_path: Path) -> None:
-    arr = (np.arange(24, dtype=np.uint16).reshape(2, 4, 3) * 2000)
+    arr = np.arange(24, dtype=np.uint16).reshape(2, 4, 3) * 2000
     cv2.imwrite(str(tmp_path / "t.tif"), arr[..., ::-1])
     raw, info = read_image(tmp_path / "t.tif")
     assert info.bit_depth == 16 and np.array_equal(raw, arr)

@@ -35,8 +35,6 @@ def _root(
     """murk: realistic underwater data synthesis, restoration and metrics for underwater robots."""
 
 
-
-
 def main() -> None:
     """Console-script entry point."""
     app(prog_name="murk")

@@ -128,8 +128,10 @@ def create(spec: str, **options: Any) -> Restorer:
     names = [n.strip() for n in spec.split("+")]
     unknown = [n for n in names if n not in _REGISTRY]
     if unknown or not all(names):
-        raise ValueError(f"method: unknown {', '.join(repr(n) for n in unknown) or repr(spec)}; "
-                         f"available: {', '.join(sorted(_REGISTRY))} (chain them with '+')")
+        raise ValueError(
+            f"method: unknown {', '.join(repr(n) for n in unknown) or repr(spec)}; "
+            f"available: {', '.join(sorted(_REGISTRY))} (chain them with '+')"
+        )
     stages = [_REGISTRY[n](**options) for n in names]
     return stages[0] if len(stages) == 1 else Chain(stages)
 

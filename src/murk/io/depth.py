@@ -63,8 +63,9 @@ def read_depth(path: str | Path, *, depth_scale: float = 1000.0, relative: bool 
     if raw is None:
         raise InputFileError(path, "cannot decode depth image (unsupported format or corrupt file)")
     if raw.ndim == 3:
-        if raw.shape[2] >= 3 and not (np.array_equal(raw[:, :, 0], raw[:, :, 1]) and
-                                      np.array_equal(raw[:, :, 0], raw[:, :, 2])):
+        if raw.shape[2] >= 3 and not (
+            np.array_equal(raw[:, :, 0], raw[:, :, 1]) and np.array_equal(raw[:, :, 0], raw[:, :, 2])
+        ):
             raise InputFileError(path, f"depth must be single-channel, got {raw.shape[2]} different channels")
         raw = raw[:, :, 0]
     if relative:
@@ -171,9 +172,7 @@ def _open_nyu(path: str | Path):
     try:
         f = h5py.File(path, "r")
     except OSError:
-        raise InputFileError(
-            path, "not an HDF5 (MATLAB v7.3) file; expected NYU-v2 nyu_depth_v2_labeled.mat"
-        ) from None
+        raise InputFileError(path, "not an HDF5 (MATLAB v7.3) file; expected NYU-v2 nyu_depth_v2_labeled.mat") from None
     if "images" not in f or "depths" not in f:
         keys = sorted(f.keys())
         f.close()

@@ -55,9 +55,7 @@ def discover(path: str | Path) -> tuple[list[RGBDSource], list[Problem]]:
     """
     path = Path(path)
     if path.is_file() and path.suffix.lower() == ".mat":
-        return [
-            RGBDSource(f"{path.stem}_{i:05d}", str(path), str(path), i) for i in range(nyu_mat_count(path))
-        ], []
+        return [RGBDSource(f"{path.stem}_{i:05d}", str(path), str(path), i) for i in range(nyu_mat_count(path))], []
     if not path.exists():
         raise InputFileError(path, "not found")
     if not path.is_dir():
