@@ -40,7 +40,7 @@ class MurkGroup(TyperGroup):
 
 def print_error(message: str) -> None:
     """Print ``error: message`` on stderr (one line, no traceback)."""
-    Console(stderr=True, highlight=False).print(f"[bold red]error:[/] {escape(message)}")
+    Console(stderr=True, highlight=False).print(f"[bold red]error:[/] {escape(message)}", soft_wrap=True)
 
 
 def make_console(quiet: bool = False) -> Console:

@@ -7,6 +7,8 @@ from typing import Annotated
 import typer
 
 from murk._version import __version__
+from murk.cli import snow as _snow
+from murk.cli import synth as _synth
 from murk.cli._common import MurkGroup
 
 app = typer.Typer(
@@ -33,6 +35,10 @@ def _root(
     ] = False,
 ) -> None:
     """murk: realistic underwater data synthesis, restoration and metrics for underwater robots."""
+
+
+app.command("synth")(_synth.synth)
+app.add_typer(_snow.app, name="snow")
 
 
 def main() -> None:

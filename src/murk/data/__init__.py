@@ -4,6 +4,8 @@
   and metric checks.
 - ``rgbd/``: 3 clean RGB-D pairs (``rgb/``, ``depth/`` as uint16 millimetre PNGs), the ``murk synth`` input
   layout.
+- ``snow/default_bank.npz``: the default marine-snow particle bank, cut from the two shipped frames with real
+  suspended particles (``underwater/ufen_gan``); how it was made is in ``DATA_LICENSES.md``.
 """
 
 from __future__ import annotations
@@ -31,3 +33,8 @@ def sample_underwater_images() -> list[Path]:
 def sample_rgbd_dir() -> Path:
     """Folder with ``rgb/`` and ``depth/`` (millimetre PNG) clean RGB-D pairs: a ``murk synth`` input."""
     return _HERE / "rgbd"
+
+
+def default_snow_bank() -> Path:
+    """Path of the default marine-snow particle bank shipped with murk."""
+    return _HERE / "snow" / "default_bank.npz"

@@ -99,7 +99,9 @@ def read_rgb(path: str | Path) -> np.ndarray:
     return to_float(image)
 
 
-def write_rgb(path: str | Path, image: np.ndarray, *, bits: BitDepth = 8, jpeg_quality: int = 95) -> Path:
+def write_rgb(
+    path: str | Path, image: np.ndarray, *, bits: BitDepth = 8, jpeg_quality: int = 95, png_compression: int = 3
+) -> Path:
     """Write a float RGB image in [0, 1] atomically; the format follows the suffix (PNG, JPEG, TIFF, ...).
 
     ``bits=16`` is only possible for PNG and TIFF.
@@ -109,18 +111,23 @@ def write_rgb(path: str | Path, image: np.ndarray, *, bits: BitDepth = 8, jpeg_q
     suffix = path.suffix.lower()
     if bits == 16 and suffix not in (".png", ".tif", ".tiff"):
         raise ValueError(f"bits: 16-bit output needs a .png or .tif path, got {path.name}")
-    write_uint(path, to_uint(image, bits), jpeg_quality=jpeg_quality)
+    write_uint(path, to_uint(image, bits), jpeg_quality=jpeg_quality, png_compression=png_compression)
     return path
 
 
-def write_uint(path: str | Path, image: np.ndarray, *, jpeg_quality: int = 95) -> Path:
-    """Write a uint8/uint16 RGB (H, W, 3) or single-channel (H, W) array atomically."""
+def write_uint(path: str | Path, image: np.ndarray, *, jpeg_quality: int = 95, png_compression: int = 3) -> Path:
+    """Write a uint8/uint16 RGB (H, W, 3) or single-channel (H, W) array atomically.
+
+    ``jpeg_quality`` (0-100) applies to JPEG, ``png_compression`` (zlib level 0-9) to PNG.
+    """
     path = Path(path)
     if image.ndim == 3:
         image = np.ascontiguousarray(image[:, :, ::-1])
     params: list[int] = []
     if path.suffix.lower() in (".jpg", ".jpeg"):
         params = [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)]
+    elif path.suffix.lower() == ".png":
+        params = [cv2.IMWRITE_PNG_COMPRESSION, int(png_compression)]
     with atomic_path(path) as tmp:
         ok = cv2.imwrite(str(tmp), image, params)
         if not ok:

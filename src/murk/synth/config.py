@@ -1,0 +1,180 @@
+"""Configuration of a synthesis run: frozen dataclasses whose defaults are the paper's settings.
+
+Every field can be set in a YAML file (``murk synth --config FILE.yaml``) and most from the command line.
+The resolved configuration is written back into every output folder with the seed and the murk version.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+from murk._checks import check_interval, check_positive, check_range
+from murk.io.depth import InvalidDepthMode
+from murk.physics.forward_scatter import FsMode
+from murk.physics.jerlov import WATER_TYPES, parse_water_types
+from murk.physics.medium import DistanceMode
+
+Stage = Literal["basic", "forward_scatter", "marine_snow"]
+STAGES: tuple[str, ...] = ("basic", "forward_scatter", "marine_snow")
+"""All stages in the order they are applied."""
+
+
+def parse_stages(spec: str | tuple[str, ...] | list[str]) -> tuple[str, ...]:
+    """Parse ``"basic,forward_scatter"`` (any order) into stage names in application order."""
+    items = spec.split(",") if isinstance(spec, str) else list(spec)
+    names = [s.strip() for s in items if s.strip()]
+    unknown = [n for n in names if n not in STAGES]
+    if unknown or not names:
+        raise ValueError(f"stages: expected a comma list of {','.join(STAGES)}, got {spec!r}")
+    return tuple(s for s in STAGES if s in names)
+
+
+@dataclass(frozen=True)
+class MediumConfig:
+    """Eq. (1): water types, line-of-sight distances and ambient light (spec: docs/spec/synthesis.md)."""
+
+    water_types: tuple[str, ...] = WATER_TYPES
+    """Types drawn uniformly per variant (default: all ten Jerlov types)."""
+    distance_mode: DistanceMode = "normalized"
+    """``normalized``: depth / max(depth) mapped to [near_m, H]; ``metric``: true depth clipped to
+    [near_m, max_range_m]."""
+    near_m: float = 0.3
+    max_range_m: float = 15.0
+    far_margin_m: float = 0.5
+    """The far distance H is drawn from U[near_m + far_margin_m, H_max(type)]."""
+    visibility_floor: float = 0.02
+    """H_max(type) = min(max_range_m, -ln(floor) / min_c beta_c): beyond it the scene is gone."""
+    vertical_depth_m: tuple[float, float] = (3.0, 5.0)
+    """D ~ U[a, b]: depth below the surface that sets the ambient light B_inf = scale * N ** D."""
+    ambient_scale: float = 1.5
+    ambient_override: tuple[float, float, float] | None = None
+    """A fixed B_inf (R, G, B) instead of the sampled one."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "water_types", parse_water_types(self.water_types))
+        if self.distance_mode not in ("normalized", "metric"):
+            raise ValueError(f"distance_mode: expected 'normalized' or 'metric', got {self.distance_mode!r}")
+        check_positive("near_m", self.near_m)
+        check_range("max_range_m", self.max_range_m, self.near_m, 1e4)
+        check_positive("far_margin_m", self.far_margin_m)
+        if self.near_m + self.far_margin_m > self.max_range_m:
+            raise ValueError(
+                f"far_margin_m: near_m + far_margin_m must be <= max_range_m, got "
+                f"{self.near_m} + {self.far_margin_m} > {self.max_range_m}"
+            )
+        check_range("visibility_floor", self.visibility_floor, 1e-9, 1 - 1e-9)
+        check_interval("vertical_depth_m", self.vertical_depth_m, 0.0, 1e4)
+        check_positive("ambient_scale", self.ambient_scale)
+        if self.ambient_override is not None:
+            for c in self.ambient_override:
+                check_range("ambient_override", c, 0.0, 10.0)
+
+
+@dataclass(frozen=True)
+class ForwardScatterConfig:
+    """Eqs. (2)-(6): PSF width sigma(d) = sigma0 + k d and the approximation's blend weight."""
+
+    mode: FsMode = "approx"
+    """``approx``: the paper's Eqs. (5)-(6); ``exact``: the spatially varying blur of Eq. (4)."""
+    sigma0_px: float = 0.5
+    k_px_per_m: float = 0.15
+    gamma_per_m: float = 0.2
+    exact_step_px: float = 0.1
+    """Spacing of the sigma grid of the exact mode (smaller = closer to Eq. (4), slower)."""
+
+    def __post_init__(self) -> None:
+        if self.mode not in ("approx", "exact"):
+            raise ValueError(f"mode: expected 'approx' or 'exact', got {self.mode!r}")
+        check_positive("sigma0_px", self.sigma0_px)
+        check_positive("k_px_per_m", self.k_px_per_m, allow_zero=True)
+        check_positive("gamma_per_m", self.gamma_per_m)
+        check_range("exact_step_px", self.exact_step_px, 1e-3, 10.0)
+
+
+@dataclass(frozen=True)
+class SnowConfig:
+    """Eqs. (7)-(8): marine snow composited from a bank of particles cut from real footage."""
+
+    bank: str | None = None
+    """Path of a particle bank (``murk snow extract``); None = the default bank shipped with murk."""
+    n_particles: tuple[int, int] = (1000, 1600)
+    """N_p ~ U{a..b} particles per image (drawn with replacement from the bank)."""
+    scale: tuple[float, float] = (0.3, 0.6)
+    """Each particle is resized by s ~ U[a, b]."""
+    rho_px: tuple[float, float] = (0.2, 1.0)
+    """Gaussian smoothing of the particle mask, rho ~ U[a, b] pixels (Eq. 8)."""
+    reference_width_px: int = 0
+    """If > 0, particle sizes are multiplied by (image width / this), so snow keeps its look across
+    resolutions; 0 = sizes in the bank's pixels, as in the paper."""
+
+    def __post_init__(self) -> None:
+        lo, hi = self.n_particles
+        if isinstance(lo, bool) or isinstance(hi, bool) or not (0 <= lo <= hi <= 1_000_000):
+            raise ValueError(f"n_particles: expected 0 <= min <= max <= 1e6, got {self.n_particles}")
+        check_interval("scale", self.scale, 1e-3, 100.0)
+        check_interval("rho_px", self.rho_px, 1e-3, 100.0)
+        if self.reference_width_px < 0:
+            raise ValueError(f"reference_width_px: expected >= 0, got {self.reference_width_px}")
+
+
+@dataclass(frozen=True)
+class InputConfig:
+    """How clean RGB-D inputs are read and prepared."""
+
+    depth_scale: float = 1000.0
+    """Raw units per metre of integer depth images (1000 = mm; TUM 5000; KITTI 256)."""
+    depth_relative: bool = False
+    """Accept 8-bit relative depth (larger = farther); needs distance_mode 'normalized'."""
+    invalid_depth: InvalidDepthMode = "fill"
+    crop_px: int = 0
+    """Pixels trimmed from every border (NYU-v2's white frame: 8-10)."""
+    size: tuple[int, int] | None = None
+    """Output (width, height): centre-crop to that aspect ratio, then resize."""
+
+    def __post_init__(self) -> None:
+        check_positive("depth_scale", self.depth_scale)
+        if self.invalid_depth not in ("fill", "far", "fail"):
+            raise ValueError(f"invalid_depth: expected 'fill', 'far' or 'fail', got {self.invalid_depth!r}")
+        if self.crop_px < 0:
+            raise ValueError(f"crop_px: expected >= 0, got {self.crop_px}")
+        if self.size is not None and (len(self.size) != 2 or min(self.size) < 8 or max(self.size) > 16384):
+            raise ValueError(f"size: expected (width, height) with 8 <= each <= 16384, got {self.size}")
+
+
+@dataclass(frozen=True)
+class OutputConfig:
+    """What is written besides the degraded images."""
+
+    save_intermediate: bool = False
+    """Also write basic/ (Eq. 1 result) and transmission/ (T as an RGB image)."""
+    png_compression: int = 3
+    """zlib level 0-9 of the PNG files (3 = a good speed/size balance)."""
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.png_compression <= 9:
+            raise ValueError(f"png_compression: expected 0-9, got {self.png_compression}")
+
+
+@dataclass(frozen=True)
+class SynthConfig:
+    """A whole synthesis run. Defaults reproduce the paper (8 variants, all ten water types)."""
+
+    stages: tuple[str, ...] = ("basic", "forward_scatter")
+    variants: int = 8
+    seed: int = 0
+    workers: int = 1
+    medium: MediumConfig = field(default_factory=MediumConfig)
+    forward_scatter: ForwardScatterConfig = field(default_factory=ForwardScatterConfig)
+    marine_snow: SnowConfig = field(default_factory=SnowConfig)
+    input: InputConfig = field(default_factory=InputConfig)
+    output: OutputConfig = field(default_factory=OutputConfig)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "stages", parse_stages(self.stages))
+        if self.variants < 1:
+            raise ValueError(f"variants: expected >= 1, got {self.variants}")
+        if self.workers < 1:
+            raise ValueError(f"workers: expected >= 1, got {self.workers}")
+        if self.input.depth_relative and self.medium.distance_mode == "metric":
+            raise ValueError("depth_relative: relative depth has no metric scale; use distance_mode 'normalized'")

@@ -1,0 +1,126 @@
+"""Sampled parameters of one synthetic variant, and the sampling step (randomness lives only here).
+
+``params = sample_variant(rng, config)`` draws everything random; ``render(clean, depth, params)`` in
+:mod:`murk.synth.pipeline` is then deterministic. A variant's parameters are JSON-serialisable (they form its
+``manifest.jsonl`` line) and :func:`variant_from_dict` rebuilds them, so any variant can be re-rendered
+exactly from its manifest line.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from murk._config import from_dict, to_dict
+from murk.physics.jerlov import beta_per_m, visible_range_m
+from murk.physics.medium import ambient_light
+from murk.rng import RngLike, as_generator
+from murk.snow.composite import SnowParams
+from murk.synth.config import ForwardScatterConfig, MediumConfig, SynthConfig
+
+
+@dataclass(frozen=True)
+class MediumParams:
+    """Eq. (1) parameters of one variant."""
+
+    water_type: str
+    beta_per_m: tuple[float, float, float]
+    b_inf: tuple[float, float, float]
+    vertical_depth_m: float | None
+    """D of B_inf = scale * N ** D (None when B_inf was fixed by ambient_override)."""
+    distance_mode: str
+    near_m: float
+    far_m: float
+    """H: the farthest line-of-sight distance of the scene (normalized mode) or the clip limit (metric)."""
+
+
+@dataclass(frozen=True)
+class ForwardScatterParams:
+    """Eqs. (2)-(6) parameters of one variant."""
+
+    mode: str
+    sigma0_px: float
+    k_px_per_m: float
+    gamma_per_m: float
+    exact_step_px: float
+
+
+@dataclass(frozen=True)
+class VariantParams:
+    """Everything that defines one synthetic variant. ``stages`` lists what is applied; the medium is always
+    present because its distance range also drives forward scattering."""
+
+    stages: tuple[str, ...]
+    medium: MediumParams | None
+    forward_scatter: ForwardScatterParams | None
+    snow: SnowParams | None = None
+
+
+def sample_medium(rng: RngLike, config: MediumConfig) -> MediumParams:
+    """Draw the water type (uniformly from the enabled ones), the far distance H and the ambient light."""
+    g = as_generator(rng)
+    wt = config.water_types[int(g.integers(len(config.water_types)))]
+    beta = beta_per_m(wt)
+    if config.distance_mode == "normalized":
+        h_max = visible_range_m(wt, floor=config.visibility_floor, cap_m=config.max_range_m)
+        h_lo = config.near_m + config.far_margin_m
+        far = float(g.uniform(h_lo, max(h_lo, h_max)))
+    else:
+        far = float(config.max_range_m)
+    if config.ambient_override is not None:
+        depth_d, b_inf = None, np.asarray(config.ambient_override, np.float64)
+    else:
+        depth_d = float(g.uniform(*config.vertical_depth_m))
+        b_inf = ambient_light(wt, depth_d, scale=config.ambient_scale)
+    return MediumParams(
+        water_type=wt,
+        beta_per_m=tuple(float(b) for b in beta),
+        b_inf=tuple(float(b) for b in b_inf),
+        vertical_depth_m=depth_d,
+        distance_mode=config.distance_mode,
+        near_m=float(config.near_m),
+        far_m=far,
+    )
+
+
+def forward_scatter_params(config: ForwardScatterConfig) -> ForwardScatterParams:
+    """The forward-scattering parameters (fixed by the config; nothing random in the paper's setting)."""
+    return ForwardScatterParams(
+        mode=config.mode,
+        sigma0_px=float(config.sigma0_px),
+        k_px_per_m=float(config.k_px_per_m),
+        gamma_per_m=float(config.gamma_per_m),
+        exact_step_px=float(config.exact_step_px),
+    )
+
+
+def sample_variant(rng: RngLike, config: SynthConfig, *, snow_sampler: Any = None) -> VariantParams:
+    """Draw the parameters of one variant for the enabled stages.
+
+    The medium is always sampled (its distance range also drives forward scattering and is recorded), even
+    when the ``basic`` stage is off, so that turning a stage on or off never changes the other stages' draws.
+    ``snow_sampler(rng) -> SnowParams`` is supplied by the marine-snow stage when it is enabled.
+    """
+    g = as_generator(rng)
+    medium = sample_medium(g, config.medium)
+    fs = forward_scatter_params(config.forward_scatter) if "forward_scatter" in config.stages else None
+    snow = None
+    if "marine_snow" in config.stages:
+        if snow_sampler is None:
+            raise ValueError("stages: 'marine_snow' needs a particle bank (snow_sampler) to sample from")
+        snow = snow_sampler(g)
+    return VariantParams(stages=tuple(config.stages), medium=medium, forward_scatter=fs, snow=snow)
+
+
+def variant_to_dict(params: VariantParams) -> dict[str, Any]:
+    """Plain-dict form of ``params`` (the parameter part of a manifest line)."""
+    return to_dict(params)
+
+
+def variant_from_dict(data: dict[str, Any]) -> VariantParams:
+    """Rebuild :class:`VariantParams` from :func:`variant_to_dict` output (extra manifest keys are ignored)."""
+    names = {f.name for f in dataclasses.fields(VariantParams)}
+    return from_dict(VariantParams, {k: v for k, v in data.items() if k in names}, where="manifest")

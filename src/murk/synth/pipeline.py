@@ -1,0 +1,185 @@
+"""The staged synthesis of one variant (deterministic given its parameters), numpy and batched torch.
+
+Stages, in order (Fig. 2 of the paper):
+
+1. ``basic``: absorption + backscatter, Eq. (1) (:mod:`murk.physics.medium`);
+2. ``forward_scatter``: depth-dependent blur, Eqs. (2)-(6) (:mod:`murk.physics.forward_scatter`);
+3. ``marine_snow``: real particles composited as a foreground layer, Eqs. (7)-(8) (:mod:`murk.snow`).
+
+The result is clipped to [0, 1] once, at the end.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+
+from murk._checks import check_map, check_rgb
+from murk.errors import ShapeError
+from murk.physics.forward_scatter import forward_scatter, forward_scatter_torch
+from murk.physics.medium import apply_medium, apply_medium_torch, distance_map, distance_map_torch
+from murk.synth.params import VariantParams
+
+
+@dataclass(frozen=True)
+class SynthResult:
+    """One rendered variant. Optional fields are None unless asked for (or unless the stage ran)."""
+
+    degraded: np.ndarray
+    """Final image, float32 (H, W, 3) in [0, 1]."""
+    dist_m: np.ndarray
+    """Line-of-sight distance used, float32 (H, W) metres."""
+    sigma_max_px: float | None
+    """Largest PSF sigma of this image (forward scattering on), pixels."""
+    basic: np.ndarray | None = None
+    """Eq. (1) result, clipped to [0, 1] (``keep_intermediate``)."""
+    transmission: np.ndarray | None = None
+    """T of Eq. (1), (H, W, 3) (``keep_intermediate``)."""
+    snow_alpha: np.ndarray | None = None
+    """a_ms of Eq. (8), (H, W) in [0, 1] (marine snow on)."""
+
+
+def render(
+    clean: np.ndarray,
+    depth_m: np.ndarray,
+    params: VariantParams,
+    *,
+    bank: Any = None,
+    keep_intermediate: bool = False,
+) -> SynthResult:
+    """Render one synthetic underwater variant of a clean RGB-D pair.
+
+    Args:
+        clean: float32 RGB in [0, 1], (H, W, 3).
+        depth_m: depth in metres, (H, W), valid everywhere (see :func:`murk.io.resolve_invalid`).
+        params: from :func:`murk.synth.params.sample_variant` (or a manifest line).
+        bank: the particle bank (:class:`murk.snow.bank.ParticleBank`) when ``params.snow`` is set.
+        keep_intermediate: also return the Eq. (1) image and the transmission.
+
+    Raises:
+        ShapeError: ``clean`` and ``depth_m`` sizes differ.
+        ValueError: depth not positive and finite everywhere, or snow requested without a bank.
+    """
+    clean = check_rgb("clean", clean)
+    depth_m = check_map("depth_m", depth_m, clean.shape[:2])
+    if not (np.isfinite(depth_m).all() and depth_m.min() > 0):
+        raise ValueError("depth_m: expected finite depth > 0 everywhere (resolve invalid pixels first)")
+    m = params.medium
+    if m is None:
+        raise ValueError("params.medium: the distance range is always needed, got None")
+    dist = distance_map(depth_m, mode=m.distance_mode, near_m=m.near_m, far_m=m.far_m)  # type: ignore[arg-type]
+    trans = None
+    if "basic" in params.stages:
+        image, trans = apply_medium(clean, dist, np.asarray(m.beta_per_m), np.asarray(m.b_inf))
+    else:
+        image = clean.copy()
+    basic = np.clip(image, 0.0, 1.0) if keep_intermediate else None
+    sigma_max = None
+    fs = params.forward_scatter
+    if fs is not None:
+        image, sigma_max = forward_scatter(
+            image,
+            dist,
+            mode=fs.mode,  # type: ignore[arg-type]
+            sigma0_px=fs.sigma0_px,
+            k_px_per_m=fs.k_px_per_m,
+            gamma_per_m=fs.gamma_per_m,
+            step_px=fs.exact_step_px,
+        )
+    alpha = None
+    if params.snow is not None:
+        from murk.snow.composite import composite_snow
+
+        if bank is None:
+            raise ValueError("bank: marine snow parameters given but no particle bank")
+        np.clip(image, 0.0, 1.0, out=image)
+        image, alpha = composite_snow(image, params.snow, bank)
+    np.clip(image, 0.0, 1.0, out=image)
+    return SynthResult(
+        degraded=image,
+        dist_m=dist,
+        sigma_max_px=sigma_max,
+        basic=basic,
+        transmission=trans if keep_intermediate else None,
+        snow_alpha=alpha,
+    )
+
+
+# ----------------------------------------------------------------------------------------------- torch twin
+
+
+@dataclass(frozen=True)
+class BatchResult:
+    """A rendered torch batch: ``degraded`` (B, 3, H, W) in [0, 1], ``dist_m`` (B, 1, H, W),
+    ``sigma_max_px`` (B,) or None, ``snow_alpha`` (B, 1, H, W) or None."""
+
+    degraded: torch.Tensor
+    dist_m: torch.Tensor
+    sigma_max_px: torch.Tensor | None
+    snow_alpha: torch.Tensor | None = None
+
+
+def render_batch_torch(
+    clean: torch.Tensor, depth_m: torch.Tensor, params: Sequence[VariantParams], *, bank: Any = None
+) -> BatchResult:
+    """Torch twin of :func:`render` for a batch on any device (equal to it within 1/255, pinned by a test).
+
+    Args:
+        clean: (B, 3, H, W) in [0, 1].
+        depth_m: (B, 1, H, W) metres, valid everywhere.
+        params: one :class:`VariantParams` per sample; all must enable the same stages.
+        bank: a :class:`murk.snow.bank.ParticleBank` when the variants have marine snow.
+    """
+    if clean.ndim != 4 or clean.shape[1] != 3:
+        raise ShapeError(f"clean: expected (B, 3, H, W), got {tuple(clean.shape)}")
+    b, _, h, w = clean.shape
+    if tuple(depth_m.shape) != (b, 1, h, w):
+        raise ShapeError(f"depth_m: expected {(b, 1, h, w)} to match clean, got {tuple(depth_m.shape)}")
+    if len(params) != b:
+        raise ValueError(f"params: expected {b} variants (one per sample), got {len(params)}")
+    kinds = {(p.forward_scatter is not None, p.snow is not None, p.stages) for p in params}
+    if len(kinds) != 1:
+        raise ValueError("params: all variants of a batch must enable the same stages")
+    meds = [p.medium for p in params]
+    if any(m is None for m in meds):
+        raise ValueError("params.medium: the distance range is always needed, got None")
+    dev, dt = clean.device, clean.dtype
+    modes = {m.distance_mode for m in meds}  # type: ignore[union-attr]
+    if len(modes) != 1:
+        raise ValueError("params: all variants of a batch must use the same distance_mode")
+    near = torch.tensor([m.near_m for m in meds], dtype=dt, device=dev)  # type: ignore[union-attr]
+    far = torch.tensor([m.far_m for m in meds], dtype=dt, device=dev)  # type: ignore[union-attr]
+    dist = distance_map_torch(depth_m.to(dt), near, far, mode=modes.pop())  # type: ignore[arg-type]
+    if "basic" in params[0].stages:
+        beta = torch.tensor([m.beta_per_m for m in meds], dtype=dt, device=dev)  # type: ignore[union-attr]
+        b_inf = torch.tensor([m.b_inf for m in meds], dtype=dt, device=dev)  # type: ignore[union-attr]
+        image, _ = apply_medium_torch(clean, dist, beta, b_inf)
+    else:
+        image = clean.clone()
+    sigma_max = None
+    if params[0].forward_scatter is not None:
+        fss = [p.forward_scatter for p in params]
+        fs_modes = {f.mode for f in fss}  # type: ignore[union-attr]
+        if len(fs_modes) != 1:
+            raise ValueError("params: all variants of a batch must use the same forward_scatter.mode")
+        image, sigma_max = forward_scatter_torch(
+            image,
+            dist,
+            mode=fs_modes.pop(),  # type: ignore[arg-type]
+            sigma0_px=torch.tensor([f.sigma0_px for f in fss]),  # type: ignore[union-attr]
+            k_px_per_m=torch.tensor([f.k_px_per_m for f in fss]),  # type: ignore[union-attr]
+            gamma_per_m=torch.tensor([f.gamma_per_m for f in fss]),  # type: ignore[union-attr]
+            step_px=fss[0].exact_step_px,  # type: ignore[union-attr]
+        )
+    alpha = None
+    if params[0].snow is not None:
+        from murk.snow.composite import composite_snow_torch
+
+        if bank is None:
+            raise ValueError("bank: marine snow parameters given but no particle bank")
+        image, alpha = composite_snow_torch(image.clamp(0.0, 1.0), [p.snow for p in params], bank)
+    return BatchResult(image.clamp(0.0, 1.0), dist, sigma_max, alpha)

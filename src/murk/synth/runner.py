@@ -1,0 +1,373 @@
+"""The dataset runner of ``murk synth``: workers, shards, resume, and the output folder's index files.
+
+Output layout (``OUT_DIR``)::
+
+    degraded/<stem>_v<k>.png     the synthetic underwater images
+    clean/<stem>.png             the clean image (after --crop/--size)
+    depth/<stem>.png             its depth, uint16 millimetres, 0 = invalid in the source
+    snow_alpha/<stem>_v<k>.png   a_ms of Eq. (8) as 8-bit (marine_snow stage)
+    basic/, transmission/        Eq. (1) result and T (--save-intermediate)
+    manifest.jsonl               one line per variant: every parameter (see MANIFEST_FIELDS)
+    train.txt                    Joint-ID list: "<input> <enhanced_gt> <depth_gt> <depth_scale>"
+    metadata.jsonl               Hugging Face imagefolder metadata ("file_name" = the degraded image)
+    config.yaml                  the resolved configuration, with the seed and murk version
+    errors.jsonl                 inputs that failed in the last run (absent when none)
+    .murk/progress-*.jsonl       append-only logs that make resuming possible
+
+Reproducibility: variant ``k`` of image ``stem`` is drawn from ``derive_seed(seed, stem, k)``, so the bytes
+of every file depend neither on ``workers`` nor on interruptions; a rerun skips variants whose log record and
+files exist; index files are rebuilt sorted at the end of every run (and of every shard).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from murk._config import dump_yaml, to_dict
+from murk._version import __version__
+from murk.io.atomic import remove_stale_temporaries, write_text_atomic
+from murk.io.depth import write_depth_png
+from murk.io.images import to_uint, write_rgb, write_uint
+from murk.io.jsonl import append_jsonl, read_jsonl, write_jsonl
+from murk.io.pairs import DepthOptions, Problem, RGBDSource, load_pair
+from murk.rng import derive_seed
+from murk.synth.config import SynthConfig
+from murk.synth.params import VariantParams, sample_variant, variant_to_dict
+from murk.synth.pipeline import render
+
+DEPTH_SCALE_OUT = 1000.0
+"""depth/ PNGs are millimetres."""
+
+
+@dataclass(frozen=True)
+class Shard:
+    """Shard ``index`` of ``count`` (0-based): the sorted inputs ``index, index + count, ...``."""
+
+    index: int = 0
+    count: int = 1
+
+    def __post_init__(self) -> None:
+        if not (self.count >= 1 and 0 <= self.index < self.count):
+            raise ValueError(f"shard: expected 0 <= i < N, got {self.index}/{self.count}")
+
+    @property
+    def tag(self) -> str:
+        return "all" if self.count == 1 else f"{self.index}-of-{self.count}"
+
+    @staticmethod
+    def parse(spec: str | None, env: dict[str, str] | None = None) -> Shard:
+        """Parse ``"i/N"``; without a spec use SLURM array variables when set (index = TASK_ID - TASK_MIN)."""
+        if spec:
+            try:
+                i, n = (int(v) for v in spec.split("/"))
+            except ValueError:
+                raise ValueError(f"--shard: expected i/N (e.g. 0/4), got {spec!r}") from None
+            return Shard(i, n)
+        env = dict(os.environ) if env is None else env
+        if "SLURM_ARRAY_TASK_ID" in env and "SLURM_ARRAY_TASK_COUNT" in env:
+            task = int(env["SLURM_ARRAY_TASK_ID"]) - int(env.get("SLURM_ARRAY_TASK_MIN", "0"))
+            return Shard(task, int(env["SLURM_ARRAY_TASK_COUNT"]))
+        return Shard()
+
+
+@dataclass
+class RunSummary:
+    """What a run did."""
+
+    out_dir: Path
+    images: int = 0
+    variants_written: int = 0
+    variants_skipped: int = 0
+    failures: list[Problem] = field(default_factory=list)
+    seconds: float = 0.0
+
+    @property
+    def variants_per_s(self) -> float:
+        return self.variants_written / self.seconds if self.seconds > 0 else 0.0
+
+
+# ------------------------------------------------------------------------------------------ per-image work
+
+
+def fit_size(
+    rgb: np.ndarray, depth: np.ndarray, valid: np.ndarray, size: tuple[int, int] | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Centre-crop to the aspect ratio of ``size`` = (width, height), then resize (area/cubic for RGB,
+    nearest for depth and validity so depth edges are never blended)."""
+    if size is None:
+        return rgb, depth, valid
+    tw, th = size
+    h, w = depth.shape
+    if w * th > tw * h:  # too wide: crop columns
+        cw = max(1, round(h * tw / th))
+        x0 = (w - cw) // 2
+        rgb, depth, valid = rgb[:, x0 : x0 + cw], depth[:, x0 : x0 + cw], valid[:, x0 : x0 + cw]
+    elif w * th < tw * h:
+        ch = max(1, round(w * th / tw))
+        y0 = (h - ch) // 2
+        rgb, depth, valid = rgb[y0 : y0 + ch], depth[y0 : y0 + ch], valid[y0 : y0 + ch]
+    h, w = depth.shape
+    if (w, h) == (tw, th):
+        return np.ascontiguousarray(rgb), np.ascontiguousarray(depth), np.ascontiguousarray(valid)
+    interp = cv2.INTER_AREA if tw < w else cv2.INTER_CUBIC
+    rgb = np.clip(cv2.resize(np.ascontiguousarray(rgb), (tw, th), interpolation=interp), 0.0, 1.0)
+    depth = cv2.resize(np.ascontiguousarray(depth), (tw, th), interpolation=cv2.INTER_NEAREST)
+    valid = cv2.resize(valid.astype(np.uint8), (tw, th), interpolation=cv2.INTER_NEAREST).astype(bool)
+    return rgb, depth, valid
+
+
+def paths_for(stem: str, k: int) -> dict[str, str]:
+    """Output paths of variant ``k`` of ``stem``, relative to the output folder."""
+    return {
+        "degraded": f"degraded/{stem}_v{k}.png",
+        "clean": f"clean/{stem}.png",
+        "depth": f"depth/{stem}.png",
+        "snow_alpha": f"snow_alpha/{stem}_v{k}.png",
+        "basic": f"basic/{stem}_v{k}.png",
+        "transmission": f"transmission/{stem}_v{k}.png",
+    }
+
+
+def manifest_record(
+    source: RGBDSource, k: int, seed: int, params: VariantParams, result_info: dict[str, Any], files: dict[str, str]
+) -> dict[str, Any]:
+    """One manifest line: flat fields named as in the synthesis spec, plus ``params`` (exact re-render input)."""
+    m, fs, sn = params.medium, params.forward_scatter, params.snow
+    rec: dict[str, Any] = {
+        "stem": source.stem,
+        "variant": k,
+        "seed": seed,
+        "source_rgb": source.rgb_path,
+        "source_depth": source.depth_path,
+        "stages": list(params.stages),
+        **files,
+        **result_info,
+    }
+    if source.mat_index is not None:
+        rec["source_index"] = source.mat_index
+    if m is not None:
+        rec.update(
+            water_type=m.water_type,
+            beta=list(m.beta_per_m),
+            B_inf=list(m.b_inf),
+            D=m.vertical_depth_m,
+            H=m.far_m,
+            d_near=m.near_m,
+            distance_mode=m.distance_mode,
+        )
+    if fs is not None:
+        rec.update(fs_mode=fs.mode, sigma0=fs.sigma0_px, k=fs.k_px_per_m, gamma=fs.gamma_per_m)
+    if sn is not None:
+        rec.update(N_p=sn.n_particles, s=list(sn.scale_range), rho=sn.rho_px, bank_id=sn.bank_id)
+    rec["params"] = variant_to_dict(params)
+    return rec
+
+
+_WORKER_BANK: Any = None
+
+
+def _init_worker(bank_path: str | None) -> None:
+    global _WORKER_BANK
+    cv2.setNumThreads(1)
+    if bank_path:
+        from murk.snow.bank import load_bank
+
+        _WORKER_BANK = load_bank(bank_path)
+
+
+def process_source(
+    source: RGBDSource, variants: Sequence[int], config: SynthConfig, out_dir: str, bank: Any = None
+) -> tuple[list[dict[str, Any]], list[Problem]]:
+    """Load one RGB-D pair and write the requested variants; returns their manifest records (or a problem)."""
+    bank = _WORKER_BANK if bank is None else bank
+    out = Path(out_dir)
+    inp = config.input
+    opts = DepthOptions(inp.depth_scale, inp.depth_relative, inp.invalid_depth, inp.crop_px)
+    try:
+        rgb, depth, valid = load_pair(source, opts)
+        rgb, depth, valid = fit_size(rgb, depth, valid, inp.size)
+    except (ValueError, OSError) as exc:
+        return [], [Problem(source.rgb_path, str(exc))]
+    png = config.output.png_compression
+    files0 = paths_for(source.stem, 0)
+    if not (out / files0["clean"]).exists():
+        write_rgb(out / files0["clean"], rgb, png_compression=png)
+    if not (out / files0["depth"]).exists():
+        write_depth_png(out / files0["depth"], np.where(valid, depth, 0.0), depth_scale=DEPTH_SCALE_OUT)
+    snow_sampler = None
+    if "marine_snow" in config.stages:
+        from murk.snow.composite import sample_snow
+
+        sc = config.marine_snow
+        snow_sampler = lambda g: sample_snow(  # noqa: E731
+            g,
+            bank,
+            n_particles=sc.n_particles,
+            scale=sc.scale,
+            rho_px=sc.rho_px,
+            reference_width_px=sc.reference_width_px,
+        )
+    records = []
+    h, w = depth.shape
+    for k in variants:
+        seed = derive_seed(config.seed, source.stem, k)
+        params = sample_variant(np.random.default_rng(seed), config, snow_sampler=snow_sampler)
+        res = render(rgb, depth, params, bank=bank, keep_intermediate=config.output.save_intermediate)
+        files = paths_for(source.stem, k)
+        keep = {"degraded": files["degraded"], "clean": files["clean"], "depth": files["depth"]}
+        if res.snow_alpha is not None:
+            write_uint(out / files["snow_alpha"], to_uint(res.snow_alpha[:, :, None], 8)[:, :, 0], png_compression=png)
+            keep["snow_alpha"] = files["snow_alpha"]
+        if config.output.save_intermediate:
+            write_rgb(out / files["basic"], res.basic, png_compression=png)  # type: ignore[arg-type]
+            write_rgb(out / files["transmission"], res.transmission, png_compression=png)  # type: ignore[arg-type]
+            keep.update(basic=files["basic"], transmission=files["transmission"])
+        write_rgb(out / files["degraded"], res.degraded, png_compression=png)  # last: its presence marks done
+        info = {
+            "width": w,
+            "height": h,
+            "dist_min_m": float(res.dist_m.min()),
+            "dist_max_m": float(res.dist_m.max()),
+            "sigma_max": res.sigma_max_px,
+            "valid_depth_fraction": float(valid.mean()),
+        }
+        records.append(manifest_record(source, k, seed, params, info, keep))
+    return records, []
+
+
+# ---------------------------------------------------------------------------------------------- the run
+
+
+def _progress_dir(out_dir: Path) -> Path:
+    return out_dir / ".murk"
+
+
+def load_records(out_dir: Path) -> dict[tuple[str, int], dict[str, Any]]:
+    """All variant records of every progress log in ``out_dir`` whose files still exist, by (stem, variant)."""
+    records: dict[tuple[str, int], dict[str, Any]] = {}
+    for log in sorted(_progress_dir(out_dir).glob("progress-*.jsonl")):
+        for rec in read_jsonl(log):
+            files = [rec[k] for k in ("degraded", "clean", "depth", "snow_alpha", "basic", "transmission") if k in rec]
+            if all((out_dir / f).exists() for f in files):
+                records[(rec["stem"], int(rec["variant"]))] = rec
+    return records
+
+
+def write_index(out_dir: Path, records: dict[tuple[str, int], dict[str, Any]]) -> None:
+    """Rebuild manifest.jsonl, train.txt and metadata.jsonl (sorted by stem, variant) atomically."""
+    ordered = [records[k] for k in sorted(records)]
+    write_jsonl(out_dir / "manifest.jsonl", ordered)
+    write_text_atomic(
+        out_dir / "train.txt",
+        "".join(f"{r['degraded']} {r['clean']} {r['depth']} {DEPTH_SCALE_OUT:g}\n" for r in ordered),
+    )
+    meta_keys = ("stem", "variant", "water_type", "H", "D", "clean", "depth", "snow_alpha", "N_p", "rho")
+    write_jsonl(
+        out_dir / "metadata.jsonl",
+        [{"file_name": r["degraded"], **{k: r[k] for k in meta_keys if k in r}} for r in ordered],
+    )
+
+
+def check_config_compatible(out_dir: Path, config: SynthConfig) -> None:
+    """Refuse to add to a folder made with a different configuration (the results would not be one dataset)."""
+    import yaml
+
+    path = out_dir / "config.yaml"
+    if not path.exists():
+        return
+    old = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+    new = to_dict(config)
+    diffs = [
+        k
+        for k in sorted(set(old) | set(new))
+        if k not in ("workers", "murk_version") and old.get(k) != new.get(k) and k in new
+    ]
+    if diffs:
+        raise ValueError(
+            f"{out_dir}: this folder was generated with a different configuration (differs in: "
+            f"{', '.join(diffs)}); use a new output folder, or delete this one to start over"
+        )
+
+
+def run_synthesis(
+    sources: Sequence[RGBDSource],
+    out_dir: str | Path,
+    config: SynthConfig,
+    *,
+    shard: Shard = Shard(),
+    bank_path: str | None = None,
+    problems: Sequence[Problem] = (),
+    on_progress: Callable[[int, int], None] | None = None,
+) -> RunSummary:
+    """Generate (or resume) a synthetic dataset. See the module docstring for the output layout.
+
+    Args:
+        sources: the clean RGB-D pairs (all of them; the shard picks its part).
+        out_dir: output folder (created).
+        config: the run's configuration.
+        shard: which part of the sorted inputs this process handles.
+        bank_path: particle bank file, required when the marine_snow stage is on.
+        problems: input problems found before the run (unpaired files); reported in errors.jsonl.
+        on_progress: called as ``on_progress(variants_done, variants_total)`` after each image.
+    """
+    t0 = time.perf_counter()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    if "marine_snow" in config.stages and not bank_path:
+        raise ValueError("stages: marine_snow needs a particle bank (--snow-bank)")
+    check_config_compatible(out, config)
+    remove_stale_temporaries(out)
+    write_text_atomic(out / "config.yaml", dump_yaml(config, murk_version=__version__))
+    mine = sorted(sources, key=lambda s: s.stem)[shard.index :: shard.count]
+    done = load_records(out)
+    todo: list[tuple[RGBDSource, list[int]]] = []
+    summary = RunSummary(out, images=len(mine), failures=list(problems))
+    for s in mine:
+        missing = [k for k in range(config.variants) if (s.stem, k) not in done]
+        summary.variants_skipped += config.variants - len(missing)
+        if missing:
+            todo.append((s, missing))
+    log = _progress_dir(out) / f"progress-{shard.tag}.jsonl"
+    total = len(mine) * config.variants
+    finished = summary.variants_skipped
+    if on_progress:
+        on_progress(finished, total)
+
+    def collect(records: list[dict[str, Any]], errs: list[Problem], n_asked: int) -> None:
+        nonlocal finished
+        append_jsonl(log, records)
+        summary.variants_written += len(records)
+        summary.failures.extend(errs)
+        finished += n_asked
+        if on_progress:
+            on_progress(finished, total)
+
+    if config.workers <= 1 or len(todo) <= 1:
+        _init_worker(bank_path)
+        for s, ks in todo:
+            collect(*process_source(s, ks, config, str(out)), len(ks))
+    else:
+        import multiprocessing as mp
+
+        ctx = mp.get_context("spawn")
+        with ProcessPoolExecutor(config.workers, mp_context=ctx, initializer=_init_worker, initargs=(bank_path,)) as ex:
+            futures = {ex.submit(process_source, s, ks, config, str(out)): len(ks) for s, ks in todo}
+            for fut in as_completed(futures):
+                collect(*fut.result(), futures[fut])
+    write_index(out, load_records(out))
+    errors_path = out / "errors.jsonl"
+    if summary.failures:
+        write_jsonl(errors_path, [{"path": p.path, "error": p.error} for p in summary.failures])
+    elif errors_path.exists():
+        errors_path.unlink()
+    summary.seconds = time.perf_counter() - t0
+    return summary

@@ -1,0 +1,93 @@
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+from typer.testing import CliRunner
+
+from murk import __version__
+from murk.cli.main import app
+from murk.data import sample_rgbd_dir
+from murk.io import read_jsonl
+
+runner = CliRunner()
+
+
+def test_version_and_help() -> None:
+    r = runner.invoke(app, ["--version"])
+    assert r.exit_code == 0 and r.stdout.strip() == f"murk {__version__}"
+    r = runner.invoke(app, ["--help"])
+    assert r.exit_code == 0 and "synth" in r.stdout and "snow" in r.stdout
+
+
+def test_synth_end_to_end_on_the_shipped_pairs(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    args = [
+        "synth",
+        str(sample_rgbd_dir()),
+        str(out),
+        "--variants",
+        "2",
+        "--size",
+        "160x120",
+        "--water-types",
+        "I,9C",
+        "--stages",
+        "basic,forward_scatter,marine_snow",
+        "--save-intermediate",
+        "-q",
+    ]
+    r = runner.invoke(app, args)
+    assert r.exit_code == 0, r.output
+    recs = read_jsonl(out / "manifest.jsonl")
+    assert len(recs) == 6 and {r["water_type"] for r in recs} <= {"I", "9C"}
+    for sub in ("degraded", "clean", "depth", "snow_alpha", "basic", "transmission"):
+        assert any((out / sub).iterdir()), sub
+    assert cv2.imread(str(out / "degraded" / "tum_fr1_v1.png")).shape == (120, 160, 3)
+    assert "synth: 3 images, 6 variants written" in r.output
+    r = runner.invoke(app, args)  # resume: nothing left to do
+    assert r.exit_code == 0 and "0 variants written, 6 already done" in r.output
+
+
+def test_synth_config_file_and_cli_override(tmp_path: Path) -> None:
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("variants: 3\nmedium:\n  water_types: [II]\ninput:\n  size: [64, 48]\n")
+    r = runner.invoke(
+        app, ["synth", str(sample_rgbd_dir()), str(tmp_path / "o"), "--config", str(cfg), "--variants", "1"]
+    )
+    assert r.exit_code == 0, r.output
+    recs = read_jsonl(tmp_path / "o" / "manifest.jsonl")
+    assert len(recs) == 3 and {x["water_type"] for x in recs} == {"II"}
+    assert "variants: 1" in (tmp_path / "o" / "config.yaml").read_text()
+
+
+def test_synth_list_file(tmp_path: Path) -> None:
+    rgbd = sample_rgbd_dir()
+    lst = tmp_path / "pairs.txt"
+    lst.write_text(f"{rgbd}/rgb/redwood_00000.jpg {rgbd}/depth/redwood_00000.png\n")
+    r = runner.invoke(app, ["synth", "--list", str(lst), str(tmp_path / "o"), "--variants", "1", "--size", "64x48"])
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "o" / "degraded" / "redwood_00000_v0.png").exists()
+
+
+def test_synth_partial_failure_exit_code_1(small_rgbd: Path, tmp_path: Path) -> None:
+    (small_rgbd / "rgb" / "broken.png").write_bytes(b"nope")
+    cv2.imwrite(str(small_rgbd / "depth" / "broken.png"), np.ones((4, 4), np.uint16))
+    r = runner.invoke(app, ["synth", str(small_rgbd), str(tmp_path / "o"), "--variants", "1"])
+    assert r.exit_code == 1
+    assert "1 failed" in r.output and "broken.png: cannot decode image" in r.output
+    assert len(read_jsonl(tmp_path / "o" / "errors.jsonl")) == 1
+
+
+def test_synth_usage_errors_exit_2(tmp_path: Path) -> None:
+    r = runner.invoke(app, ["synth", str(tmp_path / "missing"), str(tmp_path / "o")])
+    assert r.exit_code == 2 and "missing: not found" in r.output
+    r = runner.invoke(app, ["synth", str(sample_rgbd_dir()), str(tmp_path / "o"), "--water-types", "I,12C"])
+    assert r.exit_code == 2 and "unknown type '12C'" in r.output
+    r = runner.invoke(app, ["synth", str(sample_rgbd_dir()), str(tmp_path / "o"), "--size", "big"])
+    assert r.exit_code == 2 and "--size: expected WxH" in r.output
+    r = runner.invoke(app, ["synth", str(tmp_path)])
+    assert r.exit_code == 2 and "expected RGBD_DIR OUT_DIR" in r.output
+    r = runner.invoke(app, ["synth", str(sample_rgbd_dir()), str(tmp_path / "o"), "--invalid-depth", "fail"])
+    assert r.exit_code == 1 and "invalid depth pixels" in r.output  # Redwood/TUM have holes

@@ -1,0 +1,74 @@
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from murk.physics.jerlov import beta_per_m, residual_ratio
+from murk.physics.medium import (
+    ambient_light,
+    apply_medium,
+    apply_medium_torch,
+    distance_map,
+    distance_map_torch,
+    transmission,
+)
+
+
+def test_distance_zero_leaves_the_image_unchanged(rng: np.random.Generator) -> None:
+    clean = rng.random((5, 6, 3)).astype(np.float32)
+    out, t = apply_medium(clean, np.zeros((5, 6), np.float32), beta_per_m("9C"), np.array([0.1, 0.5, 0.7]))
+    np.testing.assert_array_equal(t, 1.0)
+    np.testing.assert_allclose(out, clean, atol=1e-7)
+
+
+def test_haze_grows_with_distance() -> None:
+    # A constant scene seen along a distance ramp: farther pixels are closer to the ambient light B_inf.
+    clean = np.full((1, 50, 3), [0.9, 0.2, 0.6], np.float32)
+    dist = np.linspace(0.3, 15.0, 50, dtype=np.float32)[None, :]
+    b_inf = ambient_light("3C", 4.0)
+    out, _ = apply_medium(clean, dist, beta_per_m("3C"), b_inf)
+    gap = np.abs(out[0] - b_inf.astype(np.float32)).sum(axis=1)
+    assert np.all(np.diff(gap) < 0)
+    assert gap[-1] < 0.05 * gap[0]  # at 15 m in coastal 3C water almost only the veiling light is left
+
+
+def test_eq1_against_hand_values() -> None:
+    clean = np.array([[[1.0, 0.5, 0.0]]], np.float32)
+    beta = np.array([0.5, 0.1, 1.0])
+    b = np.array([0.2, 0.4, 0.6])
+    out, t = apply_medium(clean, np.array([[2.0]], np.float32), beta, b)
+    expect_t = np.exp(-beta * 2.0)
+    np.testing.assert_allclose(t[0, 0], expect_t, rtol=1e-6)
+    np.testing.assert_allclose(out[0, 0], clean[0, 0] * expect_t + b * (1 - expect_t), rtol=1e-6)
+    np.testing.assert_allclose(transmission(np.array([[1.0]], np.float32), beta)[0, 0], np.exp(-beta), rtol=1e-6)
+
+
+def test_ambient_light_formula() -> None:
+    np.testing.assert_allclose(ambient_light("II", 3.5), 1.5 * residual_ratio("II") ** 3.5)
+    assert (ambient_light("I", 3.0) > 1).any()  # clear water: B_inf can exceed 1 (clipped at the end)
+
+
+def test_distance_map_modes() -> None:
+    depth = np.array([[1.0, 2.0, 4.0]], np.float32)
+    np.testing.assert_allclose(distance_map(depth, near_m=0.3, far_m=10.0), [[0.3 + 9.7 / 4, 0.3 + 9.7 / 2, 10.0]])
+    np.testing.assert_allclose(distance_map(np.array([[0.1, 20.0]], np.float32), mode="metric"), [[0.3, 15.0]])
+    with pytest.raises(ValueError, match="distance_mode: expected"):
+        distance_map(depth, mode="log")  # type: ignore[arg-type]
+
+
+def test_torch_twin_equals_numpy(rng: np.random.Generator) -> None:
+    clean = rng.random((2, 7, 9, 3)).astype(np.float32)
+    depth = (rng.random((2, 7, 9)) * 8 + 0.5).astype(np.float32)
+    betas = np.stack([beta_per_m("IB"), beta_per_m("7C")])
+    bs = np.stack([ambient_light("IB", 3.2), ambient_light("7C", 4.8)])
+    near, far = np.array([0.3, 0.3]), np.array([12.0, 3.5])
+    dt = distance_map_torch(torch.from_numpy(depth)[:, None], torch.tensor(near), torch.tensor(far))
+    out_t, _ = apply_medium_torch(
+        torch.from_numpy(clean).permute(0, 3, 1, 2), dt, torch.tensor(betas), torch.tensor(bs)
+    )
+    for i in range(2):
+        d = distance_map(depth[i], near_m=near[i], far_m=far[i])
+        np.testing.assert_allclose(dt[i, 0].numpy(), d, atol=1e-6)
+        out, _ = apply_medium(clean[i], d, betas[i], bs[i])
+        np.testing.assert_allclose(out_t[i].permute(1, 2, 0).numpy(), out, atol=1e-6)
