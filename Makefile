@@ -22,7 +22,8 @@ $(STAMP): pyproject.toml
 	@touch $(STAMP)
 
 demo: $(STAMP)
-	$(VENV)/bin/murk demo --out murk-demo
+	$(VENV)/bin/murk synth src/murk/data/rgbd murk-demo/synth --stages basic,forward_scatter,marine_snow --size 320x240
+	@echo "demo output: murk-demo/synth (degraded/, clean/, depth/, snow_alpha/, manifest.jsonl)"
 
 test: $(STAMP)
 	$(PY) -m pytest -q $(PYTEST_ARGS)

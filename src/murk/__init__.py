@@ -6,8 +6,47 @@ quality metrics that reproduce the published codebases.
 
 Source paper: Yun, Yang, Lee, Park, Choi, Cho, "Robust Image Processing Techniques for Construction
 Environment Monitoring Using Underwater Robots".
+
+The main operations are re-exported here and imported on first use, so ``import murk`` stays fast.
 """
 
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+from murk._perf import tune_allocator
 from murk._version import __version__
 
-__all__ = ["__version__"]
+_LAZY = {
+    # synthesis
+    "synthesize": "murk.synth.pipeline",
+    "render": "murk.synth.pipeline",
+    "render_batch_torch": "murk.synth.pipeline",
+    "sample_variant": "murk.synth.params",
+    "SynthConfig": "murk.synth.config",
+    "run_synthesis": "murk.synth.runner",
+    # marine snow
+    "extract_particles": "murk.snow.extract",
+    "load_bank": "murk.snow.bank",
+    "save_bank": "murk.snow.bank",
+    "composite_snow": "murk.snow.composite",
+    # io
+    "read_rgb": "murk.io",
+    "write_rgb": "murk.io",
+    "read_depth": "murk.io",
+}
+
+__all__ = ["__version__", "tune_allocator", *_LAZY]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'murk' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

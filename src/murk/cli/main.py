@@ -35,6 +35,9 @@ def _root(
     ] = False,
 ) -> None:
     """murk: realistic underwater data synthesis, restoration and metrics for underwater robots."""
+    from murk._perf import tune_allocator
+
+    tune_allocator()
 
 
 app.command("synth")(_synth.synth)

@@ -28,7 +28,7 @@ import cv2
 import numpy as np
 import torch
 
-from murk.physics.forward_scatter import gaussian_blur, gaussian_blur_torch
+from murk.physics.forward_scatter import gaussian_blur, gaussian_blur_torch, kernel_radius
 from murk.rng import RngLike, as_generator
 from murk.snow.bank import ParticleBank
 
@@ -118,39 +118,54 @@ def _splat_points(layout: SnowLayout, bank: ParticleBank) -> tuple[np.ndarray, n
     return ys, xs, mass, pix
 
 
-def _bilinear_taps(ys: np.ndarray, xs: np.ndarray, h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
-    """Flat pixel index and bilinear weight of the 4 taps of each point, tap-major ((4N,) each);
-    out-of-image taps get weight 0 (and index 0)."""
+def _canvas_pad(layout: SnowLayout, bank: ParticleBank, rho_px: float) -> int:
+    """Margin around the image so every tap of every drawn particle, and the blur around it, lands inside."""
+    if len(layout.index) == 0:
+        return 1
+    reach = float(np.abs(bank.pixel_yx).max()) if len(bank.pixel_yx) else 0.0
+    return math.ceil(reach * float(layout.scale.max())) + 2 + kernel_radius(rho_px)
+
+
+def _taps(ys: np.ndarray, xs: np.ndarray, pad: int, wp: int) -> tuple[np.ndarray, np.ndarray]:
+    """Flat canvas index and bilinear weight of the 4 taps of each point, tap-major ((4N,) each)."""
     y0, x0 = np.floor(ys), np.floor(xs)
     fy, fx = ys - y0, xs - x0
-    yy = y0.astype(np.int64)[None, :] + np.array([0, 0, 1, 1])[:, None]
-    xx = x0.astype(np.int64)[None, :] + np.array([0, 1, 0, 1])[:, None]
-    wy = np.stack([1.0 - fy, 1.0 - fy, fy, fy])
-    wx = np.stack([1.0 - fx, fx, 1.0 - fx, fx])
-    inside = (yy >= 0) & (yy < h) & (xx >= 0) & (xx < w)
-    idx = np.where(inside, yy * w + xx, 0).ravel()
-    wts = np.where(inside, wy * wx, 0.0).ravel()
+    base = (y0.astype(np.int64) + pad) * wp + (x0.astype(np.int64) + pad)
+    idx = np.concatenate([base, base + 1, base + wp, base + wp + 1])
+    gy, gx = 1.0 - fy, 1.0 - fx
+    wts = np.concatenate([gy * gx, gy * fx, fy * gx, fy * fx])
     return idx, wts
 
 
-def snow_layers(params: SnowParams, bank: ParticleBank, height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
-    """The unsmoothed mask ``B`` (H, W) and ``B M`` (H, W, 3), float32, of one image."""
+def _accumulate(
+    idx: np.ndarray, wts: np.ndarray, rgb: np.ndarray, n: int, device: torch.device
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Scatter-add the taps into a coverage canvas C and a colour canvas Q = sum(w * M / max(C, 1)).
+
+    Uses torch's ``index_add_`` (also on the CPU: it accumulates in float32 without the full-size float64
+    arrays that ``numpy.bincount`` returns). Colour weights are divided by max(C, 1) at their own pixel, so
+    where particles overlap their colours are averaged.
+    """
+    it = torch.from_numpy(idx).to(device)
+    wt = torch.from_numpy(wts).to(device, torch.float32)
+    cover = torch.zeros(n, device=device, dtype=torch.float32)
+    cover.index_add_(0, it, wt)
+    wc = wt / cover[it].clamp(min=1.0) * (1.0 / 255.0)
+    q = torch.zeros(n, 3, device=device, dtype=torch.float32)
+    q.index_add_(0, it, torch.from_numpy(rgb).to(device, torch.float32) * wc[:, None])
+    return cover.clamp_(max=1.0), q
+
+
+def snow_layers(params: SnowParams, bank: ParticleBank, height: int, width: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """The unsmoothed mask ``B`` and ``B M`` of one image on a canvas padded by ``pad`` pixels on each side:
+    float32 (H + 2 pad, W + 2 pad) and (..., 3), and ``pad``."""
     layout = snow_layout(params, len(bank), width, height)
+    pad = _canvas_pad(layout, bank, params.rho_px)
+    hp, wp = height + 2 * pad, width + 2 * pad
     ys, xs, mass, pix = _splat_points(layout, bank)
-    flat, wt = _bilinear_taps(ys, xs, height, width)
-    wt = wt * np.tile(mass, 4)
-    cols = np.tile(pix, 4)
-    n = height * width
-    cover = np.bincount(flat, weights=wt, minlength=n)
-    # Where particles overlap (cover > 1) their colours are averaged: scale each tap by 1 / max(cover, 1) at its
-    # own pixel (done on the taps, not on the whole image). One bincount over interleaved (pixel, channel)
-    # indices yields B*M directly in (H, W, 3) order.
-    wt_c = wt * ((1.0 / 255.0) / np.maximum(cover[flat], 1.0))
-    qw = (bank.pixel_rgb[cols] * wt_c[:, None]).ravel()
-    qi = (flat[:, None] * 3 + np.arange(3)).ravel()
-    bm = np.bincount(qi, weights=qw, minlength=3 * n).astype(np.float32).reshape(height, width, 3)
-    b = np.minimum(cover, 1.0).astype(np.float32).reshape(height, width)
-    return b, bm
+    idx, wts = _taps(ys, xs, pad, wp)
+    b, q = _accumulate(idx, wts * np.tile(mass, 4), np.tile(bank.pixel_rgb[pix], (4, 1)), hp * wp, torch.device("cpu"))
+    return b.numpy().reshape(hp, wp), q.numpy().reshape(hp, wp, 3), pad
 
 
 def composite_snow(image: np.ndarray, params: SnowParams, bank: ParticleBank) -> tuple[np.ndarray, np.ndarray]:
@@ -158,13 +173,14 @@ def composite_snow(image: np.ndarray, params: SnowParams, bank: ParticleBank) ->
     h, w, _ = image.shape
     if params.bank_id and bank.bank_id and params.bank_id != bank.bank_id:
         raise ValueError(f"bank: the parameters were drawn from bank {params.bank_id}, got bank {bank.bank_id}")
-    b, bm = snow_layers(params, bank, h, w)
-    alpha = gaussian_blur(b, params.rho_px)  # Eq. (8): a_ms = G_rho * B
-    spread = gaussian_blur(bm, params.rho_px)  # a_ms M' = G_rho * (B M)
+    b, bm, pad = snow_layers(params, bank, h, w)
+    alpha = gaussian_blur(b, params.rho_px)[pad : pad + h, pad : pad + w]  # Eq. (8): a_ms = G_rho * B
+    spread = gaussian_blur(bm, params.rho_px)[pad : pad + h, pad : pad + w]  # a_ms M' = G_rho * (B M)
+    alpha = np.minimum(alpha, np.float32(1.0))
     one_minus = cv2.cvtColor(np.float32(1.0) - alpha, cv2.COLOR_GRAY2BGR)
     out = cv2.multiply(np.ascontiguousarray(image, dtype=np.float32), one_minus)
-    cv2.add(out, spread, out)  # Eq. (7): (1 - a) I_fs + a M'
-    return out, np.clip(alpha, 0.0, 1.0)
+    cv2.add(out, np.ascontiguousarray(spread), out)  # Eq. (7): (1 - a) I_fs + a M'
+    return out, alpha
 
 
 def composite_snow_torch(
@@ -172,34 +188,26 @@ def composite_snow_torch(
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Torch twin of :func:`composite_snow` for a batch (B, 3, H, W) on any device.
 
-    Layouts are drawn on the CPU (they are tiny); splatting is one ``index_add_`` over the whole batch and the
-    smoothing one grouped convolution. Returns ``(I_ms (B, 3, H, W), a_ms (B, 1, H, W))``.
+    Layouts are drawn on the CPU (they are tiny); each image is splatted with ``index_add_`` on the device
+    onto the same padded canvas as the numpy path, and smoothed by a grouped convolution.
+    Returns ``(I_ms (B, 3, H, W), a_ms (B, 1, H, W))``.
     """
     bsz, _, h, w = images.shape
     if len(params) != bsz:
         raise ValueError(f"params: expected {bsz} snow parameter sets (one per image), got {len(params)}")
     dev = images.device
-    flats, wts, cols = [], [], []
-    for i, p in enumerate(params):
+    alphas, spreads = [], []
+    for p in params:
         layout = snow_layout(p, len(bank), w, h)
+        pad = _canvas_pad(layout, bank, p.rho_px)
+        hp, wp = h + 2 * pad, w + 2 * pad
         ys, xs, mass, pix = _splat_points(layout, bank)
-        flat, wt = _bilinear_taps(ys, xs, h, w)
-        flats.append(flat + i * h * w)
-        wts.append(wt * np.tile(mass, 4))
-        cols.append(np.tile(pix, 4))
-    flat_t = torch.from_numpy(np.concatenate(flats)).to(dev)
-    wt_t = torch.from_numpy(np.concatenate(wts)).to(dev, torch.float32)
-    colour = torch.from_numpy(bank.pixel_rgb).to(dev, torch.float32) / 255.0
-    col_t = colour[torch.from_numpy(np.concatenate(cols)).to(dev)]
-    acc = torch.zeros(bsz * h * w, 4, device=dev, dtype=torch.float32)
-    acc.index_add_(0, flat_t, torch.cat([wt_t[:, None], wt_t[:, None] * col_t], dim=1))
-    cover, q = acc[:, 0], acc[:, 1:]
-    b = cover.clamp(max=1.0)
-    bm = q * torch.where(cover > 1.0, 1.0 / cover.clamp(min=1e-12), torch.ones_like(cover))[:, None]
-    b = b.view(bsz, 1, h, w)
-    bm = bm.view(bsz, h, w, 3).permute(0, 3, 1, 2)
-    rho = torch.tensor([p.rho_px for p in params], dtype=torch.float64)
-    alpha = gaussian_blur_torch(b, rho)  # Eq. (8)
-    spread = gaussian_blur_torch(bm.contiguous(), rho)
-    out = images.to(torch.float32) * (1.0 - alpha) + spread  # Eq. (7)
-    return out.to(images.dtype), alpha.clamp(0.0, 1.0).to(images.dtype)
+        idx, wts = _taps(ys, xs, pad, wp)
+        b, q = _accumulate(idx, wts * np.tile(mass, 4), np.tile(bank.pixel_rgb[pix], (4, 1)), hp * wp, dev)
+        layers = torch.cat([b.view(1, hp, wp), q.view(hp, wp, 3).permute(2, 0, 1)], dim=0)[None]
+        blurred = gaussian_blur_torch(layers, torch.tensor([p.rho_px], dtype=torch.float64))[0]
+        alphas.append(blurred[0:1, pad : pad + h, pad : pad + w].clamp(max=1.0))  # Eq. (8)
+        spreads.append(blurred[1:4, pad : pad + h, pad : pad + w])
+    alpha = torch.stack(alphas)
+    out = images.to(torch.float32) * (1.0 - alpha) + torch.stack(spreads)  # Eq. (7)
+    return out.to(images.dtype), alpha.to(images.dtype)

@@ -115,6 +115,26 @@ def sample_variant(rng: RngLike, config: SynthConfig, *, snow_sampler: Any = Non
     return VariantParams(stages=tuple(config.stages), medium=medium, forward_scatter=fs, snow=snow)
 
 
+def snow_sampler_for(config: SynthConfig, bank: Any) -> Any:
+    """The ``snow_sampler`` for :func:`sample_variant`: draws Eqs. (7)-(8) parameters from ``bank`` with the
+    ranges of ``config.marine_snow``."""
+    from murk.snow.composite import sample_snow
+
+    sc = config.marine_snow
+
+    def sampler(g: np.random.Generator) -> SnowParams:
+        return sample_snow(
+            g,
+            bank,
+            n_particles=sc.n_particles,
+            scale=sc.scale,
+            rho_px=sc.rho_px,
+            reference_width_px=sc.reference_width_px,
+        )
+
+    return sampler
+
+
 def variant_to_dict(params: VariantParams) -> dict[str, Any]:
     """Plain-dict form of ``params`` (the parameter part of a manifest line)."""
     return to_dict(params)

@@ -22,7 +22,9 @@ from murk._checks import check_map, check_rgb
 from murk.errors import ShapeError
 from murk.physics.forward_scatter import forward_scatter, forward_scatter_torch
 from murk.physics.medium import apply_medium, apply_medium_torch, distance_map, distance_map_torch
-from murk.synth.params import VariantParams
+from murk.rng import RngLike
+from murk.synth.config import SynthConfig
+from murk.synth.params import VariantParams, sample_variant, snow_sampler_for
 
 
 @dataclass(frozen=True)
@@ -41,6 +43,44 @@ class SynthResult:
     """T of Eq. (1), (H, W, 3) (``keep_intermediate``)."""
     snow_alpha: np.ndarray | None = None
     """a_ms of Eq. (8), (H, W) in [0, 1] (marine snow on)."""
+    params: VariantParams | None = None
+    """The parameters this variant was rendered with."""
+
+
+def synthesize(
+    clean: np.ndarray,
+    depth_m: np.ndarray,
+    *,
+    rng: RngLike = None,
+    config: SynthConfig | None = None,
+    bank: Any = None,
+    keep_intermediate: bool = False,
+) -> SynthResult:
+    """Sample the parameters of one variant and render it: the one-call API.
+
+    Args:
+        clean: float32 RGB in [0, 1], (H, W, 3).
+        depth_m: depth in metres, (H, W), valid everywhere.
+        rng: a numpy Generator, an int seed, or None.
+        config: stages and parameter ranges (default: the paper's, stages basic + forward_scatter).
+        bank: particle bank for the marine_snow stage (default: the one shipped with murk).
+        keep_intermediate: also return the Eq. (1) image and the transmission.
+
+    Example:
+        >>> res = murk.synthesize(clean, depth_m, rng=0)
+        >>> res.degraded, res.params.medium.water_type
+    """
+    config = SynthConfig() if config is None else config
+    sampler = None
+    if "marine_snow" in config.stages:
+        if bank is None:
+            from murk.data import default_snow_bank
+            from murk.snow.bank import load_bank
+
+            bank = load_bank(config.marine_snow.bank or default_snow_bank())
+        sampler = snow_sampler_for(config, bank)
+    params = sample_variant(rng, config, snow_sampler=sampler)
+    return render(clean, depth_m, params, bank=bank, keep_intermediate=keep_intermediate)
 
 
 def render(
@@ -106,6 +146,7 @@ def render(
         basic=basic,
         transmission=trans if keep_intermediate else None,
         snow_alpha=alpha,
+        params=params,
     )
 
 

@@ -41,7 +41,7 @@ from murk.io.jsonl import append_jsonl, read_jsonl, write_jsonl
 from murk.io.pairs import DepthOptions, Problem, RGBDSource, load_pair
 from murk.rng import derive_seed
 from murk.synth.config import SynthConfig
-from murk.synth.params import VariantParams, sample_variant, variant_to_dict
+from murk.synth.params import VariantParams, sample_variant, snow_sampler_for, variant_to_dict
 from murk.synth.pipeline import render
 
 DEPTH_SCALE_OUT = 1000.0
@@ -177,6 +177,9 @@ _WORKER_BANK: Any = None
 
 def _init_worker(bank_path: str | None) -> None:
     global _WORKER_BANK
+    from murk._perf import tune_allocator
+
+    tune_allocator()
     cv2.setNumThreads(1)
     if bank_path:
         from murk.snow.bank import load_bank
@@ -203,19 +206,7 @@ def process_source(
         write_rgb(out / files0["clean"], rgb, png_compression=png)
     if not (out / files0["depth"]).exists():
         write_depth_png(out / files0["depth"], np.where(valid, depth, 0.0), depth_scale=DEPTH_SCALE_OUT)
-    snow_sampler = None
-    if "marine_snow" in config.stages:
-        from murk.snow.composite import sample_snow
-
-        sc = config.marine_snow
-        snow_sampler = lambda g: sample_snow(  # noqa: E731
-            g,
-            bank,
-            n_particles=sc.n_particles,
-            scale=sc.scale,
-            rho_px=sc.rho_px,
-            reference_width_px=sc.reference_width_px,
-        )
+    snow_sampler = snow_sampler_for(config, bank) if "marine_snow" in config.stages else None
     records = []
     h, w = depth.shape
     for k in variants:
