@@ -9,6 +9,7 @@ import typer
 from murk._version import __version__
 from murk.cli import snow as _snow
 from murk.cli import synth as _synth
+from murk.cli import train as _train
 from murk.cli._common import MurkGroup
 
 app = typer.Typer(
@@ -42,6 +43,7 @@ def _root(
 
 app.command("synth")(_synth.synth)
 app.add_typer(_snow.app, name="snow")
+app.command("train")(_train.train)
 
 
 def main() -> None:

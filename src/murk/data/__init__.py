@@ -38,3 +38,19 @@ def sample_rgbd_dir() -> Path:
 def default_snow_bank() -> Path:
     """Path of the default marine-snow particle bank shipped with murk."""
     return _HERE / "snow" / "default_bank.npz"
+
+
+BUILTIN_PREFIX = "builtin:"
+
+
+def resolve_builtin(path: str) -> str:
+    """Map ``builtin:underwater`` / ``builtin:rgbd`` / ``builtin:snow`` to the shipped data; other paths unchanged."""
+    if not path.startswith(BUILTIN_PREFIX):
+        return path
+    name = path[len(BUILTIN_PREFIX) :].strip("/")
+    targets = {"underwater": sample_underwater_dir(), "rgbd": sample_rgbd_dir(), "snow": default_snow_bank()}
+    if name not in targets:
+        raise ValueError(
+            f"{path}: unknown built-in data; expected one of {', '.join(BUILTIN_PREFIX + k for k in targets)}"
+        )
+    return str(targets[name])

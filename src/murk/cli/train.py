@@ -1,0 +1,97 @@
+"""``murk train``: retrain Joint-ID (the paper's experiment) from a YAML config."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from murk.cli._common import QuietOpt, make_console
+
+
+def train(
+    config_file: Annotated[Path, typer.Option("--config", help="Training YAML (see configs/).")],
+    steps: Annotated[int | None, typer.Option("--steps", help="Total optimiser steps (overrides epochs).")] = None,
+    out: Annotated[Path | None, typer.Option("--out", help="Output folder (checkpoints, logs).")] = None,
+    device: Annotated[str | None, typer.Option("--device", help="cpu, cuda or cuda:N.")] = None,
+    data: Annotated[
+        str | None,
+        typer.Option(
+            "--data", help="murk synth folder, Joint-ID list, clean RGB-D folder (online synthesis) or 'scenes'."
+        ),
+    ] = None,
+    eval_real: Annotated[
+        Path | None, typer.Option("--eval-real", help="Folder of REAL underwater images scored with UIQM/UCIQE.")
+    ] = None,
+    resume: Annotated[bool, typer.Option("--resume", help="Continue from OUT/latest.pt (bit-exact on CPU).")] = False,
+    stop_after: Annotated[
+        int | None, typer.Option("--stop-after", help="Stop after N steps in this run (resume later with --resume).")
+    ] = None,
+    batch: Annotated[int | None, typer.Option("--batch", help="Samples per process per step.")] = None,
+    epochs: Annotated[float | None, typer.Option("--epochs", help="Epochs (when --steps is not given).")] = None,
+    precision: Annotated[str | None, typer.Option("--precision", help="fp32 or bf16.")] = None,
+    seed: Annotated[int | None, typer.Option("--seed", help="Seed of everything random.")] = None,
+    workers: Annotated[int | None, typer.Option("--workers", help="DataLoader workers per process.")] = None,
+    quiet: QuietOpt = False,
+) -> None:
+    """Train Joint-ID (unchanged architecture and loss) on synthetic underwater data.
+
+    Single process, or DistributedDataParallel with: torchrun --nproc_per_node N -m murk train --config ...
+    """
+    from murk._config import load_yaml, merge
+    from murk.data import resolve_builtin
+    from murk.train.config import TrainConfig
+    from murk.train.loop import train as run_train
+
+    config = load_yaml(TrainConfig, config_file)
+    overrides: dict[str, Any] = {}
+    for key, value in (
+        ("steps", steps),
+        ("batch", batch),
+        ("epochs", epochs),
+        ("precision", precision),
+        ("seed", seed),
+        ("device", device),
+    ):
+        if value is not None:
+            overrides[key] = value
+    if out is not None:
+        overrides["out"] = str(out)
+    data_over: dict[str, Any] = {}
+    if data is not None:
+        data_over["source"] = data
+    if workers is not None:
+        data_over["workers"] = workers
+    if data_over:
+        overrides["data"] = data_over
+    if eval_real is not None:
+        overrides["eval"] = {"real": str(eval_real)}
+    config = merge(config, overrides, where="command line")
+    resolved: dict[str, Any] = {"data": {"source": resolve_builtin(config.data.source)}}
+    if config.eval.real:
+        resolved["eval"] = {"real": resolve_builtin(config.eval.real)}
+    if config.data.val_source:
+        resolved["data"]["val_source"] = resolve_builtin(config.data.val_source)
+    config = merge(config, resolved, where="config")
+    console = make_console(quiet)
+
+    def on_log(rec: dict[str, Any]) -> None:
+        if rec["kind"] == "train":
+            console.print(
+                f"step {rec['step']}/{total['n']}  loss {rec['loss']:.4f}  lr {rec['lr']:.2e}  "
+                f"{rec['images_per_s']:.1f} img/s",
+                highlight=False,
+            )
+        else:
+            shown = "  ".join(f"{k} {v:.4g}" for k, v in rec.items() if k not in ("kind", "step") and v is not None)
+            console.print(f"eval @ {rec['step']}: {shown}", highlight=False)
+
+    total = {"n": config.steps if config.steps is not None else "?"}
+    summary = run_train(config, resume=resume, stop_after=stop_after, on_log=on_log)
+    make_console().print(
+        f"train: {summary.steps_done}/{summary.total_steps} steps, last loss {summary.last_loss:.4f}, "
+        f"{summary.images_per_s:.1f} img/s, best {summary.best or '-'} -> {summary.out_dir}",
+        soft_wrap=True,
+        highlight=False,
+    )

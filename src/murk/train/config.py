@@ -1,0 +1,138 @@
+"""Configuration of a training run (YAML <-> frozen dataclasses). Defaults: Joint-ID's original recipe."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+from murk._checks import check_positive, check_range
+from murk.synth.config import SynthConfig
+from murk.train.augment import AugmentConfig
+from murk.train.losses import LossWeights
+
+DataKind = Literal["auto", "synth", "list", "rgbd", "scenes"]
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Which network, and optionally the weights to start from."""
+
+    variant: Literal["base", "tiny"] = "base"
+    init_checkpoint: str | None = None
+    """Start from these weights (murk or official format) instead of the random initialisation."""
+    trust_checkpoint: bool = False
+
+
+@dataclass(frozen=True)
+class DataConfig:
+    """Where samples come from.
+
+    ``source`` is a ``murk synth`` output folder, a Joint-ID list file, a clean RGB-D folder (``rgb/`` +
+    ``depth/``; degraded online) or ``scenes`` (procedural construction-site scenes, degraded online);
+    ``kind: auto`` tells them apart.
+    """
+
+    source: str = ""
+    kind: DataKind = "auto"
+    list_root: str | None = None
+    """Base folder of the relative paths of a Joint-ID list (default: the list's folder)."""
+    crop_hw: tuple[int, int] = (288, 512)
+    """Training size (height, width): samples are centre-cropped to it (multiples of 32)."""
+    val_fraction: float = 0.05
+    """Share of clean images (by stem) held out for validation."""
+    val_source: str | None = None
+    """A separate validation source instead of the split."""
+    workers: int = 2
+    """DataLoader worker processes per training process."""
+    depth_scale: float = 1000.0
+    invalid_depth: Literal["fill", "far", "fail"] = "fill"
+    scenes_count: int = 2000
+    """Number of procedural scenes (``source: scenes``); scene i is the same in every epoch."""
+    synthesis: SynthConfig = field(
+        default_factory=lambda: SynthConfig(stages=("basic", "forward_scatter", "marine_snow"))
+    )
+    """Online degradation (rgbd and scenes sources): the paper's three stages by default."""
+
+    def __post_init__(self) -> None:
+        h, w = self.crop_hw
+        if h % 32 or w % 32 or h < 32 or w < 32:
+            raise ValueError(f"crop_hw: expected multiples of 32 (Joint-ID's input rule), got {self.crop_hw}")
+        check_range("val_fraction", self.val_fraction, 0.0, 0.9)
+        if self.workers < 0:
+            raise ValueError(f"workers: expected >= 0, got {self.workers}")
+        check_positive("depth_scale", self.depth_scale)
+        if self.scenes_count < 1:
+            raise ValueError(f"scenes_count: expected >= 1, got {self.scenes_count}")
+
+
+@dataclass(frozen=True)
+class OptimConfig:
+    """AdamW and the warm-up + cosine schedule (the original: lr 2e-4, min 2e-6, wd 0.01, 1 warm-up epoch)."""
+
+    lr: float = 2e-4
+    min_lr: float = 2e-6
+    betas: tuple[float, float] = (0.9, 0.999)
+    eps: float = 1e-8
+    weight_decay: float = 0.01
+    warmup_epochs: float = 1.0
+    grad_clip: float = 0.0
+    """Clip the global gradient norm (0 = off, as in the original)."""
+
+    def __post_init__(self) -> None:
+        check_positive("lr", self.lr)
+        check_positive("min_lr", self.min_lr, allow_zero=True)
+        check_positive("weight_decay", self.weight_decay, allow_zero=True)
+        check_positive("grad_clip", self.grad_clip, allow_zero=True)
+
+
+@dataclass(frozen=True)
+class EvalConfig:
+    """Evaluation during training."""
+
+    every: int = 500
+    """Evaluate (and save ``latest.pt``) every N optimiser steps, and at the end."""
+    val_batches: int = 8
+    """Batches of the held-out synthetic split per evaluation (PSNR/SSIM, depth errors)."""
+    real: str | None = None
+    """Folder of REAL underwater images: UIQM/UCIQE of the restored images."""
+    real_max: int = 16
+    """At most this many real images per evaluation."""
+    real_max_side: int = 640
+    """Real images are downscaled so that their long side is at most this (then padded to multiples of 32)."""
+    best_metric: str = "val_psnr"
+    """Log key that selects ``best.pt`` (e.g. val_psnr, val_ssim, val_silog, real_uiqm)."""
+    best_mode: Literal["max", "min"] = "max"
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """A whole training run."""
+
+    model: ModelConfig = field(default_factory=ModelConfig)
+    data: DataConfig = field(default_factory=DataConfig)
+    optim: OptimConfig = field(default_factory=OptimConfig)
+    loss: LossWeights = field(default_factory=LossWeights)
+    augment: AugmentConfig = field(default_factory=AugmentConfig)
+    eval: EvalConfig = field(default_factory=EvalConfig)
+    epochs: float = 5.0
+    steps: int | None = None
+    """Total optimiser steps; overrides ``epochs`` (the schedule is stretched over them)."""
+    batch: int = 7
+    """Samples per process per step (the original: 7)."""
+    precision: Literal["fp32", "bf16"] = "fp32"
+    seed: int = 0
+    device: str = "cpu"
+    out: str = "runs/train"
+    log_every: int = 10
+    compile: bool = False
+    """torch.compile the network (GPU; first steps are slow while it compiles)."""
+    channels_last: bool = False
+
+    def __post_init__(self) -> None:
+        if self.batch < 1:
+            raise ValueError(f"batch: expected >= 1, got {self.batch}")
+        if self.steps is not None and self.steps < 1:
+            raise ValueError(f"steps: expected >= 1, got {self.steps}")
+        check_positive("epochs", self.epochs)
+        if self.log_every < 1:
+            raise ValueError(f"log_every: expected >= 1, got {self.log_every}")
