@@ -7,6 +7,7 @@ from typing import Annotated
 import typer
 
 from murk._version import __version__
+from murk.cli import eval as eval_cmd
 from murk.cli._common import MurkGroup
 
 app = typer.Typer(
@@ -38,3 +39,6 @@ def _root(
 def main() -> None:
     """Console-script entry point."""
     app(prog_name="murk")
+
+
+app.command("eval")(eval_cmd.evaluate)
