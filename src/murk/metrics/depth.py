@@ -80,13 +80,22 @@ def _check_limits(min_depth_m: float, max_depth_m: float) -> tuple[float, float]
     return lo, hi
 
 
+def _drop_channel_axis(a: np.ndarray) -> np.ndarray:
+    """(H, W, 1) or (1, H, W) -> (H, W); anything else unchanged."""
+    if a.ndim == 3 and a.shape[2] == 1:
+        return a[:, :, 0]
+    if a.ndim == 3 and a.shape[0] == 1:
+        return a[0]
+    return a
+
+
 def _check_depth_pair_numpy(pred_m: Any, gt_m: Any) -> tuple[np.ndarray, np.ndarray]:
     for name, a in (("pred_m", pred_m), ("gt_m", gt_m)):
         if not isinstance(a, np.ndarray):
             raise TypeError(f"{name}: expected a numpy array of shape (H, W) in metres, got {type(a).__name__}")
         if not (np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating)):
             raise TypeError(f"{name}: expected an integer or float array, got dtype {a.dtype}")
-    p, g = np.squeeze(pred_m), np.squeeze(gt_m)
+    p, g = _drop_channel_axis(pred_m), _drop_channel_axis(gt_m)
     if g.ndim != 2:
         raise ShapeError(f"gt_m: expected shape (H, W), got {gt_m.shape}")
     if p.shape != g.shape:
@@ -100,7 +109,7 @@ def depth_errors(
     """Depth errors of one predicted depth map against ground truth (Joint-ID's conventions).
 
     Args:
-        pred_m: predicted depth (H, W) in metres (singleton axes are squeezed).
+        pred_m: predicted depth (H, W) in metres ((H, W, 1) and (1, H, W) are accepted).
         gt_m: ground-truth depth (H, W) in metres; pixels outside (min_depth_m, max_depth_m), NaN or inf are
             not evaluated.
         min_depth_m: lower clip of the prediction and exclusive lower bound of valid ground truth.
