@@ -142,7 +142,9 @@ def test_cielab_raw_all_black_warns_and_is_zero() -> None:
 
 @pytest.mark.parametrize("name", list(_all_images()))
 def test_reference_metrics_on_edge_cases(name: str) -> None:
-    image = np.ascontiguousarray(_all_images()[name][16:80, :64])  # keeps the letterbox bar edge (row 48)
+    image = _all_images()[name]
+    if image.shape[0] >= 80:  # a 64x64 crop of the 640x480 cases keeps their content (letterbox edge: row 48)
+        image = np.ascontiguousarray(image[16:80, :64])
     other = np.ascontiguousarray(255 - image)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MetricWarning)
