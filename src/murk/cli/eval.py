@@ -91,10 +91,10 @@ def evaluate(
         raise ValueError(f"--depth-scale: expected a finite number > 0, got {depth_scale}")
     if (depth is None) != (depth_ref is None):
         raise ValueError("--depth and --depth-ref: give both (predicted and ground-truth depth) or neither")
-    if not images and depth is None:
-        raise ValueError("nothing to evaluate: give IMAGES (files or folders) and/or --depth PRED --depth-ref GT")
     if ref is not None and not images:
         raise ValueError("--ref: needs IMAGES (the predictions to compare with the references)")
+    if not images and depth is None:
+        raise ValueError("nothing to evaluate: give IMAGES (files or folders) and/or --depth PRED --depth-ref GT")
 
     console = make_console(quiet)
     out = _Outcome()
