@@ -115,7 +115,7 @@ def uciqe(image: np.ndarray, *, data_range: float, preset: UCIQEPreset = "uciqe_
     if preset == "uciqe_m":
         sigma_c, con_l, mu_s = _uciqe_m(_quantise_u8(image, data_range))
     else:
-        sigma_c, con_l, mu_s = _cielab_raw(to_255_numpy(image, data_range, np.float64) / 255.0)
+        sigma_c, con_l, mu_s = _cielab_raw(image, data_range)
     c1, c2, c3 = UCIQE_WEIGHTS
     value = c1 * sigma_c + c2 * con_l + c3 * mu_s
     return UCIQEResult(float(value), float(sigma_c), float(con_l), float(mu_s), preset)
@@ -164,20 +164,35 @@ def _uciqe_m(rgb_u8: np.ndarray) -> tuple[float, float, float]:
 # cielab_raw (numpy)
 
 
-def _srgb_to_lab(rgb: np.ndarray) -> np.ndarray:
-    """CIELAB (L* in [0, 100]) of sRGB values in [0, 1], shape (..., 3); D65, float64."""
-    lin = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
-    xyz = (lin @ _RGB_TO_XYZ.T) / _WHITE_D65
-    f = np.where(xyz > _LAB_EPS, np.cbrt(xyz), xyz * _LAB_SLOPE + 4.0 / 29.0)
-    return np.stack(
-        [116.0 * f[..., 1] - 16.0, 500.0 * (f[..., 0] - f[..., 1]), 200.0 * (f[..., 1] - f[..., 2])], axis=-1
-    )
+def _srgb_linear(c: np.ndarray) -> np.ndarray:
+    """sRGB decoding (IEC 61966-2-1) of values in [0, 1]; the power is evaluated only where it applies."""
+    out = c / 12.92
+    hi = c > 0.04045
+    out[hi] = ((c[hi] + 0.055) / 1.055) ** 2.4
+    return out
 
 
-def _cielab_raw(rgb01: np.ndarray) -> tuple[float, float, float]:
-    lab = _srgb_to_lab(rgb01).reshape(-1, 3)
-    lum = np.maximum(lab[:, 0], 0.0)
-    chroma = np.hypot(lab[:, 1], lab[:, 2])
+_SRGB_LINEAR_U8 = _srgb_linear(np.arange(256) / 255.0)
+
+
+def _lab_f(image: np.ndarray, data_range: float) -> np.ndarray:
+    """CIELAB's f(X/Xn), f(Y/Yn), f(Z/Zn) per pixel, (N, 3) float64, of an sRGB image (D65).
+
+    uint8 input with data_range 255 is decoded through a 256-entry table (the same values as the formula).
+    """
+    if image.dtype == np.uint8 and data_range == 255.0:
+        lin = _SRGB_LINEAR_U8[image]
+    else:
+        lin = _srgb_linear(to_255_numpy(image, data_range, np.float64) / 255.0)
+    xyz = (lin @ (_RGB_TO_XYZ.T / _WHITE_D65)).reshape(-1, 3)
+    return np.where(xyz > _LAB_EPS, np.cbrt(xyz), xyz * _LAB_SLOPE + 4.0 / 29.0)
+
+
+def _cielab_raw(image: np.ndarray, data_range: float) -> tuple[float, float, float]:
+    f = _lab_f(image, data_range)
+    fx, fy, fz = f[:, 0], f[:, 1], f[:, 2]
+    lum = np.maximum(116.0 * fy - 16.0, 0.0)  # L*
+    chroma = np.hypot(500.0 * (fx - fy), 200.0 * (fy - fz))  # C* = sqrt(a*^2 + b*^2)
     sigma_c = float(np.std(chroma))
     p1, p99 = np.percentile(lum, [1.0, 99.0])
     con_l = float(p99 - p1)
@@ -188,7 +203,7 @@ def _cielab_raw(rgb01: np.ndarray) -> tuple[float, float, float]:
         return sigma_c, con_l, 0.0
     if n_pos < lum.size:
         warn_metric(_MSG_BLACK.format(n=lum.size - n_pos))
-    mu_s = float(np.sum(chroma[pos] / lum[pos])) / n_pos
+    mu_s = float(np.divide(chroma, lum, out=np.zeros_like(lum), where=pos).sum()) / n_pos
     return sigma_c, con_l, mu_s
 
 
@@ -274,13 +289,12 @@ def _uciqe_m_torch(q: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.T
 
 
 def _srgb_to_lab_torch(rgb: torch.Tensor) -> torch.Tensor:
-    """Twin of :func:`_srgb_to_lab` for (..., 3) float64 tensors."""
+    """CIELAB (L*, a*, b*) of sRGB values in [0, 1], (..., 3) float64; the formulas of :func:`_lab_f`."""
     import torch
 
-    m = torch.as_tensor(_RGB_TO_XYZ.T, dtype=rgb.dtype, device=rgb.device)
-    white = torch.as_tensor(_WHITE_D65, dtype=rgb.dtype, device=rgb.device)
-    lin = torch.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
-    xyz = (lin @ m) / white
+    m = torch.as_tensor(_RGB_TO_XYZ.T / _WHITE_D65, dtype=rgb.dtype, device=rgb.device)
+    lin = torch.where(rgb <= 0.04045, rgb / 12.92, ((rgb.clamp_min(0.04045) + 0.055) / 1.055) ** 2.4)
+    xyz = lin @ m
     f = torch.where(xyz > _LAB_EPS, torch.pow(xyz.clamp_min(0.0), 1.0 / 3.0), xyz * _LAB_SLOPE + 4.0 / 29.0)
     return torch.stack(
         [116.0 * f[..., 1] - 16.0, 500.0 * (f[..., 0] - f[..., 1]), 200.0 * (f[..., 1] - f[..., 2])], dim=-1
