@@ -81,7 +81,7 @@ def test_uiqm_is_finite_numpy_and_torch(name: str, preset: str) -> None:
     for k in ("uiqm", "uicm", "uism", "uiconm"):
         v = float(getattr(t, k)[0])
         assert math.isfinite(v)
-        assert v == pytest.approx(getattr(r, k), rel=1e-4, abs=0.11 if k in ("uicm", "uiqm") else 1e-5)
+        assert v == pytest.approx(getattr(r, k), rel=1e-6, abs=1e-9)
 
 
 @pytest.mark.parametrize("preset", UCIQE_PRESETS)

@@ -325,10 +325,10 @@ def uiqm_torch(images: torch.Tensor, *, data_range: float, preset: UIQMPreset = 
     Returns:
         :class:`UIQMBatch` of float64 tensors (B,): ``uiqm``, ``uicm``, ``uism``, ``uiconm``.
 
-    ``panetta2016`` equals :func:`uiqm` to rounding (float64). ``funie``/``jointid`` compute the trimmed mean
-    with an exact float64 sum instead of the original's sequential float32 accumulation (which cannot be
-    reproduced by a parallel reduction); on 8-bit images of up to 640x480 this changes UIQM by < 1e-4, but it
-    can change UICM of very large or saturated images by up to ~0.1 (documented in ``docs/metrics.md``).
+    ``panetta2016`` equals :func:`uiqm` to rounding (float64) and stays on the device. ``funie``/``jointid``
+    equal :func:`uiqm` (and the original code) too: their trimmed mean needs the original's sequential float32
+    accumulation, which no parallel reduction reproduces, so the kept values are summed on the CPU (one copy
+    of ~1 MB per 640x480 image); prefer ``panetta2016`` where speed matters. No gradients are tracked.
 
     Raises:
         TypeError, ShapeError, ValueError: as :func:`uiqm`, for a (B, 3, H, W) tensor.
@@ -375,18 +375,34 @@ def _uicm_torch(x: torch.Tensor, preset: str) -> torch.Tensor:
         kept = k - t_l - t_r
         if kept <= 0:
             mu = v.double().mean(dim=1)
+            if preset != "panetta2016":
+                mu = mu.float()
+        elif preset == "panetta2016":
+            mu = torch.sort(v, dim=1).values[:, lo:hi].sum(dim=1) * (1.0 / kept)
         else:
-            s = torch.sort(v, dim=1).values[:, lo:hi]
-            mu = s.double().sum(dim=1) * (1.0 / kept)
+            mu = _sequential_float32_sum(torch.sort(v, dim=1).values[:, lo:hi]) * np.float32(1.0 / kept)
         if preset == "panetta2016":
             s2 = ((v - mu[:, None]) ** 2).mean(dim=1)
-        else:
-            mu = mu.float()  # the original's trimmed mean is float32
+        else:  # float32 differences from the float32 trimmed mean, squared and summed in double
             s2 = ((v - mu[:, None]).double() ** 2).sum(dim=1) / k
         mus.append(mu.double())
         s2s.append(s2.double())
     a, b_ = _UICM_WEIGHTS
     return a * torch.sqrt(mus[0] ** 2 + mus[1] ** 2) + b_ * torch.sqrt(s2s[0] + s2s[1])
+
+
+def _sequential_float32_sum(rows: torch.Tensor) -> torch.Tensor:
+    """Row sums of a float32 (B, n) tensor accumulated strictly left to right in float32, as the FUnIE code's
+    Python ``sum`` does. No parallel reduction reproduces that rounding, so the rows go through numpy's
+    (sequential) ``cumsum`` on the CPU: one device-to-host copy of the kept values (~1 MB per 640x480 image).
+    """
+    import torch
+
+    if rows.shape[1] == 0:
+        return rows.new_zeros(rows.shape[0])
+    host = rows.detach().cpu().numpy()
+    sums = np.cumsum(host, axis=1, dtype=np.float32)[:, -1]
+    return torch.from_numpy(np.ascontiguousarray(sums)).to(rows.device)
 
 
 def _sobel_magnitude_torch(x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
