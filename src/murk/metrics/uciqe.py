@@ -1,6 +1,6 @@
 """UCIQE, the underwater colour image quality evaluation of Yang and Sowmya, with its three terms.
 
-``UCIQE = 0.4680 sigma_c + 0.2745 con_l + 0.2576 mu_s`` (Yang & Sowmya, Eq. (4)).
+``UCIQE = 0.4680 sigma_c + 0.2745 con_l + 0.2576 mu_s`` (the linear model of Yang & Sowmya).
 
 Two presets (``docs/metrics.md`` explains which published numbers each one reproduces):
 
