@@ -245,6 +245,7 @@ def _trimmed_mean_funie(v: np.ndarray) -> np.float32:
 
 
 def _uicm_funie(x: np.ndarray) -> float:
+    """FUnIE UICM on a float32 [0, 255] image: its trimmed means, float32 differences, double variances."""
     r, g, b = x[..., 0].ravel(), x[..., 1].ravel(), x[..., 2].ravel()
     rg = r - g
     yb = (r + g) / np.float32(2.0) - b
@@ -273,6 +274,7 @@ def _channel_names(flags: list[bool]) -> str:
 
 
 def _uism_funie(x: np.ndarray, preset: str) -> float:
+    """FUnIE UISM: EME over 10x10 blocks of (Sobel magnitude x 255/max) x channel, blue weight 0.144."""
     block = _BLOCK[preset]
     h, w = x.shape[:2]
     if h < block or w < block:
@@ -297,6 +299,7 @@ def _uism_funie(x: np.ndarray, preset: str) -> float:
 
 
 def _uiconm_funie(x: np.ndarray, preset: str) -> float:
+    """FUnIE UIConM: -1/(k1 k2) sum c ln c, c = (max - min)/(max + min) over each 10x10 block's three channels."""
     block = _BLOCK[preset]
     h, w = x.shape[:2]
     if h < block or w < block:  # the caller (UISM) has warned
