@@ -1,0 +1,221 @@
+"""``murk eval``: tables, CSV/JSON outputs, presets, references, depth, failures and usage errors.
+
+Provenance: expected numbers come from the public API on the same files (pinned elsewhere) or, for the
+``--preset funie`` check, from ``tests/data/metrics_reference.json`` (the original FUnIE code's output).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from murk.cli.main import app
+from murk.data import sample_underwater_dir
+from murk.io import read_depth, read_image, to_float
+from murk.metrics import depth_errors, pil_bicubic_resize, psnr, ssim, uciqe, uiqm
+
+from .metrics_refdata import records
+
+runner = CliRunner()
+SAMPLES = ("suim/n_l_52_.jpg", "funie_euvp/3.jpg")
+
+
+@pytest.fixture
+def folder(tmp_path: Path) -> Path:
+    d = tmp_path / "imgs"
+    d.mkdir()
+    for rel in SAMPLES:
+        shutil.copy(sample_underwater_dir() / rel, d / Path(rel).name)
+    return d
+
+
+def _run(*args: str) -> Any:
+    return runner.invoke(app, ["eval", *args])
+
+
+def _err(res: Any) -> str:
+    """stderr with rich's line wrapping undone."""
+    return " ".join(res.stderr.split())
+
+
+def test_folder_table_json_csv(folder: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    res = _run(str(folder), "--json", str(out / "r.json"), "--csv", str(out / "r.csv"))
+    assert res.exit_code == 0, res.output
+    assert "n_l_52_.jpg" in res.stdout and "mean" in res.stdout and "std" in res.stdout
+    doc = json.loads((out / "r.json").read_text())
+    assert (doc["uiqm_preset"], doc["uciqe_preset"]) == ("panetta2016", "uciqe_m")
+    assert [r["file"] for r in doc["images"]] == ["3.jpg", "n_l_52_.jpg"]
+    values = []
+    for row in doc["images"]:
+        rgb, _ = read_image(folder / row["file"])
+        q, c = uiqm(rgb, data_range=255), uciqe(rgb, data_range=255)
+        assert row["uiqm"] == pytest.approx(q.uiqm, rel=1e-12)
+        assert row["uiconm"] == pytest.approx(q.uiconm, rel=1e-12)
+        assert row["uciqe"] == pytest.approx(c.uciqe, rel=1e-12)
+        values.append(q.uiqm)
+    assert doc["summary"]["images"]["uiqm"]["mean"] == pytest.approx(np.mean(values), rel=1e-12)
+    assert doc["summary"]["images"]["uiqm"]["std"] == pytest.approx(np.std(values), rel=1e-12)
+    assert doc["errors"] == [] and not (out / "errors.jsonl").exists()
+    rows = list(csv.DictReader((out / "r.csv").open()))
+    assert [r["file"] for r in rows] == ["3.jpg", "n_l_52_.jpg"]
+    assert float(rows[1]["uism"]) == pytest.approx(doc["images"][1]["uism"], rel=1e-12)
+
+
+def test_preset_funie_reproduces_the_original_code(folder: Path, tmp_path: Path) -> None:
+    ref = next(r for r in records("uiqm", "funie_py3") if r["image"].endswith("n_l_52_.jpg") and r["size"] == "native")
+    res = _run(
+        str(folder / "n_l_52_.jpg"), "--preset", "funie", "--preset", "cielab_raw", "--json", str(tmp_path / "r.json")
+    )
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "r.json").read_text())
+    assert (doc["uiqm_preset"], doc["uciqe_preset"]) == ("funie", "cielab_raw")
+    assert abs(doc["images"][0]["uiqm"] - ref["value"]) <= 1e-4
+    assert doc["images"][0]["uciqe"] > 5  # raw CIELAB units
+
+
+def test_resize_like_measure_uiqm(folder: Path, tmp_path: Path) -> None:
+    res = _run(str(folder / "3.jpg"), "--resize", "256x200", "--json", str(tmp_path / "r.json"))
+    assert res.exit_code == 0, res.output
+    rgb, _ = read_image(folder / "3.jpg")
+    expected = uiqm(pil_bicubic_resize(rgb, (256, 200)), data_range=255).uiqm
+    doc = json.loads((tmp_path / "r.json").read_text())
+    assert doc["resize"] == [256, 200]
+    assert doc["images"][0]["uiqm"] == pytest.approx(expected, rel=1e-12)
+
+
+def test_reference_folder_adds_psnr_ssim(folder: Path, tmp_path: Path) -> None:
+    refs = tmp_path / "refs"
+    refs.mkdir()
+    shutil.copy(folder / "3.jpg", refs / "3.jpg")  # identical: PSNR inf, SSIM 1
+    rgb, _ = read_image(folder / "n_l_52_.jpg")
+    other = np.clip(rgb.astype(np.int16) + 9, 0, 255).astype(np.uint8)
+    cv2.imwrite(str(refs / "n_l_52_.png"), other[:, :, ::-1])  # matched by stem, another suffix
+    res = _run(str(folder), "--ref", str(refs), "--json", str(tmp_path / "r.json"), "--csv", str(tmp_path / "r.csv"))
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "r.json").read_text())
+    same, diff = doc["images"]
+    assert same["psnr"] == "inf" and same["ssim"] == pytest.approx(1.0)
+    assert diff["psnr"] == pytest.approx(psnr(to_float(rgb), to_float(other), data_range=1.0), rel=1e-12)
+    assert diff["ssim"] == pytest.approx(ssim(to_float(rgb), to_float(other), data_range=1.0), rel=1e-12)
+    assert doc["summary"]["images"]["psnr"]["n_inf"] == 1
+    assert doc["summary"]["images"]["psnr"]["mean"] == pytest.approx(diff["psnr"])
+    assert "inf" in res.stdout
+
+
+def test_missing_reference_is_a_file_failure(folder: Path, tmp_path: Path) -> None:
+    refs = tmp_path / "refs"
+    refs.mkdir()
+    shutil.copy(folder / "3.jpg", refs / "3.jpg")
+    res = _run(str(folder), "--ref", str(refs))
+    assert res.exit_code == 1
+    assert "no reference image with stem 'n_l_52_'" in _err(res)
+
+
+def test_failed_files_exit_1_with_errors_jsonl(folder: Path, tmp_path: Path) -> None:
+    (folder / "broken.png").write_bytes(b"not a png")
+    out = tmp_path / "out"
+    res = _run(str(folder), "--json", str(out / "r.json"))
+    assert res.exit_code == 1
+    assert "broken.png" in _err(res) and "cannot decode" in _err(res)
+    errors = [json.loads(line) for line in (out / "errors.jsonl").read_text().splitlines()]
+    assert [Path(e["file"]).name for e in errors] == ["broken.png"]
+    doc = json.loads((out / "r.json").read_text())
+    assert len(doc["images"]) == 2 and len(doc["errors"]) == 1
+
+
+def test_failed_files_without_outputs_are_printed_only(folder: Path, tmp_path: Path) -> None:
+    (folder / "broken.png").write_bytes(b"not a png")
+    res = _run(str(folder))
+    assert res.exit_code == 1
+    assert "broken.png" in _err(res)
+    assert not list(tmp_path.rglob("errors.jsonl"))
+
+
+def test_warnings_are_reported(tmp_path: Path) -> None:
+    cv2.imwrite(str(tmp_path / "gray.png"), np.full((32, 32, 3), 128, np.uint8))
+    res = _run(str(tmp_path / "gray.png"), "--preset", "funie", "--json", str(tmp_path / "r.json"))
+    assert res.exit_code == 0
+    assert "constant" in _err(res)
+    doc = json.loads((tmp_path / "r.json").read_text())
+    assert any("Sobel rescale" in w for w in doc["images"][0]["warnings"])
+    assert doc["images"][0]["uism"] == 0.0
+
+
+def test_quiet_prints_only_the_summary(folder: Path) -> None:
+    res = _run(str(folder), "--quiet")
+    assert res.exit_code == 0
+    assert "mean" in res.stdout and "n_l_52_.jpg" not in res.stdout
+
+
+def test_recursive(tmp_path: Path) -> None:
+    res = _run(str(sample_underwater_dir()))
+    assert res.exit_code == 2 and "--recursive" in _err(res)
+    res = _run(str(sample_underwater_dir()), "-r", "--quiet", "--json", str(tmp_path / "r.json"))
+    assert res.exit_code == 0
+    assert len(json.loads((tmp_path / "r.json").read_text())["images"]) == 13
+
+
+def _write_depth_mm(path: Path, depth_m: np.ndarray) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(path), np.rint(depth_m * 1000).astype(np.uint16))
+
+
+def test_depth_folders(tmp_path: Path, rng: np.random.Generator) -> None:
+    for stem in ("a", "b"):
+        gt = rng.uniform(0.5, 12.0, (24, 32))
+        _write_depth_mm(tmp_path / "gt" / f"{stem}.png", gt)
+        _write_depth_mm(tmp_path / "pred" / f"{stem}.png", gt * rng.uniform(0.8, 1.2, gt.shape))
+    _write_depth_mm(tmp_path / "pred" / "c.png", np.ones((24, 32)))  # no ground truth
+    res = _run(
+        "--depth", str(tmp_path / "pred"), "--depth-ref", str(tmp_path / "gt"), "--json", str(tmp_path / "r.json")
+    )
+    assert res.exit_code == 1
+    assert "no ground-truth depth with stem 'c'" in _err(res)
+    doc = json.loads((tmp_path / "r.json").read_text())
+    assert [Path(r["file"]).stem for r in doc["depth"]] == ["a", "b"]
+    for row in doc["depth"]:
+        ref = depth_errors(read_depth(row["file"]), read_depth(row["ref"]))
+        assert row["abs_rel"] == pytest.approx(ref.abs_rel, rel=1e-12)
+        assert row["d1"] == pytest.approx(ref.d1)
+    assert doc["summary"]["depth"]["rmse"]["mean"] == pytest.approx(np.mean([r["rmse"] for r in doc["depth"]]))
+
+
+def test_depth_single_files(tmp_path: Path) -> None:
+    gt = np.linspace(1.0, 9.0, 48).reshape(6, 8)
+    _write_depth_mm(tmp_path / "gt.png", gt)
+    _write_depth_mm(tmp_path / "pred.png", gt)
+    res = _run(
+        "--depth", str(tmp_path / "pred.png"), "--depth-ref", str(tmp_path / "gt.png"), "--csv", str(tmp_path / "d.csv")
+    )
+    assert res.exit_code == 0, res.output
+    row = next(csv.DictReader((tmp_path / "d.csv").open()))
+    assert float(row["rmse"]) == 0.0 and float(row["d1"]) == 1.0
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        ([], "nothing to evaluate"),
+        (["{folder}", "--preset", "matlab"], "--preset: expected a UIQM preset"),
+        (["{folder}", "--preset", "funie", "--preset", "jointid"], "two UIQM presets"),
+        (["{folder}", "--resize", "256"], "--resize: expected WxH"),
+        (["{folder}", "--ssim-window", "box"], "--ssim-window"),
+        (["{folder}/missing.png"], "no such file or folder"),
+        (["--depth", "{folder}"], "give both"),
+        (["--ref", "{folder}"], "--ref: needs IMAGES"),
+        (["{folder}", "--ref", "{folder}/3.jpg"], "expected a folder of reference images"),
+    ],
+)
+def test_usage_errors_exit_2(folder: Path, args: list[str], message: str) -> None:
+    res = _run(*(a.format(folder=folder) for a in args))
+    assert res.exit_code == 2
+    assert message in _err(res)
