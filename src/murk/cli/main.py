@@ -35,6 +35,11 @@ def _root(
     """murk: realistic underwater data synthesis, restoration and metrics for underwater robots."""
 
 
+from murk.cli import enhance as _enhance  # noqa: E402
+
+app.command("enhance")(_enhance.enhance)
+
+
 def main() -> None:
     """Console-script entry point."""
     app(prog_name="murk")
