@@ -185,7 +185,7 @@ def enhance(
     if report.failed:
         raise typer.Exit(EXIT_PARTIAL)
     if report.stopped and not live:
-        summary.print("interrupted; rerun the same command to resume")
+        summary.print("interrupted; rerun the same command to resume", soft_wrap=True)
         raise typer.Exit(EXIT_INTERRUPTED)
     raise typer.Exit(EXIT_OK)
 
@@ -199,12 +199,13 @@ def _print_summary(console: Any, report: Any) -> None:
         parts.append(f"[red]{report.failed} failed[/] (see {escape(str(report.errors_path))})")
     console.print(
         f"enhance: {', '.join(parts)} in {report.wall_s:.1f} s; {report.fps:.2f} frames/s; per frame: "
-        f"read {ms['read']:.1f} ms, restore {ms['restore']:.1f} ms, write {ms['write']:.1f} ms"
+        f"read {ms['read']:.1f} ms, restore {ms['restore']:.1f} ms, write {ms['write']:.1f} ms",
+        soft_wrap=True,
     )
     for path in report.outputs:
-        console.print(f"wrote {escape(str(path))}")
+        console.print(f"wrote {escape(str(path))}", soft_wrap=True)
     for note in report.notes:
-        console.print(f"note: {escape(note)}")
+        console.print(f"note: {escape(note)}", soft_wrap=True)
 
 
 class _Display:
@@ -252,7 +253,7 @@ class _Display:
                 self._live.update(line)
                 self._last = now
         elif not self.console.quiet and now - self._last >= 10.0:
-            self.console.print(line)
+            self.console.print(line, soft_wrap=True)
             self._last = now
 
     def __exit__(self, *exc: object) -> None:

@@ -123,7 +123,7 @@ def resolve_input(spec: str, *, recursive: bool = False, exclude: Path | None = 
     """
     path = Path(spec)
     if path.is_dir():
-        images = _exclude(list_images(path, recursive=recursive), exclude)
+        images = _exclude(list_images(path, recursive=recursive), exclude, path)
         if not images:
             raise InputFileError(path, f"no images found{'' if recursive else ' (use --recursive for subfolders)'}")
         return EnhanceInput("images", str(path), tuple(images), root=path)
@@ -138,20 +138,25 @@ def resolve_input(spec: str, *, recursive: bool = False, exclude: Path | None = 
     if _GLOB_CHARS & set(spec):
         matches = [Path(p) for p in globlib.glob(spec, recursive=True)]
         images = sorted(p for p in matches if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
-        images = _exclude([p for p in images if not p.name.startswith(".")], exclude)
+        root = _glob_root(spec)
+        images = _exclude([p for p in images if not p.name.startswith(".")], exclude, root)
         if not images:
             raise InputFileError(spec, "the pattern matches no image file")
-        return EnhanceInput("images", spec, tuple(images), root=_glob_root(spec))
+        return EnhanceInput("images", spec, tuple(images), root=root)
     raise InputFileError(
         spec,
         "not found (expected an image, a folder, a glob, a video file, a camera index or an rtsp:// / http:// URL)",
     )
 
 
-def _exclude(images: list[Path], folder: Path | None) -> list[Path]:
+def _exclude(images: list[Path], folder: Path | None, root: Path) -> list[Path]:
+    """Drop images below ``folder`` (the output) when it lies inside the input ``root``; an output folder
+    equal to or above the input is refused later by :func:`plan_images` instead."""
     if folder is None:
         return images
     out = folder.resolve()
+    if root.resolve().is_relative_to(out):
+        return images
     return [p for p in images if not p.resolve().is_relative_to(out)]
 
 
