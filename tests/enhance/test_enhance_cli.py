@@ -2,13 +2,19 @@
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 import torch
-from _enhance_helpers import make_video, read_video
+from _enhance_helpers import make_frames, make_video, read_video
 from typer.testing import CliRunner
 
 from murk.cli.enhance import method_options
@@ -101,3 +107,29 @@ def test_usage_errors_exit_2(folder: Path, tmp_path: Path) -> None:
     if not torch.cuda.is_available():
         res = runner.invoke(app, ["enhance", str(folder), "--out", str(tmp_path / "o"), "--device", "cuda"])
         assert res.exit_code == 2 and "CUDA is not available" in _out(res)
+
+
+def test_sigterm_closes_a_live_recording_cleanly(
+    mjpeg_server: Callable[[list[np.ndarray], float], str], tmp_path: Path
+) -> None:
+    # A long stream (about 20 s); the recording is stopped with SIGTERM as a service manager would. OpenCV's MP4
+    # writer only produces a playable file when it is released, so a readable file proves the clean close.
+    url = mjpeg_server(make_frames(30) * 70, 0.01)
+    out = tmp_path / "rov.mp4"
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src")}
+    cmd = [sys.executable, "-m", "murk", "enhance", url, "--out", str(out), "--video-backend", "opencv"]
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not out.exists() and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.1)
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGTERM)
+        output, _ = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, output
+    assert "processed" in output
+    frames = read_video(out)
+    assert 1 <= len(frames) < 2100 and frames[0].shape == (48, 64, 3)

@@ -204,3 +204,16 @@ def test_url_helpers() -> None:
     assert redact_url("http://host/a") == "http://host/a"
     assert default_name("rtsp://admin:secret@10.0.0.5:554/live/ch1") == "10.0.0.5_live_ch1"
     assert default_name(2) == "camera2" and default_name("/data/dive 3.mp4") == "dive_3"
+
+
+@pytest.mark.parametrize("suffix", [".mp4", ".mov", ".mkv", ".avi"])
+def test_pyav_sink_round_trip(tmp_path: Path, suffix: str) -> None:
+    pytest.importorskip("av")
+    path = tmp_path / f"av{suffix}"
+    with VideoSink(path, 10.0, (63, 47), backend="av") as sink:
+        for f in _frames(12, 47, 63):
+            sink.write(f)
+    back = _read_all(path)
+    assert len(back) == 12 and back[0].shape == (48, 64, 3)
+    assert abs(float(back[7][:47, :63, 0].mean()) - (20 + 8 * 7)) < 4
+    assert not list(tmp_path.glob(f"{TMP_PREFIX}*"))
