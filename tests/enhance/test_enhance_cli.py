@@ -133,3 +133,17 @@ def test_sigterm_closes_a_live_recording_cleanly(
     assert "processed" in output
     frames = read_video(out)
     assert 1 <= len(frames) < 2100 and frames[0].shape == (48, 64, 3)
+
+
+def test_video_with_a_broken_frame_continues_and_exits_1(tmp_path: Path) -> None:
+    video = make_video(tmp_path / "clip.avi", 10)
+    data = bytearray(video.read_bytes())
+    soi = [i for i in range(len(data) - 1) if data[i] == 0xFF and data[i + 1] == 0xD8]
+    data[soi[4] : soi[4] + 200] = bytes(200)  # frame 4's JPEG (about 300 bytes) destroyed
+    video.write_bytes(bytes(data))
+    res = runner.invoke(app, ["enhance", str(video), "--out", str(tmp_path / "out" / "enh.avi")])
+    assert res.exit_code == 1, res.output
+    assert "9 processed" in _out(res) and "1 failed" in _out(res)
+    assert len(read_video(tmp_path / "out" / "enh.avi")) == 10  # the broken frame is replaced, timing kept
+    (record,) = read_jsonl(tmp_path / "out" / "errors.jsonl")
+    assert record["frame"] == 4 and record["stage"] == "read" and record["input"] == str(video)

@@ -94,6 +94,8 @@ def test_plan_images_paths_and_refusals(photos: Path, tmp_path: Path) -> None:
         plan_images(one, photos / "a.png")
     with pytest.raises(ValueError, match="--format png contradicts"):
         plan_images(one, tmp_path / "r.jpg", "png")
+    with pytest.raises(ValueError, match="images are written to a folder or an image file"):
+        plan_images(spec, tmp_path / "x.mp4")
 
 
 # --- images -----------------------------------------------------------------------------------------------------
@@ -293,5 +295,7 @@ def test_video_depth_outputs_and_depth_video(tmp_path: Path) -> None:
 def test_frame_pipeline_refuses_unwritable_video_suffix(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match=r"cannot write \.webm videos"):
         enhance_frames(FakeSource(make_frames(2), live=False), PostRestorer(), tmp_path / "x.webm")
+    with pytest.raises(ValueError, match="frames are written to a video file or a folder"):
+        enhance_frames(FakeSource(make_frames(2), live=False), PostRestorer(), tmp_path / "x.png")
     with pytest.raises(ValueError, match="batch: expected >= 1"):
         enhance_frames(FakeSource(make_frames(2), live=False), PostRestorer(), tmp_path / "x.mp4", batch=0)

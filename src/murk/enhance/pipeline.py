@@ -191,6 +191,8 @@ def plan_images(inp: EnhanceInput, out: Path, fmt: ImageFormat | None = None) ->
     """
     if inp.kind != "images" or inp.root is None:
         raise ValueError(f"inp: expected an images input, got {inp.kind}")
+    if out.suffix.lower() in VIDEO_SUFFIXES:
+        raise ValueError(f"--out {out}: images are written to a folder or an image file, not a video")
     if len(inp.images) == 1 and out.suffix.lower() in IMAGE_SUFFIXES and not out.is_dir():
         if fmt is not None and out.suffix.lower() not in _suffixes(fmt):
             raise ValueError(f"--format {fmt} contradicts the output file name {out.name}")
@@ -542,6 +544,8 @@ def enhance_frames(
         report.total = min(source.frame_count, max_frames) if max_frames else source.frame_count
     elif max_frames is not None:
         report.total = max_frames
+    if out.suffix.lower() in IMAGE_SUFFIXES:
+        raise ValueError(f"--out {out}: frames are written to a video file or a folder, not an image file")
     writer = _FrameWriter(source, out, options, report)
     if writer.as_video and out.suffix.lower() not in WRITABLE_VIDEO_SUFFIXES:
         raise ValueError(
