@@ -1,7 +1,7 @@
 """Post-processing of Sec. 4.3: histogram equalisation, then Laplacian-of-Gaussian edge enhancement (Eq. 9).
 
-Reference: S. Yun, Y. Yang, J. Lee, S. Park, H. Choi, Y. Cho, "Robust Image Processing Techniques for
-Construction Environment Monitoring Using Underwater Robots", Sec. 4.3, Eq. (9):
+Reference: S. Yun, G. Yang, J. Lee, C. Park, J. Choi, Y. Cho, "Robust Image Processing Techniques for
+Construction Environment Monitoring Using Underwater Robots" (no DOI in the source text), Sec. 4.3, Eq. (9):
 ``I_out = I_HE - lambda * (LoG_sigma * I_HE)`` with sigma = 1.0 px and lambda = 0.3.
 
 Everything works on float32 RGB in [0, 1]. The float pipeline is defined exactly, so that the OpenCV path
