@@ -90,7 +90,8 @@ def test_fake_depth_method_through_the_cli(folder: Path, tmp_path: Path, fake_de
     assert raw.dtype == np.uint16 and raw[0, 0] == 1000
     assert (out / "depth_preview" / "a.jpg").is_file()
     (options,) = fake_depth_method
-    assert options == method_options(device="cpu", he="rgb", sigma_px=1.0, lam=0.3, clahe_clip=2.0, clahe_tiles=8)
+    expected = method_options(device="cpu", batch=1, he="rgb", sigma_px=1.0, lam=0.3, clahe_clip=2.0, clahe_tiles=8)
+    assert options == expected
 
 
 def test_usage_errors_exit_2(folder: Path, tmp_path: Path) -> None:

@@ -39,6 +39,7 @@ class BackendChoice(str, Enum):
 def method_options(
     *,
     device: str,
+    batch: int,
     he: str,
     sigma_px: float,
     lam: float,
@@ -49,6 +50,7 @@ def method_options(
     the rest). New method options (checkpoint, precision, tiling, ...) are added here and in :func:`enhance`."""
     return {
         "device": device,
+        "batch": batch,
         "he": he,
         "sigma_px": sigma_px,
         "lam": lam,
@@ -139,6 +141,7 @@ def enhance(
         method,
         **method_options(
             device=dev,
+            batch=batch,
             he=he.value,
             sigma_px=sigma_px,
             lam=lam,
