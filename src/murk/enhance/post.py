@@ -110,7 +110,8 @@ def log_kernels(sigma_px: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def laplacian_of_gaussian(image: np.ndarray, sigma_px: float = SIGMA_PX) -> np.ndarray:
-    """``LoG_sigma * image`` per channel (OpenCV, border reflect-101); (H, W) or (H, W, C) float32."""
+    """``LoG_sigma * image``, the edge term of Eq. (9), per channel (OpenCV, border reflect-101); (H, W) or
+    (H, W, C) float32."""
     if not isinstance(image, np.ndarray):
         raise TypeError(f"image: expected a numpy array, got {type(image).__name__}")
     if image.ndim not in (2, 3):
