@@ -48,6 +48,11 @@ app.command("train")(_train.train)
 app.command("eval")(_eval.evaluate)
 
 
+from murk.cli import enhance as _enhance  # noqa: E402
+
+app.command("enhance")(_enhance.enhance)
+
+
 def main() -> None:
     """Console-script entry point."""
     app(prog_name="murk")

@@ -1,0 +1,142 @@
+"""Frames per second of the ``post`` method (Eq. 9) and of the ``murk enhance`` video pipeline.
+
+Run: PYTHONPATH=src python benchmarks/bench_enhance.py [--seconds 2]
+
+CPU figures use ONE core (cv2.setNumThreads(1), torch.set_num_threads(1)). The baseline, measured in the same
+run, is the plain OpenCV recipe a user would write for Eq. (9): uint8 RGB -> YCrCb, cv2.equalizeHist on Y, back
+to RGB, then a float LoG as GaussianBlur(sigma 1) + Laplacian and the subtraction. murk's path adds the exact
+float definition (16-bit safe, torch-twinned); the ratio says what that costs. With CUDA, the torch twin runs
+batched on the GPU (tensor already on the device, and end to end from numpy through pinned memory), compared
+with the one-core OpenCV path.
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import statistics
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import cv2
+import numpy as np
+import torch
+
+from murk.data import sample_underwater_images
+from murk.enhance.pipeline import OutputOptions, _restore, enhance_frames
+from murk.enhance.post import PostRestorer, post_process, post_process_torch
+from murk.io import read_rgb
+from murk.io.video import CaptureSource
+
+SIZES = {"1920x1080": (1080, 1920), "640x480": (480, 640)}
+
+
+def per_call_s(fn: Callable[[], object], seconds: float, sync: Callable[[], None] = lambda: None) -> float:
+    """Median seconds per call over repeated calls lasting about ``seconds`` (after two warm-up calls)."""
+    fn()
+    fn()
+    sync()
+    times: list[float] = []
+    start = time.perf_counter()
+    while time.perf_counter() - start < seconds or len(times) < 5:
+        t0 = time.perf_counter()
+        fn()
+        sync()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def opencv_recipe(rgb_u8: np.ndarray, sigma_px: float = 1.0, lam: float = 0.3) -> np.ndarray:
+    """The baseline: what one writes with OpenCV directly (8-bit equalisation, float LoG)."""
+    ycc = cv2.cvtColor(rgb_u8, cv2.COLOR_RGB2YCrCb)
+    ycc[:, :, 0] = cv2.equalizeHist(ycc[:, :, 0])
+    he = cv2.cvtColor(ycc, cv2.COLOR_YCrCb2RGB).astype(np.float32) / 255.0
+    log = cv2.Laplacian(cv2.GaussianBlur(he, (0, 0), sigma_px), cv2.CV_32F)
+    return np.clip(he - lam * log, 0.0, 1.0)
+
+
+def sample_frame(h: int, w: int) -> np.ndarray:
+    src = read_rgb(sample_underwater_images()[0])
+    return np.ascontiguousarray(cv2.resize(src, (w, h), interpolation=cv2.INTER_CUBIC).clip(0, 1))
+
+
+def bench_cpu(seconds: float) -> None:
+    cv2.setNumThreads(1)
+    torch.set_num_threads(1)
+    print("== CPU, one core: frames/s of one image at a time")
+    print(f"{'size':>10} {'opencv recipe':>14} {'murk post (y)':>14} {'ratio':>6} {'post rgb':>9} {'post clahe':>11}"
+          f" {'torch twin':>11}")  # fmt: skip
+    for label, (h, w) in SIZES.items():
+        img = sample_frame(h, w)
+        u8 = (img * 255 + 0.5).astype(np.uint8)
+        base = per_call_s(lambda u8=u8: opencv_recipe(u8), seconds)
+        ours = per_call_s(lambda img=img: post_process(img), seconds)
+        rgb = per_call_s(lambda img=img: post_process(img, he="rgb"), seconds)
+        clahe = per_call_s(lambda img=img: post_process(img, he="clahe"), seconds)
+        t = torch.from_numpy(img).permute(2, 0, 1)[None].contiguous()
+        twin = per_call_s(lambda t=t: post_process_torch(t), seconds)
+        print(
+            f"{label:>10} {1 / base:14.1f} {1 / ours:14.1f} {base / ours:6.2f} {1 / rgb:9.1f} {1 / clahe:11.1f}"
+            f" {1 / twin:11.1f}"
+        )
+
+
+def bench_gpu(seconds: float) -> None:
+    if not torch.cuda.is_available():
+        print("== GPU: not measured (torch.cuda.is_available() is False on this machine)")
+        return
+    dev = torch.device("cuda")
+    sync = torch.cuda.synchronize
+    print(f"== GPU ({torch.cuda.get_device_name(dev)}): frames/s of post_process_torch, batched, float32")
+    print(f"{'size':>10} {'batch':>5} {'on device':>10} {'from numpy':>11} {'vs 1 CPU core':>14}")
+    cv2.setNumThreads(1)
+    restorer = PostRestorer(device=dev)
+    for label, (h, w) in SIZES.items():
+        img = sample_frame(h, w)
+        cpu = per_call_s(lambda img=img: post_process(img), min(seconds, 1.0))
+        for batch in (1, 8, 32):
+            x_np = np.ascontiguousarray(np.broadcast_to(img, (batch, h, w, 3)))
+            x = torch.from_numpy(x_np).permute(0, 3, 1, 2).contiguous().to(dev)
+            on_dev = per_call_s(lambda x=x: post_process_torch(x), seconds, sync) / batch
+            e2e = per_call_s(lambda x_np=x_np: _restore(restorer, x_np), seconds, sync) / batch
+            print(f"{label:>10} {batch:5d} {1 / on_dev:10.1f} {1 / e2e:11.1f} {cpu / e2e:13.1f}x")
+
+
+def bench_pipeline(seconds: float) -> None:
+    cv2.setNumThreads(1)
+    torch.set_num_threads(1)
+    print("== murk enhance pipeline, one core: 640x480 MJPEG .avi in -> .avi out (decode, post, encode)")
+    with tempfile.TemporaryDirectory() as tmp:
+        src = Path(tmp) / "in.avi"
+        frame = (sample_frame(480, 640) * 255 + 0.5).astype(np.uint8)[:, :, ::-1]
+        writer = cv2.VideoWriter(str(src), cv2.VideoWriter_fourcc(*"MJPG"), 25.0, (640, 480))
+        n = max(30, int(25 * seconds))
+        for i in range(n):
+            writer.write(np.roll(frame, 4 * i, axis=1))
+        writer.release()
+        with CaptureSource(src) as source:
+            report = enhance_frames(source, PostRestorer(), Path(tmp) / "out.avi", OutputOptions(overwrite=True))
+        ms = report.stage_ms()
+        print(
+            f"{report.processed} frames: {report.fps:.1f} frames/s; per frame: read {ms['read']:.1f} ms, "
+            f"restore {ms['restore']:.1f} ms, write {ms['write']:.1f} ms"
+        )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=2.0, help="time spent per measurement")
+    args = parser.parse_args()
+    print(
+        f"python {platform.python_version()}, torch {torch.__version__}, OpenCV {cv2.__version__}, "
+        f"numpy {np.__version__}, {platform.machine()}"
+    )
+    bench_cpu(args.seconds)
+    bench_pipeline(args.seconds)
+    bench_gpu(args.seconds)
+
+
+if __name__ == "__main__":
+    main()

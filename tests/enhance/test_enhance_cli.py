@@ -1,0 +1,150 @@
+"""``murk enhance`` end to end: folders, videos, a live HTTP stream, depth outputs, exit codes."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import torch
+from _enhance_helpers import make_frames, make_video, read_video
+from typer.testing import CliRunner
+
+from murk.cli.enhance import method_options
+from murk.cli.main import app
+from murk.io import read_jsonl
+
+runner = CliRunner()
+
+
+def _out(res) -> str:
+    """The command's output with line wrapping undone (rich wraps error lines at 80 columns when not a tty)."""
+    return " ".join(res.output.split())
+
+
+@pytest.fixture
+def folder(tmp_path: Path, rng: np.random.Generator) -> Path:
+    root = tmp_path / "dive"
+    (root / "sub").mkdir(parents=True)
+    for rel in ("a.png", "sub/b.png"):
+        assert cv2.imwrite(str(root / rel), (rng.random((24, 32, 3)) * 255).astype(np.uint8))
+    return root
+
+
+def test_folder_run_reports_counts_rate_and_stage_latency(folder: Path, tmp_path: Path) -> None:
+    res = runner.invoke(app, ["enhance", str(folder), "--out", str(tmp_path / "out"), "--recursive"])
+    assert res.exit_code == 0, res.output
+    assert "2 processed" in _out(res) and "frames/s" in _out(res)
+    assert "read" in _out(res) and "restore" in _out(res) and "write" in _out(res)
+    assert (tmp_path / "out" / "sub" / "b.png").is_file()
+    res = runner.invoke(app, ["enhance", str(folder), "--out", str(tmp_path / "out"), "-r"])
+    assert res.exit_code == 0 and "2 skipped" in _out(res)
+
+
+def test_corrupt_input_exits_1_with_errors_jsonl(folder: Path, tmp_path: Path) -> None:
+    (folder / "bad.jpg").write_bytes(b"\xff\xd8\xff not a jpeg")
+    res = runner.invoke(app, ["enhance", str(folder), "--out", str(tmp_path / "out"), "--format", "png"])
+    assert res.exit_code == 1, res.output
+    assert "1 failed" in _out(res) and "errors.jsonl" in _out(res)
+    (record,) = read_jsonl(tmp_path / "out" / "errors.jsonl")
+    assert record["input"] == str(folder / "bad.jpg") and record["stage"] == "read"
+    assert (tmp_path / "out" / "a.png").is_file()  # the rest was processed
+
+
+def test_video_to_video_and_to_frames(tmp_path: Path) -> None:
+    video = make_video(tmp_path / "clip.avi", 6, fps=8.0)
+    res = runner.invoke(app, ["enhance", str(video), "--out", str(tmp_path / "enh.mp4"), "--batch", "4"])
+    assert res.exit_code == 0, res.output
+    assert "6 processed" in _out(res) and "wrote" in _out(res)
+    frames = read_video(tmp_path / "enh.mp4")
+    assert len(frames) == 6 and frames[0].shape == (48, 64, 3)
+    res = runner.invoke(
+        app, ["enhance", str(video), "--out", str(tmp_path / "fr"), "--max-frames", "3", "--format", "png"]
+    )
+    assert res.exit_code == 0, res.output
+    assert sorted(p.name for p in (tmp_path / "fr").iterdir()) == [f"clip_{i:06d}.png" for i in range(3)]
+
+
+@pytest.mark.parametrize("backend", ["opencv", "auto"])
+def test_live_http_stream_is_recorded_headless(mjpeg_url: str, tmp_path: Path, backend: str) -> None:
+    out = tmp_path / "rov.mp4"
+    res = runner.invoke(app, ["enhance", mjpeg_url, "--out", str(out), "--video-backend", backend, "--fps", "10"])
+    assert res.exit_code == 0, res.output
+    assert "15 processed" in _out(res) and "disconnected" in _out(res)
+    frames = read_video(out)
+    assert len(frames) == 15 and frames[0].shape == (48, 64, 3)
+
+
+def test_fake_depth_method_through_the_cli(folder: Path, tmp_path: Path, fake_depth_method: list[dict]) -> None:
+    out = tmp_path / "out"
+    res = runner.invoke(app, ["enhance", str(folder), "-o", str(out), "-m", "fakedepth", "-r", "--he", "rgb"])
+    assert res.exit_code == 0, res.output
+    raw = cv2.imread(str(out / "depth" / "sub" / "b.png"), cv2.IMREAD_UNCHANGED)
+    assert raw.dtype == np.uint16 and raw[0, 0] == 1000
+    assert (out / "depth_preview" / "a.jpg").is_file()
+    (options,) = fake_depth_method
+    expected = method_options(device="cpu", batch=1, he="rgb", sigma_px=1.0, lam=0.3, clahe_clip=2.0, clahe_tiles=8)
+    assert options == expected
+
+
+def test_usage_errors_exit_2(folder: Path, tmp_path: Path) -> None:
+    res = runner.invoke(app, ["enhance", str(folder), "--out", str(tmp_path / "o"), "--method", "nope"])
+    assert res.exit_code == 2 and "unknown 'nope'" in _out(res) and "post" in _out(res)
+    res = runner.invoke(app, ["enhance", "97", "--out", str(tmp_path / "cam.mp4")])
+    assert res.exit_code == 2 and "camera 97: cannot open camera" in _out(res)
+    res = runner.invoke(app, ["enhance", str(folder), "--out", str(folder)])
+    assert res.exit_code == 2 and "this is the input folder" in _out(res)
+    res = runner.invoke(app, ["enhance", str(tmp_path / "missing.png"), "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2 and "not found" in _out(res)
+    res = runner.invoke(app, ["enhance", str(folder), "--out", str(tmp_path / "o"), "--sigma-px", "0"])
+    assert res.exit_code == 2 and "sigma_px" in _out(res)
+    if not torch.cuda.is_available():
+        res = runner.invoke(app, ["enhance", str(folder), "--out", str(tmp_path / "o"), "--device", "cuda"])
+        assert res.exit_code == 2 and "CUDA is not available" in _out(res)
+
+
+def test_sigterm_closes_a_live_recording_cleanly(
+    mjpeg_server: Callable[[list[np.ndarray], float], str], tmp_path: Path
+) -> None:
+    # A long stream (about 20 s); the recording is stopped with SIGTERM as a service manager would. OpenCV's MP4
+    # writer only produces a playable file when it is released, so a readable file proves the clean close.
+    url = mjpeg_server(make_frames(30) * 70, 0.01)
+    out = tmp_path / "rov.mp4"
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src")}
+    cmd = [sys.executable, "-m", "murk", "enhance", url, "--out", str(out), "--video-backend", "opencv"]
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not out.exists() and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.1)
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGTERM)
+        output, _ = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, output
+    assert "processed" in output
+    frames = read_video(out)
+    assert 1 <= len(frames) < 2100 and frames[0].shape == (48, 64, 3)
+
+
+def test_video_with_a_broken_frame_continues_and_exits_1(tmp_path: Path) -> None:
+    video = make_video(tmp_path / "clip.avi", 10)
+    data = bytearray(video.read_bytes())
+    soi = [i for i in range(len(data) - 1) if data[i] == 0xFF and data[i + 1] == 0xD8]
+    data[soi[4] : soi[4] + 200] = bytes(200)  # frame 4's JPEG (about 300 bytes) destroyed
+    video.write_bytes(bytes(data))
+    res = runner.invoke(app, ["enhance", str(video), "--out", str(tmp_path / "out" / "enh.avi")])
+    assert res.exit_code == 1, res.output
+    assert "9 processed" in _out(res) and "1 failed" in _out(res)
+    assert len(read_video(tmp_path / "out" / "enh.avi")) == 10  # the broken frame is replaced, timing kept
+    (record,) = read_jsonl(tmp_path / "out" / "errors.jsonl")
+    assert record["frame"] == 4 and record["stage"] == "read" and record["input"] == str(video)
