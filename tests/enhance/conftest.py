@@ -12,9 +12,10 @@ from typing import ClassVar
 import cv2
 import numpy as np
 import pytest
-from _enhance_helpers import FakeDepth, make_frames
 
 from murk.enhance import restorer as restorer_mod
+
+from ._enhance_helpers import FakeDepth, make_frames
 
 
 @pytest.fixture

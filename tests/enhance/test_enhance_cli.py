@@ -14,12 +14,13 @@ import cv2
 import numpy as np
 import pytest
 import torch
-from _enhance_helpers import make_frames, make_video, read_video
 from typer.testing import CliRunner
 
 from murk.cli.enhance import method_options
 from murk.cli.main import app
 from murk.io import read_jsonl
+
+from ._enhance_helpers import make_frames, make_video, read_video
 
 runner = CliRunner()
 

@@ -7,7 +7,6 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from _enhance_helpers import FakeDepth, FakeSource, make_frames, make_video, read_video
 
 from murk.enhance.pipeline import (
     OutputOptions,
@@ -22,6 +21,8 @@ from murk.errors import InputFileError
 from murk.io import read_image, read_jsonl, read_rgb, to_uint
 from murk.io.atomic import TMP_PREFIX
 from murk.io.video import CaptureSource
+
+from ._enhance_helpers import FakeDepth, FakeSource, make_frames, make_video, read_video
 
 
 def _write_png(path: Path, rgb: np.ndarray) -> Path:

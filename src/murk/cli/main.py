@@ -7,6 +7,7 @@ from typing import Annotated
 import typer
 
 from murk._version import __version__
+from murk.cli import enhance as _enhance
 from murk.cli import eval as _eval
 from murk.cli import snow as _snow
 from murk.cli import synth as _synth
@@ -45,12 +46,8 @@ def _root(
 app.command("synth")(_synth.synth)
 app.add_typer(_snow.app, name="snow")
 app.command("train")(_train.train)
-app.command("eval")(_eval.evaluate)
-
-
-from murk.cli import enhance as _enhance  # noqa: E402
-
 app.command("enhance")(_enhance.enhance)
+app.command("eval")(_eval.evaluate)
 
 
 def main() -> None:
