@@ -7,6 +7,7 @@ from typing import Annotated
 import typer
 
 from murk._version import __version__
+from murk.cli import compare as _compare
 from murk.cli import enhance as _enhance
 from murk.cli import eval as _eval
 from murk.cli import snow as _snow
@@ -48,6 +49,7 @@ app.add_typer(_snow.app, name="snow")
 app.command("train")(_train.train)
 app.command("enhance")(_enhance.enhance)
 app.command("eval")(_eval.evaluate)
+app.command("compare")(_compare.compare)
 
 
 def main() -> None:

@@ -1,0 +1,94 @@
+"""``murk compare``: the paper's evaluation on your own footage and checkpoints."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from murk.cli._common import EXIT_PARTIAL, QuietOpt, make_console
+
+
+def compare(
+    real_dir: Annotated[Path, typer.Argument(help="Folder (or one file) of REAL underwater images.")],
+    method: Annotated[
+        list[str],
+        typer.Option(
+            "--method",
+            help="[LABEL=]METHOD[:CHECKPOINT], repeatable: raw, post, jointid:CKPT, jointid+post:CKPT, "
+            "retrained=jointid+post:runs/x/best.pt",
+        ),
+    ],
+    out: Annotated[Path, typer.Option("--out", help="Report folder.")],
+    box: Annotated[
+        list[str] | None, typer.Option("--box", help="x,y,w,h zoom box in pixels (repeatable; default: automatic).")
+    ] = None,
+    recursive: Annotated[bool, typer.Option("--recursive", "-r", help="Search REAL_DIR recursively.")] = False,
+    uiqm_preset: Annotated[str, typer.Option("--uiqm-preset", help="panetta2016, funie or jointid.")] = "panetta2016",
+    uciqe_preset: Annotated[str, typer.Option("--uciqe-preset", help="uciqe_m or cielab_raw.")] = "uciqe_m",
+    device: Annotated[str, typer.Option("--device", help="cpu, cuda or cuda:N.")] = "cpu",
+    precision: Annotated[str, typer.Option("--precision", help="Joint-ID precision: fp32, bf16 or fp16.")] = "fp32",
+    tile: Annotated[int | None, typer.Option("--tile", help="Joint-ID tile size for large images (px).")] = None,
+    trust_checkpoint: Annotated[
+        bool, typer.Option("--trust-checkpoint", help="Allow pickled objects in checkpoints (trusted files only).")
+    ] = False,
+    save_outputs: Annotated[
+        bool, typer.Option("--save-outputs", help="Also write restored/<label>/<stem>.png.")
+    ] = False,
+    title: Annotated[str, typer.Option("--title", help="Report title.")] = "murk compare",
+    quiet: QuietOpt = False,
+) -> None:
+    """Run every --method on every image; per-image UIQM (+ UICM/UISM/UIConM) and UCIQE, a per-method
+    mean +- std table (Fig. 8), side-by-side grids with zoomed boxes (Figs. 7, 9), CSV, JSON and report.html."""
+    from murk.cli._common import resolve_device
+    from murk.io.images import list_images
+    from murk.report.compare import run_compare
+    from murk.report.figures import parse_box
+    from murk.report.methods import parse_method
+
+    console = make_console(quiet)
+    specs = [parse_method(m) for m in method]
+    boxes = [parse_box(b) for b in box or []]
+    if real_dir.is_file():
+        images = [real_dir]
+    else:
+        images = list_images(real_dir, recursive=recursive)
+        images = [p for p in images if out.resolve() not in p.resolve().parents]
+    if not images:
+        raise ValueError(f"{real_dir}: no images found")
+    options = {
+        "device": resolve_device(device),
+        "precision": precision,
+        "tile": tile,
+        "trust_checkpoint": trust_checkpoint,
+    }
+
+    def on_image(i: int, n: int, name: str) -> None:
+        console.print(f"[{i + 1}/{n}] {name}", highlight=False)
+
+    res = run_compare(
+        images,
+        specs,
+        out,
+        boxes=boxes,
+        uiqm_preset=uiqm_preset,
+        uciqe_preset=uciqe_preset,
+        restorer_options=options,
+        save_outputs=save_outputs,
+        title=title,
+        on_image=on_image,
+    )
+    summary = make_console()
+    summary.print(f"{'method':<28} {'UIQM mean +- std':>18} {'UCIQE mean +- std':>18}  n", highlight=False)
+    for s in specs:
+        u, c = res.summary[s.label]["uiqm"], res.summary[s.label]["uciqe"]
+        summary.print(
+            f"{s.label:<28} {u['mean']:>9.3f} +- {u['std']:<5.3f} {c['mean']:>9.3f} +- {c['std']:<5.3f}  {u['n']}",
+            highlight=False,
+        )
+    summary.print(f"report: {Path(out) / 'report.html'}", soft_wrap=True, highlight=False)
+    if res.errors:
+        for e in res.errors[:10]:
+            summary.print(f"  [red]failed:[/] {e['path']}: {e['error']}", soft_wrap=True)
+        raise typer.Exit(EXIT_PARTIAL)
