@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 import pickle
+import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -138,6 +139,30 @@ def _numpy_array_globals() -> list[Any]:
     ]
 
 
+def _unsafe_globals(path: Path) -> list[str]:
+    """Pickle globals of a (zip-format) checkpoint outside torch's and our allow-list; [] when unknown."""
+    if not zipfile.is_zipfile(path):
+        return []
+    try:
+        found = torch.serialization.get_unsafe_globals_in_checkpoint(path)
+    except Exception:
+        return []
+    allowed = {name for item in _numpy_array_globals() for name in _global_names(item)}
+    return [g for g in found if g not in allowed]
+
+
+def _global_names(item: Any) -> list[str]:
+    obj, name = item if isinstance(item, tuple) else (item, None)
+    return [name or f"{obj.__module__}.{obj.__qualname__}"]
+
+
+def _first_line(exc: BaseException) -> str:
+    """A one-line reason: torch's weights-only errors bury it after 'WeightsUnpickler error:'."""
+    text = str(exc).split("WeightsUnpickler error:")[-1]
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+    return f"{type(exc).__name__}: {lines[0] if lines else ''}"
+
+
 def _torch_load(path: Path, trust: bool) -> Any:
     if not path.is_file():
         raise InputFileError(path, "checkpoint not found" if not path.exists() else "not a file")
@@ -145,20 +170,15 @@ def _torch_load(path: Path, trust: bool) -> Any:
         try:
             return torch.load(path, map_location="cpu", weights_only=False)
         except Exception as exc:
-            raise InputFileError(path, f"cannot read the checkpoint ({type(exc).__name__}: {exc})") from exc
+            raise InputFileError(path, f"not a readable PyTorch checkpoint ({_first_line(exc)})") from exc
     try:
         with torch.serialization.safe_globals(_numpy_array_globals()):
             return torch.load(path, map_location="cpu", weights_only=True)
     except pickle.UnpicklingError as exc:
-        if "weights_only" not in str(exc) and "Weights only" not in str(exc):
-            raise InputFileError(path, f"not a PyTorch checkpoint ({exc})") from exc
-        try:
-            unsafe = torch.serialization.get_unsafe_globals_in_checkpoint(path)
-        except Exception:
-            unsafe = []
-        allowed = {"numpy.core.multiarray._reconstruct", "numpy._core.multiarray._reconstruct"}
-        allowed |= {"numpy.ndarray", "numpy.dtype"}
-        what = ", ".join(g for g in unsafe if g not in allowed) or "objects other than tensors and plain data"
+        unsafe = _unsafe_globals(path)
+        if not unsafe and "add_safe_globals" not in str(exc):  # not a refusal: a broken or foreign file
+            raise InputFileError(path, f"not a readable PyTorch checkpoint ({_first_line(exc)})") from exc
+        what = ", ".join(unsafe) or "objects other than tensors and plain data"
         raise InputFileError(
             path,
             f"refusing to load it with weights_only=True: it pickles {what}, and unpickling arbitrary objects "
@@ -166,7 +186,7 @@ def _torch_load(path: Path, trust: bool) -> Any:
             "(trust=True in Python).",
         ) from exc
     except Exception as exc:
-        raise InputFileError(path, f"not a readable PyTorch checkpoint ({type(exc).__name__}: {exc})") from exc
+        raise InputFileError(path, f"not a readable PyTorch checkpoint ({_first_line(exc)})") from exc
 
 
 def _is_state_dict(obj: Any) -> bool:
@@ -189,12 +209,15 @@ def _expected_shapes(config: JointIDConfig) -> dict[str, tuple[int, ...]]:
     return {k: tuple(v.shape) for k, v in model.state_dict().items()}
 
 
-def _match_variant(path: Path, state: dict[str, torch.Tensor]) -> JointIDConfig:
+def _match_variant(state: dict[str, torch.Tensor]) -> JointIDConfig:
+    """The registered variant whose names and shapes differ least from ``state`` (exact match: 0)."""
     shapes = {k: tuple(v.shape) for k, v in state.items()}
-    for config in VARIANTS.values():
-        if _expected_shapes(config) == shapes:
-            return config
-    return VARIANTS["base"]  # the strict load below reports what differs from the official model
+
+    def distance(config: JointIDConfig) -> int:
+        expected = _expected_shapes(config)
+        return len(expected.keys() ^ shapes.keys()) + sum(expected[k] != shapes[k] for k in expected.keys() & shapes)
+
+    return min(VARIANTS.values(), key=distance)
 
 
 def _check_strict(path: Path, state: dict[str, torch.Tensor], config: JointIDConfig) -> None:
@@ -250,7 +273,7 @@ def read_checkpoint(path: str | Path, *, trust: bool = False) -> tuple[dict[str,
         raise InputFileError(path, "the checkpoint's weights are not a state dict of tensors")
     state = {_strip(k): v for k, v in raw.items()}
     if config is None:
-        config = _match_variant(path, state)
+        config = _match_variant(state)
     _check_strict(path, state, config)
     return state, CheckpointInfo(source, config, meta)  # type: ignore[arg-type]
 
