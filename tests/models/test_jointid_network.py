@@ -213,3 +213,24 @@ def test_normalize_input_torch_equals_numpy_twin():
         normalize_input_np(np.zeros((4, 4, 4)))
     with pytest.raises(ShapeError, match="3, H, W"):
         normalize_input(torch.zeros(4, 4, 4))
+
+
+@pytest.mark.parametrize("onnx_path", [False, True])
+def test_rln_matches_the_spec_formula(monkeypatch, onnx_path):
+    # Reference: the spec's RLN written out in float64 numpy (mu, sigma over (C, H, W) per sample).
+    from murk.models.jointid.encoder import rln
+
+    if onnx_path:  # the plain-reduction branch used while exporting to ONNX
+        monkeypatch.setattr(torch.onnx, "is_in_onnx_export", lambda: True)
+    g = torch.Generator().manual_seed(0)
+    x = torch.randn(2, 12, 5, generator=g) * 3 + 1
+    w, b, sw, sb, hw, hb = (torch.randn(5, generator=g) for _ in range(6))
+    y, rescale, rebias = rln(
+        x, w.view(1, 5, 1, 1), b.view(1, 5, 1, 1), sw.view(5, 1, 1, 1), sb, hw.view(5, 1, 1, 1), hb
+    )
+    xn = x.double().numpy()
+    mu = xn.mean(axis=(1, 2), keepdims=True)
+    sigma = np.sqrt(((xn - mu) ** 2).mean(axis=(1, 2), keepdims=True) + 1e-5)
+    np.testing.assert_allclose(y.numpy(), (xn - mu) / sigma * w.numpy() + b.numpy(), rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(rescale.numpy(), sigma * sw.numpy() + sb.numpy(), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(rebias.numpy(), mu * hw.numpy() + hb.numpy(), rtol=1e-5, atol=1e-6)

@@ -18,7 +18,7 @@ Underwater Environments", IEEE Sensors Journal 23(24), 2023, doi:10.1109/JSEN.20
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, Literal
 
@@ -28,7 +28,7 @@ from torch import Tensor, nn
 from murk.enhance.restorer import RestoredTensor, Restorer, register
 from murk.enhance.tiling import pad_to_multiple, tiled_apply
 from murk.errors import ShapeError
-from murk.models.jointid.network import SIZE_MULTIPLE, normalize_input
+from murk.models.jointid.network import INPUT_MEAN, INPUT_STD, SIZE_MULTIPLE
 
 Precision = Literal["fp32", "bf16", "fp16"]
 _DTYPES: dict[str, torch.dtype] = {"bf16": torch.bfloat16, "fp16": torch.float16}
@@ -44,6 +44,24 @@ def _resolve_device(device: str | torch.device) -> torch.device:
     if dev.type not in ("cpu", "cuda"):
         raise ValueError(f"device: expected cpu, cuda or cuda:N, got {device!r}")
     return dev
+
+
+@contextlib.contextmanager
+def _flush_denormals(device: torch.device) -> Iterator[None]:
+    """On the CPU, treat denormal floats as zero while the network runs (restores the default afterwards).
+
+    Tails of GELU/sigmoid produce denormals; x86 handles them in microcode, which made a 288x512 forward of
+    the base model ~9x slower on the development machine (6.5 s instead of 0.73 s). The results change by
+    less than 1.2e-38 per flushed value.
+    """
+    if device.type != "cpu":
+        yield
+        return
+    torch.set_flush_denormal(True)
+    try:
+        yield
+    finally:
+        torch.set_flush_denormal(False)
 
 
 class _CudaGraphRunner:
@@ -123,6 +141,8 @@ class JointIDRestorer(Restorer):
         if batch is not None and (isinstance(batch, bool) or batch < 1):
             raise ValueError(f"batch: expected None or a positive integer, got {batch!r}")
         self.precision = precision
+        self._mean: Tensor | None = None
+        self._std: Tensor | None = None
         self.tile = tile
         self.overlap = int(overlap)
         self.batch = batch
@@ -159,7 +179,15 @@ class JointIDRestorer(Restorer):
     def _autocast(self) -> contextlib.AbstractContextManager[Any]:
         if self.precision == "fp32":
             return contextlib.nullcontext()
-        return torch.autocast(self.device.type, dtype=_DTYPES[self.precision])
+        # No weight-cast cache: each weight is used once per forward, and CUDA-graph capture requires it off.
+        return torch.autocast(self.device.type, dtype=_DTYPES[self.precision], cache_enabled=False)
+
+    def _normalize(self, images: Tensor) -> Tensor:
+        """``normalize_input`` with the mean/std kept on the device (no host-to-device copy per call)."""
+        if self._mean is None or self._mean.device != images.device:
+            self._mean = torch.tensor(INPUT_MEAN, device=images.device).view(1, 3, 1, 1)
+            self._std = torch.tensor(INPUT_STD, device=images.device).view(1, 3, 1, 1)
+        return (images - self._mean) / self._std
 
     def _forward_padded(self, x: Tensor) -> tuple[Tensor, Tensor]:
         """Normalised, padded batch -> (depth_m, enhanced), whole or tiled, in chunks of ``batch``."""
@@ -181,8 +209,8 @@ class JointIDRestorer(Restorer):
             raise TypeError(f"images: expected a float tensor (B, 3, H, W) in [0, 1], got {type(images).__name__}")
         if images.ndim != 4 or images.shape[1] != 3 or images.shape[0] < 1:
             raise ShapeError(f"images: expected shape (B, 3, H, W), got {tuple(images.shape)}")
-        with torch.inference_mode():
-            x = normalize_input(images.to(self.device, torch.float32))
+        with torch.inference_mode(), _flush_denormals(self.device):
+            x = self._normalize(images.to(self.device, torch.float32))
             x, pad = pad_to_multiple(x, SIZE_MULTIPLE, "reflect")
             if self.channels_last:
                 x = x.contiguous(memory_format=torch.channels_last)

@@ -54,10 +54,15 @@ def rln(
         scale_w, scale_b, shift_w, shift_b: the meta convolutions' weights (C elements each).
         eps: added to the variance.
     """
-    var, mu = torch.var_mean(x.float(), dim=(1, 2), keepdim=True, correction=0)
-    sigma = torch.sqrt(var + eps)
+    if torch.onnx.is_in_onnx_export():  # the exporter needs a static normalised shape: plain reductions
+        mu = x.mean(dim=(1, 2), keepdim=True)
+        sigma = torch.sqrt((x - mu).square().mean(dim=(1, 2), keepdim=True) + eps)
+        y = (x - mu) / sigma
+    else:  # one fused pass: layer norm over (N, C) gives (x - mu) / sigma together with mu and 1 / sigma
+        y, mu, rstd = torch.native_layer_norm(x, x.shape[1:], None, None, eps)
+        sigma = torch.reciprocal(rstd)
     c = x.shape[-1]
-    y = (x - mu) / sigma * weight.reshape(1, 1, c) + bias.reshape(1, 1, c)
+    y = y * weight.reshape(1, 1, c) + bias.reshape(1, 1, c)
     rescale = sigma * scale_w.reshape(1, 1, c) + scale_b.reshape(1, 1, c)
     rebias = mu * shift_w.reshape(1, 1, c) + shift_b.reshape(1, 1, c)
     return y, rescale, rebias
