@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pytest
 import torch
@@ -151,3 +153,44 @@ def test_restore_tensor_validates_input(tiny):
         r.restore_tensor(torch.zeros(1, 1, 32, 32))
     with pytest.raises(TypeError, match="float tensor"):
         r.restore_tensor(torch.zeros(1, 3, 32, 32, dtype=torch.uint8))
+
+
+@pytest.mark.slow
+def test_compiled_restorer_equals_eager(tiny):
+    rgb = np.random.default_rng(5).random((1, 64, 96, 3), dtype=np.float32)
+    ref = JointIDRestorer(tiny).restore(rgb)
+    out = JointIDRestorer(tiny, compile=True).restore(rgb)
+    np.testing.assert_allclose(out.images, ref.images, rtol=0, atol=1e-5)
+    np.testing.assert_allclose(out.depth_m, ref.depth_m, rtol=0, atol=1e-4)
+
+
+needs_cuda = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA")
+
+
+@pytest.mark.gpu
+@needs_cuda
+def test_cuda_matches_cpu_and_cuda_graph_matches_eager(tiny, underwater):
+    model = copy.deepcopy(tiny)  # the restorer moves its model to the device in place
+    cpu = JointIDRestorer(tiny).restore(underwater[None])
+    cuda = JointIDRestorer(model, device="cuda").restore(underwater[None])
+    np.testing.assert_allclose(cuda.images, cpu.images, rtol=0, atol=5e-3)  # cuDNN may use TF32
+    np.testing.assert_allclose(cuda.depth_m, cpu.depth_m, rtol=0, atol=5e-2)
+    eager = JointIDRestorer(model, device="cuda", precision="bf16")
+    graph = JointIDRestorer(model, device="cuda", precision="bf16", cuda_graph=True)
+    x = torch.from_numpy(underwater).permute(2, 0, 1)[None].cuda()
+    for frame in (x, x.flip(-1), x * 0.5):  # replays must use the new frame, not the captured one
+        a, b = eager.restore_tensor(frame), graph.restore_tensor(frame)
+        torch.testing.assert_close(b.images, a.images, rtol=0, atol=2e-3)
+        torch.testing.assert_close(b.depth_m, a.depth_m, rtol=0, atol=3e-2)
+
+
+@pytest.mark.gpu
+@needs_cuda
+def test_bf16_base_model_stays_within_40_db_of_fp32(underwater):
+    torch.manual_seed(0)
+    model = build_jointid("base").eval()
+    rgb = np.ascontiguousarray(np.pad(underwater, ((0, 48), (0, 212), (0, 0)), mode="reflect")[:288, :512])
+    fp32 = JointIDRestorer(model, device="cuda").restore(rgb[None])
+    bf16 = JointIDRestorer(model, device="cuda", precision="bf16").restore(rgb[None])
+    mse = float(np.mean((fp32.images - bf16.images) ** 2))
+    assert 10 * np.log10(1 / mse) >= 40
