@@ -68,36 +68,55 @@ def sample_frame() -> np.ndarray:
     return np.ascontiguousarray(img[:H, :W], dtype=np.float32)
 
 
+def load() -> str:
+    """The 1-minute load average (other processes share the CPUs: read the figures with it)."""
+    return f"load average {os.getloadavg()[0]:.2f}" if hasattr(os, "getloadavg") else "load average n/a"
+
+
 def bench_cpu(repeats: int) -> None:
     torch.set_num_threads(2)
-    print(f"== CPU: {platform.processor() or platform.machine()}, torch {torch.__version__}, 2 threads, {H}x{W}")
+    print(f"== CPU: {platform.machine()}, torch {torch.__version__}, 2 threads, {H}x{W}, {load()}")
     torch.manual_seed(0)
     model = build_jointid("base").eval()
     frame = sample_frame()
     x = normalize_input(torch.from_numpy(frame).permute(2, 0, 1)[None].contiguous())
 
-    with torch.inference_mode():
-        t_base = timeit(lambda: model(x), repeats)
-    print(f"baseline  network fp32, NCHW, denormals not flushed : {t_base * 1e3:8.1f} ms  {1 / t_base:6.2f} frames/s")
+    def baseline() -> object:
+        with torch.inference_mode():
+            return model(x)
 
-    results = {}
     fp32 = JointIDRestorer(model, precision="fp32", channels_last=True)
-    results["restorer fp32 (channels-last, denormals flushed)"] = timeit(lambda: fp32.restore(frame[None]), repeats)
     bf16 = JointIDRestorer(model, precision="bf16", channels_last=True)
-    results["restorer bf16 autocast"] = timeit(lambda: bf16.restore(frame[None]), repeats)
+    configs: dict[str, Callable[[], object]] = {
+        "baseline: network fp32, NCHW, denormals not flushed": baseline,
+        "restorer fp32 (channels-last, denormals flushed)": lambda: fp32.restore(frame[None]),
+        "restorer bf16 autocast": lambda: bf16.restore(frame[None]),
+    }
+    ort_out = None
+    tmp = tempfile.TemporaryDirectory()
     try:
         from murk.models.jointid.onnx_export import OnnxJointID, export_onnx
 
-        with tempfile.TemporaryDirectory() as tmp:
-            path = export_onnx(model, Path(tmp) / "base.onnx")
-            ort_restorer = JointIDRestorer(OnnxJointID(path, threads=2))
-            results["restorer ONNX Runtime fp32"] = timeit(lambda: ort_restorer.restore(frame[None]), repeats)
-            ort_out = ort_restorer.restore(frame[None])
+        ort_restorer = JointIDRestorer(OnnxJointID(export_onnx(model, Path(tmp.name) / "base.onnx"), threads=2))
+        configs["restorer ONNX Runtime fp32"] = lambda: ort_restorer.restore(frame[None])
+        ort_out = ort_restorer.restore(frame[None])
     except ImportError as exc:
         print(f"ONNX Runtime skipped: {exc}")
-        ort_out = None
-    for name, t in results.items():
+    # Round-robin: every configuration is timed once per round, so a change in the machine's load hits all.
+    times: dict[str, list[float]] = {name: [] for name in configs}
+    for fn in configs.values():
+        fn()  # warm-up
+    for _ in range(repeats):
+        for name, fn in configs.items():
+            t0 = time.perf_counter()
+            fn()
+            times[name].append(time.perf_counter() - t0)
+    tmp.cleanup()
+    t_base = statistics.median(times[next(iter(configs))])
+    for name, ts in times.items():
+        t = statistics.median(ts)
         print(f"{name:52s}: {t * 1e3:8.1f} ms  {1 / t:6.2f} frames/s  x{t_base / t:5.2f} vs baseline")
+    print(f"(CPU section ended at {load()})")
 
     ref = fp32.restore(frame[None])
     low = bf16.restore(frame[None])
