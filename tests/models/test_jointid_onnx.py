@@ -52,3 +52,13 @@ def test_runner_rejects_missing_and_foreign_files(tmp_path):
     torch.onnx.export(torch.nn.Conv2d(3, 3, 1), (torch.zeros(1, 3, 8, 8),), str(other), dynamo=False)
     with pytest.raises(InputFileError, match="not a murk Joint-ID export"):
         OnnxJointID(other)
+
+
+def test_export_leaves_a_training_model_untouched(tmp_path, tiny):
+    tiny.train()
+    try:
+        export_onnx(tiny, tmp_path / "t.onnx")
+        assert tiny.training  # exported from an eval-mode copy
+    finally:
+        tiny.eval()
+    assert (tmp_path / "t.onnx").is_file()

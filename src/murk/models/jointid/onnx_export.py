@@ -9,6 +9,7 @@ Reference: Yang, Kang, Lee, Cho, IEEE Sensors Journal 2023, doi:10.1109/JSEN.202
 
 from __future__ import annotations
 
+import copy
 import warnings
 from pathlib import Path
 from typing import Any
@@ -24,6 +25,15 @@ from murk.models.jointid.checkpoint import unwrap
 INPUT_NAME = "image"
 OUTPUT_NAMES = ("depth_m", "enhanced")
 DEFAULT_OPSET = 17
+
+
+def _cpu_fp32(model: nn.Module) -> nn.Module:
+    """The JointID inside ``model`` in fp32 on the CPU, in eval mode; a copy when that needs a conversion, so
+    the caller's model (e.g. on a GPU, or training) is left as it is."""
+    net = unwrap(model)
+    if any(p.device.type != "cpu" or p.dtype != torch.float32 for p in net.parameters()) or net.training:
+        net = copy.deepcopy(net).float().cpu().eval()
+    return net
 
 
 class _Plain(nn.Module):
@@ -48,8 +58,8 @@ def export_onnx(
     """Export ``model`` to an ONNX file (atomic write) with dynamic batch/height/width.
 
     Args:
-        model: a JointID (optionally wrapped); exported in fp32 on the CPU (a copy is not made: the model is
-            moved to the CPU and put in eval mode).
+        model: a JointID (optionally wrapped); exported in fp32 on the CPU in eval mode (from a copy when the
+            model is elsewhere or in training mode; the caller's model is not changed).
         path: the ``.onnx`` file to write.
         opset: ONNX opset (>= 14 for scaled dot-product attention).
         sample_size: (H, W) of the tracing input, multiples of 32; the graph accepts any multiple of 32.
@@ -62,7 +72,7 @@ def export_onnx(
     h, w = sample_size
     if h < 32 or w < 32 or h % 32 or w % 32:
         raise ValueError(f"sample_size: expected positive multiples of 32, got {sample_size}")
-    net = unwrap(model).float().cpu().eval()
+    net = _cpu_fp32(model)
     x = torch.zeros(1, 3, h, w)
     dynamic = {INPUT_NAME: {0: "batch", 2: "height", 3: "width"}}
     dynamic |= {name: {0: "batch", 2: "height", 3: "width"} for name in OUTPUT_NAMES}
@@ -147,7 +157,7 @@ class OnnxJointID:
 
 def compare_onnx(model: nn.Module, runner: OnnxJointID, x: Tensor) -> dict[str, Any]:
     """Max absolute differences between the torch model (fp32, CPU) and the ONNX runner on ``x``."""
-    net = unwrap(model).float().cpu().eval()
+    net = _cpu_fp32(model)
     with torch.inference_mode():
         ref = net(x.float().cpu())
     depth, enhanced = runner(x.float().cpu())
