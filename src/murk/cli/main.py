@@ -10,6 +10,7 @@ from murk._version import __version__
 from murk.cli import compare as _compare
 from murk.cli import enhance as _enhance
 from murk.cli import eval as _eval
+from murk.cli import export as _export
 from murk.cli import snow as _snow
 from murk.cli import synth as _synth
 from murk.cli import train as _train
@@ -49,6 +50,7 @@ app.add_typer(_snow.app, name="snow")
 app.command("train")(_train.train)
 app.command("enhance")(_enhance.enhance)
 app.command("eval")(_eval.evaluate)
+app.command("export")(_export.export)
 app.command("compare")(_compare.compare)
 
 

@@ -144,5 +144,5 @@ def _load_builtin() -> None:
         importlib.import_module(module)
 
 
-_BUILTIN_MODULES: list[str] = ["murk.enhance.post"]
-"""Modules whose import registers built-in methods; each method issue appends its module here."""
+_BUILTIN_MODULES: list[str] = ["murk.enhance.post", "murk.enhance.jointid_restorer"]
+"""Modules whose import registers built-in methods (imported on first use of the registry)."""

@@ -1,1 +1,5 @@
-"""models"""
+"""Networks (Joint-ID) and a small registry to build them by name."""
+
+from murk.models.registry import available_models, build_model, register_model
+
+__all__ = ["available_models", "build_model", "register_model"]

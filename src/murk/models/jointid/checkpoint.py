@@ -1,0 +1,299 @@
+"""Joint-ID checkpoint I/O: murk's own format and the official release (``joint_id_ckpt.pth``).
+
+Formats read by :func:`load_checkpoint` (all with ``torch.load(weights_only=True)`` unless ``trust=True``):
+
+- murk: ``{"format": "murk.jointid", "format_version": 1, "config": {...}, "state_dict": {...},
+  "meta": {...}, "murk_version": "..."}``, written atomically by :func:`save_checkpoint`;
+- official: a dict whose ``"model"`` entry is the state dict with keys prefixed ``structure.``. That file
+  also pickles a numpy array, which ``weights_only=True`` refuses by default; exactly the numpy globals needed
+  to rebuild a plain array (``_reconstruct``, ``ndarray``, ``dtype``) are allowed, nothing else;
+- a bare state dict (official or murk names).
+
+Weights always load with ``strict=True``: a name or shape mismatch is an error that names the file.
+
+Reference: Yang, Kang, Lee, Cho, IEEE Sensors Journal 2023, doi:10.1109/JSEN.2023.3338730.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import zipfile
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import torch
+from torch import nn
+
+from murk._version import __version__
+from murk.errors import InputFileError
+from murk.io.atomic import atomic_path
+from murk.models.jointid.network import VARIANTS, JointID, JointIDConfig, variant_name
+
+FORMAT = "murk.jointid"
+FORMAT_VERSION = 1
+_PREFIXES = ("module.", "_orig_mod.", "structure.")
+
+Source = Literal["murk", "official", "state_dict"]
+
+
+@dataclass(frozen=True)
+class CheckpointInfo:
+    """What :func:`read_checkpoint` found: the file's format, the network configuration and the metadata."""
+
+    source: Source
+    config: JointIDConfig
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def variant(self) -> str | None:
+        """``"base"``, ``"tiny"`` or None for a custom configuration."""
+        return variant_name(self.config)
+
+
+def unwrap(model: nn.Module) -> JointID:
+    """The :class:`JointID` inside a DistributedDataParallel / DataParallel / ``torch.compile`` wrapper.
+
+    Raises:
+        TypeError: no JointID inside ``model``.
+    """
+    m = model
+    for _ in range(4):
+        if isinstance(m, JointID):
+            return m
+        m = getattr(m, "module", None) or getattr(m, "_orig_mod", None)
+        if m is None:
+            break
+    raise TypeError(f"model: expected a JointID (optionally wrapped by DDP or torch.compile), got {type(model)}")
+
+
+def save_checkpoint(model: nn.Module, path: str | Path, **meta: Any) -> Path:
+    """Write ``model`` (weights, configuration) and ``meta`` to ``path`` in murk's format, atomically.
+
+    Args:
+        model: a :class:`JointID`, possibly wrapped (DDP, ``torch.compile``).
+        path: output file (``.pt``/``.pth`` by convention); parent folders are created.
+        **meta: metadata (epoch, step, losses, optimizer state, ...): numbers, strings, None, tensors and
+            lists/dicts of them, so that the file loads with ``weights_only=True``.
+
+    Raises:
+        TypeError: ``model`` is not a JointID, or a metadata value has another type.
+    """
+    net = unwrap(model)
+    for key, value in meta.items():
+        _check_meta(f"meta[{key!r}]", value)
+    obj = {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "murk_version": __version__,
+        "variant": variant_name(net.config),
+        "config": net.config.to_dict(),
+        "state_dict": {k: v.detach().cpu().contiguous() for k, v in net.state_dict().items()},
+        "meta": meta,
+    }
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:
+            torch.save(obj, f)
+            f.flush()
+            os.fsync(f.fileno())
+    return path
+
+
+def _check_meta(name: str, value: Any) -> None:
+    if value is None or isinstance(value, (bool, int, float, str, torch.Tensor)):
+        return
+    if isinstance(value, (list, tuple)):
+        for i, v in enumerate(value):
+            _check_meta(f"{name}[{i}]", v)
+        return
+    if isinstance(value, dict):
+        for k, v in value.items():
+            if not isinstance(k, (str, int)):
+                raise TypeError(f"{name}: expected str or int keys, got {type(k).__name__}")
+            _check_meta(f"{name}[{k!r}]", v)
+        return
+    raise TypeError(
+        f"{name}: expected numbers, strings, None, tensors or lists/dicts of them (weights_only-safe), "
+        f"got {type(value).__name__}"
+    )
+
+
+def _numpy_array_globals() -> list[Any]:
+    """The pickle globals a plain numeric numpy array needs, under the names numpy 1.x and 2.x write."""
+    import numpy as np
+
+    try:
+        from numpy._core.multiarray import _reconstruct
+    except ImportError:  # numpy < 2
+        from numpy.core.multiarray import _reconstruct  # type: ignore[no-redef]
+    numeric_dtype_classes = {type(np.dtype(code)) for code in "?bhilqBHILQefdgFDG"}  # no object/str/void
+    return [
+        (_reconstruct, "numpy.core.multiarray._reconstruct"),
+        (_reconstruct, "numpy._core.multiarray._reconstruct"),
+        np.ndarray,
+        np.dtype,
+        *sorted(numeric_dtype_classes, key=lambda c: c.__name__),
+    ]
+
+
+def _unsafe_globals(path: Path) -> list[str]:
+    """Pickle globals of a (zip-format) checkpoint outside torch's and our allow-list; [] when unknown."""
+    if not zipfile.is_zipfile(path):
+        return []
+    try:
+        found = torch.serialization.get_unsafe_globals_in_checkpoint(path)
+    except Exception:
+        return []
+    allowed = {name for item in _numpy_array_globals() for name in _global_names(item)}
+    return [g for g in found if g not in allowed]
+
+
+def _global_names(item: Any) -> list[str]:
+    obj, name = item if isinstance(item, tuple) else (item, None)
+    return [name or f"{obj.__module__}.{obj.__qualname__}"]
+
+
+def _first_line(exc: BaseException) -> str:
+    """A one-line reason: torch's weights-only errors bury it after 'WeightsUnpickler error:'."""
+    text = str(exc).split("WeightsUnpickler error:")[-1]
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+    return f"{type(exc).__name__}: {lines[0] if lines else ''}"
+
+
+def _torch_load(path: Path, trust: bool) -> Any:
+    if not path.is_file():
+        raise InputFileError(path, "checkpoint not found" if not path.exists() else "not a file")
+    if trust:
+        try:
+            return torch.load(path, map_location="cpu", weights_only=False)
+        except Exception as exc:
+            raise InputFileError(path, f"not a readable PyTorch checkpoint ({_first_line(exc)})") from exc
+    try:
+        with torch.serialization.safe_globals(_numpy_array_globals()):
+            return torch.load(path, map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError as exc:
+        unsafe = _unsafe_globals(path)
+        if not unsafe and "add_safe_globals" not in str(exc):  # not a refusal: a broken or foreign file
+            raise InputFileError(path, f"not a readable PyTorch checkpoint ({_first_line(exc)})") from exc
+        what = ", ".join(unsafe) or "objects other than tensors and plain data"
+        raise InputFileError(
+            path,
+            f"refusing to load it with weights_only=True: it pickles {what}, and unpickling arbitrary objects "
+            "can run code from the file. If you trust where it comes from, pass --trust-checkpoint "
+            "(trust=True in Python).",
+        ) from exc
+    except Exception as exc:
+        raise InputFileError(path, f"not a readable PyTorch checkpoint ({_first_line(exc)})") from exc
+
+
+def _is_state_dict(obj: Any) -> bool:
+    return isinstance(obj, Mapping) and bool(obj) and all(isinstance(v, torch.Tensor) for v in obj.values())
+
+
+def _strip(key: str) -> str:
+    changed = True
+    while changed:
+        changed = False
+        for p in _PREFIXES:
+            if key.startswith(p):
+                key, changed = key[len(p) :], True
+    return key
+
+
+def _expected_shapes(config: JointIDConfig) -> dict[str, tuple[int, ...]]:
+    with torch.device("meta"):
+        model = JointID(config)
+    return {k: tuple(v.shape) for k, v in model.state_dict().items()}
+
+
+def _match_variant(state: dict[str, torch.Tensor]) -> JointIDConfig:
+    """The registered variant whose names and shapes differ least from ``state`` (exact match: 0)."""
+    shapes = {k: tuple(v.shape) for k, v in state.items()}
+
+    def distance(config: JointIDConfig) -> int:
+        expected = _expected_shapes(config)
+        return len(expected.keys() ^ shapes.keys()) + sum(expected[k] != shapes[k] for k in expected.keys() & shapes)
+
+    return min(VARIANTS.values(), key=distance)
+
+
+def _check_strict(path: Path, state: dict[str, torch.Tensor], config: JointIDConfig) -> None:
+    expected = _expected_shapes(config)
+    missing = [k for k in expected if k not in state]
+    unexpected = [k for k in state if k not in expected]
+    wrong = [k for k in expected if k in state and tuple(state[k].shape) != expected[k]]
+    if missing or unexpected or wrong:
+        parts = []
+        if missing:
+            parts.append(f"{len(missing)} missing keys (e.g. {', '.join(missing[:3])})")
+        if unexpected:
+            parts.append(f"{len(unexpected)} unexpected keys (e.g. {', '.join(unexpected[:3])})")
+        if wrong:
+            k = wrong[0]
+            parts.append(f"{len(wrong)} shape mismatches (e.g. {k}: {tuple(state[k].shape)} != {expected[k]})")
+        name = variant_name(config) or "custom"
+        raise InputFileError(path, f"not a Joint-ID ({name}) checkpoint: " + "; ".join(parts))
+
+
+def read_checkpoint(path: str | Path, *, trust: bool = False) -> tuple[dict[str, torch.Tensor], CheckpointInfo]:
+    """Read a Joint-ID checkpoint: the state dict (murk names, no prefix) and what the file says about it.
+
+    Args:
+        path: a murk checkpoint, the official ``joint_id_ckpt.pth`` or a bare state dict.
+        trust: load with ``weights_only=False`` (runs arbitrary pickled code: only for files you trust).
+
+    Raises:
+        InputFileError: missing or unreadable file, a pickle that ``weights_only`` refuses (the message names
+            ``--trust-checkpoint``), or names/shapes that do not match the network.
+    """
+    path = Path(path)
+    obj = _torch_load(path, trust)
+    if isinstance(obj, Mapping) and obj.get("format") == FORMAT:
+        version = obj.get("format_version")
+        if version != FORMAT_VERSION:
+            raise InputFileError(path, f"murk checkpoint format_version {version!r} is not supported (expected 1)")
+        try:
+            config = JointIDConfig.from_dict(dict(obj["config"]))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputFileError(path, f"invalid network configuration in the checkpoint ({exc})") from exc
+        raw, source, meta = obj.get("state_dict"), "murk", dict(obj.get("meta") or {})
+    elif isinstance(obj, Mapping) and "model" in obj:
+        raw, source, config = obj["model"], "official", None
+        meta = {k: v for k, v in obj.items() if k != "model" and isinstance(v, (bool, int, float, str))}
+    elif _is_state_dict(obj):
+        raw, source, config, meta = obj, "state_dict", None, {}
+    else:
+        raise InputFileError(
+            path, "not a Joint-ID checkpoint (expected murk's format, a dict with 'model', or a state dict)"
+        )
+    if not _is_state_dict(raw):
+        raise InputFileError(path, "the checkpoint's weights are not a state dict of tensors")
+    state = {_strip(k): v for k, v in raw.items()}
+    if config is None:
+        config = _match_variant(state)
+    _check_strict(path, state, config)
+    return state, CheckpointInfo(source, config, meta)  # type: ignore[arg-type]
+
+
+def load_checkpoint(path: str | Path, *, trust: bool = False, device: str | torch.device = "cpu") -> JointID:
+    """Build the network a checkpoint describes, load its weights (strict) and return it in eval mode.
+
+    Args:
+        path: a murk checkpoint (any variant), the official ``joint_id_ckpt.pth`` (``checkpoint['model']``)
+            or a bare state dict.
+        trust: allow arbitrary pickled objects (``weights_only=False``); the CLI flag is
+            ``--trust-checkpoint``.
+        device: where the model is moved.
+
+    Raises:
+        InputFileError: see :func:`read_checkpoint`.
+    """
+    state, info = read_checkpoint(path, trust=trust)
+    with torch.device("meta"):  # no throw-away initialisation of 150M parameters
+        model = JointID(info.config)
+    state = {k: v.float() if v.is_floating_point() else v for k, v in state.items()}
+    model.load_state_dict(state, strict=True, assign=True)
+    return model.to(device).eval()

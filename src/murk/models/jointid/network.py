@@ -1,0 +1,250 @@
+"""The Joint-ID network: two encoder-decoder branches (depth, enhancement) coupled by eight joint blocks.
+
+Reference: Yang, Kang, Lee, Cho, "Transformer-Based Joint Image Enhancement and Depth Estimation for
+Underwater Environments", IEEE Sensors Journal 23(24), 2023, doi:10.1109/JSEN.2023.3338730. The paper
+(Yun et al., "Robust Image Processing Techniques for Construction Environment Monitoring Using Underwater
+Robots") retrains this network unchanged; this module re-implements it from ``docs/spec/jointid.md`` so that
+the official released checkpoint loads with ``strict=True`` (state-dict names and shapes are identical, with
+or without the official ``structure.`` prefix).
+
+``forward`` takes the *normalised* RGB batch (see :func:`normalize_input`; the restorer applies it) whose
+height and width are multiples of 32, and returns depth in metres and the enhanced image in [0, 1].
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any, Literal, NamedTuple
+
+import numpy as np
+import torch
+from torch import Tensor, nn
+
+from murk.errors import ShapeError
+from murk.models.jointid.decoder import Decoder, JointBlock, Task
+from murk.models.jointid.encoder import Encoder
+
+Variant = Literal["base", "tiny"]
+
+INPUT_MEAN = (0.13553666, 0.41034216, 0.34636855)
+"""Per-channel (R, G, B) mean of the input normalisation of the training recipe."""
+INPUT_STD = (0.04927989, 0.10722694, 0.10722694)
+"""Per-channel (R, G, B) standard deviation of the input normalisation of the training recipe."""
+SIZE_MULTIPLE = 32
+"""Input height and width must be multiples of this (the encoder's total stride)."""
+
+
+@dataclass(frozen=True)
+class JointIDConfig:
+    """Widths and depths of a Joint-ID network. The defaults are the official model (``variant="base"``)."""
+
+    embed_dims: tuple[int, int, int, int] = (64, 128, 320, 512)
+    depths: tuple[int, int, int, int] = (4, 7, 12, 4)
+    num_heads: tuple[int, int, int, int] = (1, 2, 5, 8)
+    sr_ratios: tuple[int, int, int, int] = (8, 4, 2, 1)
+    mlp_ratio: int = 4
+    decoder_blocks: int = 3
+    decoder_dim: int = 256
+    max_depth_m: float = 15.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict (lists and numbers only), safe for ``torch.load(weights_only=True)`` and JSON."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> JointIDConfig:
+        """Inverse of :meth:`to_dict`.
+
+        Raises:
+            ValueError: unknown keys.
+        """
+        unknown = set(d) - set(cls.__dataclass_fields__)
+        if unknown:
+            raise ValueError(f"config: unknown keys {sorted(unknown)}")
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+
+
+VARIANTS: dict[str, JointIDConfig] = {
+    "base": JointIDConfig(),
+    # Same structure with small widths and depths: CPU tests, demos and quick experiments.
+    "tiny": JointIDConfig(
+        embed_dims=(16, 32, 64, 128),
+        depths=(1, 1, 2, 1),
+        num_heads=(1, 1, 2, 4),
+        decoder_blocks=2,
+        decoder_dim=32,
+    ),
+}
+
+
+class JointIDOutput(NamedTuple):
+    """Outputs of :class:`JointID`: ``depth_m`` (B, 1, H, W) in metres, ``enhanced`` (B, 3, H, W) in [0, 1]."""
+
+    depth_m: Tensor
+    enhanced: Tensor
+
+
+class Branch(nn.Module):
+    """One task's encoder and decoder (``depth_structure`` or ``enhanced_structure`` in the state dict)."""
+
+    def __init__(self, cfg: JointIDConfig, task: Task) -> None:
+        super().__init__()
+        self.encoder = Encoder(cfg.embed_dims, cfg.depths, cfg.num_heads, cfg.sr_ratios, cfg.mlp_ratio)
+        out_channels = 1 if task == "depth" else 3
+        self.decoder = Decoder(cfg.embed_dims, cfg.decoder_blocks, cfg.decoder_dim, out_channels, task)
+
+
+class JointID(nn.Module):
+    """Joint image enhancement and depth estimation network (Yang et al. 2023).
+
+    Both encoders see the same normalised input. At each decoder scale (c4 -> c1) both branches run their
+    mix-decoder blocks, take the sigmoid, and each branch continues from its joint block applied to
+    ``concat[z_self, z_other]`` (both joint blocks read the sigmoids computed before either runs).
+
+    Loading a state dict accepts the official names (prefix ``structure.``) and murk's (no prefix).
+    """
+
+    def __init__(self, config: JointIDConfig | None = None) -> None:
+        super().__init__()
+        cfg = config or JointIDConfig()
+        self.config = cfg
+        self.depth_structure = Branch(cfg, "depth")
+        self.enhanced_structure = Branch(cfg, "enhanced")
+        for direction in ("de", "eh"):  # de: depth branch, eh: enhancement branch
+            for i, s in enumerate((3, 2, 1, 0)):
+                self.add_module(f"decoder_{direction}_joint_block_{i + 1}", JointBlock(cfg.embed_dims[s]))
+        self.register_load_state_dict_pre_hook(_strip_official_prefix)
+
+    def forward(self, x: Tensor) -> JointIDOutput:
+        """Depth (metres) and enhanced image for a normalised batch ``x`` (B, 3, H, W), H and W multiples of 32.
+
+        Raises:
+            ShapeError: ``x`` is not (B, 3, H, W) with H, W positive multiples of 32.
+        """
+        if not (torch.jit.is_tracing() or torch.compiler.is_compiling()):
+            _check_input(x)
+        dbr, ebr = self.depth_structure, self.enhanced_structure
+        fd = dbr.encoder(x)
+        fe = ebr.encoder(x)
+        xd = dbr.decoder.start(fd[3])
+        xe = ebr.decoder.start(fe[3])
+        skips_d: list[Tensor] = []
+        skips_e: list[Tensor] = []
+        for i, s in enumerate((3, 2, 1, 0)):
+            zd = torch.sigmoid(dbr.decoder.mix(s, xd, fd[s]))
+            ze = torch.sigmoid(ebr.decoder.mix(s, xe, fe[s]))
+            jd = getattr(self, f"decoder_de_joint_block_{i + 1}")(zd, ze)
+            je = getattr(self, f"decoder_eh_joint_block_{i + 1}")(ze, zd)
+            skips_d.append(dbr.decoder.skip(s, jd))
+            skips_e.append(ebr.decoder.skip(s, je))
+            if s > 0:
+                xd = dbr.decoder.up(s, jd)
+                xe = ebr.decoder.up(s, je)
+        depth_m = self.config.max_depth_m * torch.sigmoid(dbr.decoder.head(skips_d))
+        enhanced = torch.sigmoid(ebr.decoder.head(skips_e))
+        return JointIDOutput(depth_m, enhanced)
+
+
+def _strip_official_prefix(module: nn.Module, state_dict: dict, prefix: str, *args: Any, **kwargs: Any) -> None:
+    """Load-state-dict pre-hook: rename official keys ``structure.X`` to ``X`` in place."""
+    official = prefix + "structure."
+    for key in [k for k in state_dict if k.startswith(official)]:
+        state_dict[prefix + key[len(official) :]] = state_dict.pop(key)
+
+
+def _check_input(x: Tensor) -> None:
+    if not isinstance(x, Tensor):
+        raise TypeError(f"x: expected a torch.Tensor (B, 3, H, W), got {type(x).__name__}")
+    if x.ndim != 4 or x.shape[1] != 3:
+        raise ShapeError(f"x: expected shape (B, 3, H, W), got {tuple(x.shape)}")
+    h, w = x.shape[2], x.shape[3]
+    if h < SIZE_MULTIPLE or w < SIZE_MULTIPLE or h % SIZE_MULTIPLE or w % SIZE_MULTIPLE:
+        raise ShapeError(
+            f"x: expected height and width that are positive multiples of {SIZE_MULTIPLE}, got {h}x{w} "
+            "(pad with murk.enhance.tiling.pad_to_multiple)"
+        )
+
+
+def init_weights(model: JointID) -> JointID:
+    """Initialise for training from scratch (no pretrained backbone), as the training recipe does.
+
+    Linear: truncated normal (std 0.02), bias 0; LayerNorm: weight 1, bias 0; encoder convolutions (this
+    includes the RLN meta convolutions): normal(0, sqrt(2 / fan_out)) with fan_out = k*k*out/groups, bias 0;
+    decoder convolutions: Xavier-uniform, bias 0; joint blocks keep PyTorch's default initialisation.
+    """
+    for branch in (model.depth_structure, model.enhanced_structure):
+        for m in branch.modules():
+            if isinstance(m, nn.Linear):
+                nn.init.trunc_normal_(m.weight, std=0.02)  # bounds +-2 (absolute), as timm
+                nn.init.zeros_(m.bias)
+            elif isinstance(m, nn.LayerNorm):
+                nn.init.ones_(m.weight)
+                nn.init.zeros_(m.bias)
+        for m in branch.encoder.modules():
+            if isinstance(m, nn.Conv2d):
+                fan_out = m.kernel_size[0] * m.kernel_size[1] * m.out_channels // m.groups
+                nn.init.normal_(m.weight, 0.0, math.sqrt(2.0 / fan_out))
+                nn.init.zeros_(m.bias)
+        for m in branch.decoder.modules():
+            if isinstance(m, nn.Conv2d):
+                nn.init.xavier_uniform_(m.weight)
+                nn.init.zeros_(m.bias)
+    return model
+
+
+def build_jointid(variant: Variant | JointIDConfig = "base", *, init: bool = True) -> JointID:
+    """Build a Joint-ID network.
+
+    Args:
+        variant: ``"base"`` (the official model, 150,248,900 parameters), ``"tiny"`` (same structure, small
+            widths/depths) or an explicit :class:`JointIDConfig`.
+        init: apply :func:`init_weights` (skip it when weights are loaded right after).
+
+    Raises:
+        ValueError: unknown variant name.
+        TypeError: ``variant`` is neither a name nor a config.
+    """
+    if isinstance(variant, JointIDConfig):
+        cfg = variant
+    elif isinstance(variant, str):
+        if variant not in VARIANTS:
+            raise ValueError(f"variant: expected one of {sorted(VARIANTS)}, got {variant!r}")
+        cfg = VARIANTS[variant]
+    else:
+        raise TypeError(f"variant: expected a variant name or a JointIDConfig, got {type(variant).__name__}")
+    model = JointID(cfg)
+    return init_weights(model) if init else model
+
+
+def variant_name(config: JointIDConfig) -> str | None:
+    """The registered variant name of ``config``, or None for a custom configuration."""
+    return next((name for name, cfg in VARIANTS.items() if cfg == config), None)
+
+
+def normalize_input(x: Tensor) -> Tensor:
+    """Normalise an RGB batch (..., 3, H, W) in [0, 1] with the training recipe's mean and std (per channel).
+
+    The network's ``forward`` expects this; :func:`normalize_input_np` is the numpy twin (channels last).
+
+    Raises:
+        ShapeError: the channel dimension (-3) is not 3.
+    """
+    if x.ndim < 3 or x.shape[-3] != 3:
+        raise ShapeError(f"x: expected shape (..., 3, H, W), got {tuple(x.shape)}")
+    mean = torch.tensor(INPUT_MEAN, dtype=x.dtype, device=x.device).view(3, 1, 1)
+    std = torch.tensor(INPUT_STD, dtype=x.dtype, device=x.device).view(3, 1, 1)
+    return (x - mean) / std
+
+
+def normalize_input_np(x: np.ndarray) -> np.ndarray:
+    """Numpy twin of :func:`normalize_input` for channels-last arrays (..., H, W, 3); returns float32.
+
+    Raises:
+        ShapeError: the last dimension is not 3.
+    """
+    if x.ndim < 3 or x.shape[-1] != 3:
+        raise ShapeError(f"x: expected shape (..., H, W, 3), got {x.shape}")
+    mean = np.asarray(INPUT_MEAN, np.float32)
+    std = np.asarray(INPUT_STD, np.float32)
+    return ((x.astype(np.float32, copy=False) - mean) / std).astype(np.float32, copy=False)

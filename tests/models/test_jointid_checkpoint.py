@@ -1,0 +1,161 @@
+"""Checkpoint I/O: murk's format, the official format (with its pickled numpy array), refusal of other pickles."""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from murk.errors import InputFileError
+from murk.models.jointid import JointID, build_jointid, load_checkpoint, read_checkpoint, save_checkpoint
+
+
+@pytest.fixture(scope="module")
+def tiny() -> JointID:
+    torch.manual_seed(0)
+    return build_jointid("tiny").eval()
+
+
+def _same_weights(a: torch.nn.Module, b: torch.nn.Module) -> bool:
+    sa, sb = a.state_dict(), b.state_dict()
+    return sa.keys() == sb.keys() and all(torch.equal(sa[k], sb[k]) for k in sa)
+
+
+def _official_file(path: Path, model: JointID, **extra) -> Path:
+    """The official layout: {'model': state dict with 'structure.' keys, ...} plus a pickled numpy array."""
+    state = {f"structure.{k}": v for k, v in model.state_dict().items()}
+    torch.save({"model": state, "best_metrics": np.array([0.25, 7.5]), "epoch": 4, **extra}, path)
+    return path
+
+
+class _Evil:
+    def __reduce__(self):
+        return (print, ("this must not run",))
+
+
+def test_murk_checkpoint_round_trip(tmp_path, tiny):
+    path = save_checkpoint(tiny, tmp_path / "sub" / "tiny.pt", epoch=3, loss=0.5, tags=["a", "b"])
+    assert path.is_file()
+    assert [p.name for p in path.parent.iterdir()] == ["tiny.pt"]  # no temporary file left
+    model = load_checkpoint(path)
+    assert _same_weights(model, tiny) and not model.training
+    state, info = read_checkpoint(path)
+    assert state.keys() == tiny.state_dict().keys()
+    assert info.source == "murk" and info.variant == "tiny" and info.config == tiny.config
+    assert info.meta == {"epoch": 3, "loss": 0.5, "tags": ["a", "b"]}
+    raw = torch.load(path, weights_only=True)  # murk's own files need no allow-listing at all
+    assert raw["format"] == "murk.jointid" and raw["variant"] == "tiny"
+
+
+def test_save_unwraps_ddp_like_and_compiled_wrappers(tmp_path, tiny):
+    class Wrapper(torch.nn.Module):
+        def __init__(self, module):
+            super().__init__()
+            self.module = module
+
+    save_checkpoint(Wrapper(tiny), tmp_path / "w.pt")
+    assert _same_weights(load_checkpoint(tmp_path / "w.pt"), tiny)
+    with pytest.raises(TypeError, match="expected a JointID"):
+        save_checkpoint(torch.nn.Linear(2, 2), tmp_path / "x.pt")
+
+
+def test_save_rejects_metadata_that_weights_only_cannot_load(tmp_path, tiny):
+    with pytest.raises(TypeError, match=r"meta\['obj'\].*weights_only-safe"):
+        save_checkpoint(tiny, tmp_path / "m.pt", obj=object())
+    assert not (tmp_path / "m.pt").exists()
+
+
+def test_official_format_with_numpy_array_loads_with_weights_only(tmp_path, tiny):
+    path = _official_file(tmp_path / "joint_id_ckpt.pth", tiny)
+    with pytest.raises(Exception, match="numpy"):  # plain weights_only refuses the numpy array ...
+        torch.load(path, weights_only=True)
+    model = load_checkpoint(path)  # ... load_checkpoint allows exactly the numpy array globals
+    assert _same_weights(model, tiny)
+    _, info = read_checkpoint(path)
+    assert info.source == "official" and info.meta == {"epoch": 4}
+
+
+def test_official_format_written_by_numpy_1_loads(tmp_path, tiny):
+    # numpy 1.x pickles arrays as numpy.core.multiarray._reconstruct (numpy 2: numpy._core...): rewrite the
+    # pickle's GLOBAL opcode (torch.save uses protocol 2, newline-terminated names) to that spelling.
+    src = _official_file(tmp_path / "new.pth", tiny)
+    dst = tmp_path / "old.pth"
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dst, "w", zipfile.ZIP_STORED) as zout:
+        for item in zin.infolist():
+            data = zin.read(item.filename)
+            if item.filename.endswith("data.pkl"):
+                assert b"numpy._core.multiarray\n" in data
+                data = data.replace(b"numpy._core.multiarray\n", b"numpy.core.multiarray\n")
+            zout.writestr(item, data)
+    assert "numpy.core.multiarray._reconstruct" in torch.serialization.get_unsafe_globals_in_checkpoint(dst)
+    assert _same_weights(load_checkpoint(dst), tiny)
+
+
+def test_other_pickled_objects_are_refused_unless_trusted(tmp_path, tiny, capsys):
+    path = _official_file(tmp_path / "evil.pth", tiny, payload=_Evil())
+    with pytest.raises(InputFileError, match=r"evil\.pth: refusing.*builtins\.print.*--trust-checkpoint"):
+        load_checkpoint(path)
+    assert "this must not run" not in capsys.readouterr().out
+    model = load_checkpoint(path, trust=True)  # the user's explicit opt-in
+    assert _same_weights(model, tiny)
+    assert "this must not run" in capsys.readouterr().out  # (proof that trust=True really unpickles)
+
+
+def test_bare_state_dicts_load_with_and_without_prefix(tmp_path, tiny):
+    torch.save(tiny.state_dict(), tmp_path / "plain.pth")
+    torch.save({f"structure.{k}": v for k, v in tiny.state_dict().items()}, tmp_path / "prefixed.pth")
+    assert _same_weights(load_checkpoint(tmp_path / "plain.pth"), tiny)
+    assert _same_weights(load_checkpoint(tmp_path / "prefixed.pth"), tiny)
+
+
+def test_mismatching_weights_are_reported_with_the_file(tmp_path, tiny):
+    state = {f"structure.{k}": v for k, v in tiny.state_dict().items()}
+    missing = dict(state)
+    missing.pop("structure.depth_structure.decoder.linear_pred1.weight")
+    torch.save({"model": missing}, tmp_path / "missing.pth")
+    with pytest.raises(InputFileError, match=r"missing\.pth: not a Joint-ID \(tiny\) checkpoint: 1 missing keys"):
+        load_checkpoint(tmp_path / "missing.pth")
+    bad = dict(state)
+    bad["structure.depth_structure.decoder.linear_pred1.bias"] = torch.zeros(2)
+    bad["structure.extra.weight"] = torch.zeros(1)
+    torch.save({"model": bad}, tmp_path / "bad.pth")
+    with pytest.raises(InputFileError, match=r"1 unexpected keys.*1 shape mismatches"):
+        load_checkpoint(tmp_path / "bad.pth")
+
+
+def test_unreadable_files_are_reported(tmp_path):
+    with pytest.raises(InputFileError, match=r"nope\.pt: checkpoint not found"):
+        load_checkpoint(tmp_path / "nope.pt")
+    (tmp_path / "junk.pt").write_bytes(b"definitely not a checkpoint")
+    with pytest.raises(InputFileError, match=r"junk\.pt: not a"):
+        load_checkpoint(tmp_path / "junk.pt")
+    torch.save({"weights": [1, 2]}, tmp_path / "other.pt")
+    with pytest.raises(InputFileError, match="not a Joint-ID checkpoint"):
+        load_checkpoint(tmp_path / "other.pt")
+
+
+def test_unknown_murk_format_version_is_refused(tmp_path, tiny):
+    path = save_checkpoint(tiny, tmp_path / "v.pt")
+    obj = torch.load(path, weights_only=True)
+    obj["format_version"] = 99
+    torch.save(obj, path)
+    with pytest.raises(InputFileError, match="format_version 99"):
+        load_checkpoint(path)
+
+
+@pytest.mark.slow
+def test_full_size_official_format_file_loads(tmp_path, tests_data):
+    # The whole official layout at full size (600 MB on disk): fixture names and shapes, numpy array included.
+    entries = json.loads((tests_data / "jointid_state_dict.json").read_text())["entries"]
+    state = {k: torch.full(shape, float(i % 97)) for i, (k, shape, _) in enumerate(entries)}
+    torch.save({"model": state, "best": np.zeros(3)}, tmp_path / "joint_id_ckpt.pth")
+    model = load_checkpoint(tmp_path / "joint_id_ckpt.pth")
+    assert sum(p.numel() for p in model.parameters()) == 150_248_900
+    own = model.state_dict()
+    assert all(
+        float(own[k.removeprefix("structure.")].flatten()[0]) == float(i % 97) for i, (k, _, _) in enumerate(entries)
+    )
