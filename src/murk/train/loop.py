@@ -202,7 +202,13 @@ def train(
         stop_after: stop after this many steps in this invocation (a time-boxed job; resume later).
         on_log: called with every log record (the CLI prints progress with it).
     """
-    from murk.models.jointid import build_jointid, normalize_input, read_checkpoint, save_checkpoint
+    from murk.models.jointid import (
+        build_jointid,
+        normalize_input,
+        read_checkpoint,
+        save_checkpoint,
+        unused_parameter_names,
+    )
 
     rank, world, local_rank = _dist_info()
     distributed = world > 1
@@ -247,6 +253,10 @@ def train(
     if config.model.init_checkpoint:
         state, _ = read_checkpoint(config.model.init_checkpoint, trust=config.model.trust_checkpoint)
         model.load_state_dict(state, strict=True)
+    unused = set(unused_parameter_names(model))
+    for name, p in model.named_parameters():
+        if name in unused:
+            p.requires_grad_(False)  # checkpoint-only parameters: never used in forward
     model.to(device)
     if config.channels_last:
         model = model.to(memory_format=torch.channels_last)
@@ -391,6 +401,7 @@ def train(
                 )
             if distributed:
                 dist.barrier()
+            t_last, imgs = time.perf_counter(), 0  # throughput excludes evaluation time
     if device.type == "cuda":
         summary.peak_memory_gib = torch.cuda.max_memory_allocated(device) / 2**30
     summary.replica_checksums = _replica_checksums(model, distributed)

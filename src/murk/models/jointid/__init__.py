@@ -15,6 +15,7 @@ from murk.models.jointid.network import (
     init_weights,
     normalize_input,
     normalize_input_np,
+    unused_parameter_names,
 )
 
 __all__ = [
@@ -35,4 +36,5 @@ __all__ = [
     "normalize_input_np",
     "read_checkpoint",
     "save_checkpoint",
+    "unused_parameter_names",
 ]

@@ -166,6 +166,13 @@ def _check_input(x: Tensor) -> None:
         )
 
 
+def unused_parameter_names(model: nn.Module) -> list[str]:
+    """Names of the parameters that never receive a gradient: each decoder block's second LayerNorm, kept
+    only so that the official checkpoint loads (12,288 parameters in the base model). Training freezes them
+    (DistributedDataParallel requires every trainable parameter to be used)."""
+    return [n for n, _ in model.named_parameters() if ".norm_layer_2." in n]
+
+
 def init_weights(model: JointID) -> JointID:
     """Initialise for training from scratch (no pretrained backbone), as the training recipe does.
 

@@ -1,0 +1,173 @@
+from __future__ import annotations
+
+import json
+import os
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from murk._config import dump_yaml, merge
+from murk.io import discover, read_jsonl
+from murk.models.jointid import load_checkpoint, read_checkpoint
+from murk.synth.config import SynthConfig
+from murk.synth.runner import run_synthesis
+from murk.train.config import TrainConfig
+from murk.train.loop import detect_kind, epoch_batches, train
+
+TINY = {
+    "model": {"variant": "tiny"},
+    "data": {"crop_hw": [32, 64], "workers": 0, "val_fraction": 0.0},
+    "eval": {"every": 1000, "val_batches": 1},
+    "batch": 2,
+    "log_every": 1,
+}
+
+
+@pytest.fixture(scope="module")
+def synth_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A small murk synth output: 4 clean images x 2 variants, 48x64."""
+    root = tmp_path_factory.mktemp("rgbd")
+    import cv2
+
+    (root / "rgb").mkdir()
+    (root / "depth").mkdir()
+    g = np.random.default_rng(0)
+    for i in range(4):
+        yy, xx = np.mgrid[0:48, 0:64]
+        base = (np.sin(xx / (3 + i)) * 0.5 + 0.5)[..., None] * np.array([0.9, 0.6, 0.3]) + g.random((48, 64, 3)) * 0.1
+        cv2.imwrite(str(root / "rgb" / f"s{i}.png"), (np.clip(base, 0, 1) * 255).astype(np.uint8))
+        cv2.imwrite(str(root / "depth" / f"s{i}.png"), (800 + 40 * xx + 20 * yy + 100 * i).astype(np.uint16))
+    out = tmp_path_factory.mktemp("synth")
+    sources, _ = discover(root)
+    run_synthesis(sources, out, SynthConfig(variants=2))
+    return out
+
+
+def _config(tmp: Path, source: Path, **over: object) -> TrainConfig:
+    cfg = merge(TrainConfig(), TINY)
+    cfg = merge(cfg, {"data": {"source": str(source)}, "out": str(tmp)})
+    return merge(cfg, dict(over))
+
+
+def _params(path: Path) -> dict[str, torch.Tensor]:
+    state, _ = read_checkpoint(path)
+    return state
+
+
+def test_loss_decreases_on_a_fixed_batch(synth_folder: Path, tmp_path: Path) -> None:
+    cfg = _config(
+        tmp_path, synth_folder, steps=40, batch=8, augment={"enabled": False}, optim={"lr": 1e-3, "min_lr": 1e-3}
+    )
+    summary = train(cfg)  # 8 samples, batch 8: the same batch every step
+    losses = [r["loss"] for r in read_jsonl(tmp_path / "log.jsonl") if r["kind"] == "train"]
+    assert len(losses) == 40 and summary.steps_done == 40
+    assert np.mean(losses[-5:]) < 0.8 * np.mean(losses[:5])
+    assert all(np.isfinite(losses))
+
+
+def test_resume_equals_uninterrupted(synth_folder: Path, tmp_path: Path) -> None:
+    full = _config(tmp_path / "full", synth_folder, steps=6)
+    train(full)
+    part = _config(tmp_path / "part", synth_folder, steps=6)
+    train(part, stop_after=3)
+    assert read_checkpoint(tmp_path / "part" / "latest.pt")[1].meta["step"] == 3
+    train(part, resume=True)
+    a, b = _params(tmp_path / "full" / "latest.pt"), _params(tmp_path / "part" / "latest.pt")
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    la = [r["loss"] for r in read_jsonl(tmp_path / "full" / "log.jsonl") if r["kind"] == "train"]
+    lb = [r["loss"] for r in read_jsonl(tmp_path / "part" / "log.jsonl") if r["kind"] == "train"]
+    assert la == lb  # steps 1-3 from the first invocation, 4-6 from the resumed one: identical losses
+    with pytest.raises(ValueError, match="nothing to resume"):
+        train(_config(tmp_path / "empty", synth_folder, steps=2), resume=True)
+
+
+def test_checkpoint_loads_for_inference_and_eval_metrics(synth_folder: Path, tmp_path: Path) -> None:
+    cfg = _config(
+        tmp_path,
+        synth_folder,
+        steps=2,
+        data={"val_fraction": 0.25},
+        eval={
+            "every": 2,
+            "real": str(Path(__file__).resolve().parents[1] / "data" / "metric_edge_cases"),
+            "real_max": 2,
+            "real_max_side": 64,
+        },
+    )
+    s = train(cfg)
+    assert {"val_psnr", "val_ssim", "val_silog", "real_uiqm", "real_uciqe"} <= set(s.last_eval)
+    assert s.best["metric"] == "val_psnr" and (tmp_path / "best.pt").exists()
+    model = load_checkpoint(tmp_path / "best.pt")
+    out = model(torch.rand(1, 3, 32, 64))
+    assert out.depth_m.shape == (1, 1, 32, 64)
+    doc = json.loads((tmp_path / "summary.json").read_text())
+    assert doc["steps_done"] == 2 and "variant: tiny" in (tmp_path / "config.yaml").read_text()
+
+
+def test_epoch_batches_partition_and_shuffle() -> None:
+    b0 = epoch_batches(20, 3, epoch=0, seed=1, rank=0, world=2)
+    b1 = epoch_batches(20, 3, epoch=0, seed=1, rank=1, world=2)
+    flat0, flat1 = [i for b in b0 for i in b], [i for b in b1 for i in b]
+    assert len(b0) == len(b1) == 3 and not set(flat0) & set(flat1)
+    assert epoch_batches(20, 3, 1, 1, 0, 2) != b0 and epoch_batches(20, 3, 0, 1, 0, 2) == b0
+
+
+def test_data_kind_detection(synth_folder: Path, tmp_path: Path, small_rgbd: Path) -> None:
+    assert detect_kind(str(synth_folder)) == "synth"
+    assert detect_kind(str(synth_folder / "train.txt")) == "list"
+    assert detect_kind(str(small_rgbd)) == "rgbd"
+    assert detect_kind("scenes:50") == "scenes"
+    with pytest.raises(ValueError, match="neither a 'murk synth' folder"):
+        detect_kind(str(tmp_path))
+    with pytest.raises(ValueError, match="fewer than batch 64"):
+        train(_config(tmp_path / "x", synth_folder, steps=1, batch=64))
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_ddp_two_gloo_processes_keep_replicas_identical(synth_folder: Path, tmp_path: Path) -> None:
+    cfg = _config(tmp_path / "ddp", synth_folder, steps=3, batch=2)
+    (tmp_path / "c.yaml").write_text(dump_yaml(cfg))
+    cmd = [
+        sys.executable,
+        "-m",
+        "torch.distributed.run",
+        "--nproc_per_node",
+        "2",
+        "--master_port",
+        str(_free_port()),
+        "-m",
+        "murk",
+        "train",
+        "--config",
+        str(tmp_path / "c.yaml"),
+        "-q",
+    ]
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env)
+    assert r.returncode == 0, r.stderr[-3000:]
+    doc = json.loads((tmp_path / "ddp" / "summary.json").read_text())
+    sums = doc["replica_checksums"]
+    assert len(sums) == 2 and sums[0] == sums[1]  # both ranks hold the same weights after 3 steps
+    assert "world_size: 2" in (tmp_path / "ddp" / "config.yaml").read_text()
+    assert doc["steps_done"] == 3
+
+
+def test_unused_parameters_are_exactly_those_without_gradient() -> None:
+    from murk.models.jointid import build_jointid, unused_parameter_names
+
+    torch.manual_seed(0)
+    model = build_jointid("tiny")
+    out = model(torch.rand(1, 3, 32, 64))
+    (out.depth_m.mean() + out.enhanced.mean()).backward()
+    no_grad = {n for n, p in model.named_parameters() if p.grad is None}
+    assert no_grad == set(unused_parameter_names(model)) and no_grad
