@@ -25,6 +25,12 @@ class HEChoice(str, Enum):
     clahe = "clahe"
 
 
+class PrecisionChoice(str, Enum):
+    fp32 = "fp32"
+    bf16 = "bf16"
+    fp16 = "fp16"
+
+
 class FormatChoice(str, Enum):
     png = "png"
     jpg = "jpg"
@@ -45,6 +51,12 @@ def method_options(
     lam: float,
     clahe_clip: float,
     clahe_tiles: int,
+    checkpoint: str | None = None,
+    precision: str = "fp32",
+    tile: int | None = None,
+    overlap: int = 64,
+    trust_checkpoint: bool = False,
+    compile: bool = False,
 ) -> dict[str, Any]:
     """Keyword options handed to every stage of ``--method`` (each factory takes what it knows and ignores
     the rest). New method options (checkpoint, precision, tiling, ...) are added here and in :func:`enhance`."""
@@ -56,6 +68,12 @@ def method_options(
         "lam": lam,
         "clahe_clip": clahe_clip,
         "clahe_tiles": clahe_tiles,
+        "checkpoint": checkpoint,
+        "precision": precision,
+        "tile": tile,
+        "overlap": overlap,
+        "trust_checkpoint": trust_checkpoint,
+        "compile": compile,
     }
 
 
@@ -102,6 +120,31 @@ def enhance(
     lam: Annotated[float, typer.Option("--lambda", min=0.0, help="post: edge-enhancement weight (Eq. 9).")] = 0.3,
     clahe_clip: Annotated[float, typer.Option("--clahe-clip", min=0.0, help="post --he clahe: clip limit.")] = 2.0,
     clahe_tiles: Annotated[int, typer.Option("--clahe-tiles", min=1, help="post --he clahe: tiles per side.")] = 8,
+    checkpoint: Annotated[
+        Path | None,
+        typer.Option(
+            "--checkpoint",
+            help="jointid: weights (a murk checkpoint from 'murk train', the official joint_id_ckpt.pth, or an "
+            ".onnx export run with ONNX Runtime).",
+        ),
+    ] = None,
+    precision: Annotated[
+        PrecisionChoice, typer.Option("--precision", help="jointid: fp32, or bf16/fp16 autocast (GPU).")
+    ] = PrecisionChoice.fp32,
+    tile: Annotated[
+        int | None, typer.Option("--tile", min=32, help="jointid: run large frames in tiles of this size (px).")
+    ] = None,
+    overlap: Annotated[int, typer.Option("--overlap", min=0, help="jointid: tile overlap in px (blended).")] = 64,
+    trust_checkpoint: Annotated[
+        bool,
+        typer.Option(
+            "--trust-checkpoint",
+            help="jointid: allow arbitrary pickled objects in the checkpoint (runs code; trusted files only).",
+        ),
+    ] = False,
+    compile_model: Annotated[
+        bool, typer.Option("--compile", help="jointid: torch.compile the network (GPU; slow first frames).")
+    ] = False,
     depth: Annotated[
         bool,
         typer.Option("--depth/--no-depth", help="Write depth/ and depth_preview/ when the method estimates depth."),
@@ -147,6 +190,12 @@ def enhance(
             lam=lam,
             clahe_clip=clahe_clip,
             clahe_tiles=clahe_tiles,
+            checkpoint=None if checkpoint is None else str(checkpoint),
+            precision=precision.value,
+            tile=tile,
+            overlap=overlap,
+            trust_checkpoint=trust_checkpoint,
+            compile=compile_model,
         ),
     )
     options = OutputOptions(
