@@ -7,6 +7,7 @@ from typing import Annotated
 import typer
 
 from murk._version import __version__
+from murk.cli import scenes as scenes_cmd
 from murk.cli._common import MurkGroup
 
 app = typer.Typer(
@@ -33,6 +34,9 @@ def _root(
     ] = False,
 ) -> None:
     """murk: realistic underwater data synthesis, restoration and metrics for underwater robots."""
+
+
+app.command("scenes")(scenes_cmd.scenes)
 
 
 def main() -> None:
