@@ -313,32 +313,77 @@ def net_surface(xp: Any, d: tuple[Array, Array, Array], t: Array, k: Any) -> tup
     return s * k[3], s * k[4], s * k[5], u, v
 
 
-def seabed_t(xp: Any, d: tuple[Array, Array, Array], k: Any, t_cap: float) -> Array:
-    """Hit of the seabed height field: the sloped plane solved exactly, then Newton steps on the undulation.
+def seabed_start(xp: Any, d: tuple[Array, Array, Array], k: Any, t_cap: float) -> dict[str, Any]:
+    """Initial state of the seabed root search along each ray.
 
-    ``g(t) = camera height above the seabed along the ray``; starting from the plane's hit, each step is
-    ``t -= g / g'`` with the step limited to :data:`SEABED_MAX_STEP_M`. Rays that do not descend towards the
-    plane, or whose hit lies beyond ``t_cap``, miss.
+    ``g(t)`` is the height of the ray point above the seabed: ``g = t*den - hc - sum(a sin(A + t B))`` with
+    ``den = d_z - sx d_x - sy d_y`` (< 0 for rays descending towards the sloped plane). With ``U = sum |a|``,
+    ``g > 0`` before ``(hc + U) / den`` and ``g <= 0`` at ``(hc - U) / den``, which brackets a root; the search
+    starts at the plane's exact hit ``hc / den``.
     """
     dx, dy, dz = d
     hc, sx, sy = k[0], k[1], k[2]
     den = dz - sx * dx - sy * dy
     valid = den < -1e-6
     den_s = xp.where(valid, den, -1.0)
-    t = clamp(xp, hc / den_s, 0.0, t_cap)
+    inv = 1.0 / den_s
+    amp = sum(abs(k[3 + 4 * i]) for i in range(N_WAVES))
+    lo = clamp(xp, (hc + amp) * inv, 0.0, t_cap)
+    hi = clamp(xp, (hc - amp) * inv, 0.0, t_cap)
+    t = clamp(xp, hc * inv, lo, hi)
     bw = [k[3 + 4 * i + 1] * dx + k[3 + 4 * i + 2] * dy for i in range(N_WAVES)]
-    for _ in range(SEABED_NEWTON_STEPS):
-        g = t * den_s - hc
-        gp = den_s
+    return {"den": den_s, "valid": valid, "bw": bw, "lo": lo, "hi": hi, "t": t, "step": hi - lo}
+
+
+def seabed_iterate(xp: Any, state: dict[str, Any], k: Any, steps: int) -> dict[str, Any]:
+    """``steps`` safeguarded Newton steps: a Newton step when it stays inside the bracket, else bisection.
+
+    Returns the new state; ``state["step"]`` is the size of the last update (m)."""
+    den, bw, lo, hi, t = state["den"], state["bw"], state["lo"], state["hi"], state["t"]
+    step = state["step"]
+    for _ in range(steps):
+        g = t * den - k[0]
+        gp = den
         for i in range(N_WAVES):
             amp, phase0 = k[3 + 4 * i], k[3 + 4 * i + 3]
             ph = phase0 + t * bw[i]
             g = g - amp * xp.sin(ph)
             gp = gp - (amp * bw[i]) * xp.cos(ph)
-        gp = clamp(xp, gp, None, -1e-4)
-        step = clamp(xp, g / gp, -SEABED_MAX_STEP_M, SEABED_MAX_STEP_M)
-        t = clamp(xp, t - step, 0.0, t_cap)
-    return xp.where(valid & (t < t_cap) & (t > EPS_T), t, INF)
+        above = g > 0
+        lo = xp.where(above, t, lo)
+        hi = xp.where(above, hi, t)
+        tn = t - g / _safe(xp, gp, 1e-12)
+        ok = (tn >= lo) & (tn <= hi)
+        t_new = xp.where(ok, tn, 0.5 * (lo + hi))
+        step = xp.abs(t_new - t)
+        t = t_new
+    return {**state, "lo": lo, "hi": hi, "t": t, "step": step}
+
+
+def seabed_finish(xp: Any, state: dict[str, Any], t_cap: float) -> Array:
+    """The hit distance from a search state: ``inf`` for rays that miss or hit beyond ``t_cap``."""
+    t = state["t"]
+    return xp.where(state["valid"] & (t < t_cap) & (t > EPS_T), t, INF)
+
+
+SEABED_TOL_M = 1e-5
+"""A ray's seabed search has converged when its last update was smaller than this."""
+SEABED_MAX_STEPS = 30
+
+
+def seabed_t(xp: Any, d: tuple[Array, Array, Array], k: Any, t_cap: float) -> Array:
+    """Hit distance of the seabed height field along each ray (``inf`` where it misses).
+
+    Safeguarded Newton steps on a bracket that holds a root (see :func:`seabed_start`) until every ray's
+    last update is below :data:`SEABED_TOL_M` (at most :data:`SEABED_MAX_STEPS`). For the flat case the
+    first step lands exactly on the plane.
+    """
+    state = seabed_iterate(xp, seabed_start(xp, d, k, t_cap), k, SEABED_NEWTON_STEPS)
+    done = SEABED_NEWTON_STEPS
+    while done < SEABED_MAX_STEPS and bool((state["valid"] & (state["step"] > SEABED_TOL_M)).any()):
+        state = seabed_iterate(xp, state, k, 1)
+        done += 1
+    return seabed_finish(xp, state, t_cap)
 
 
 def seabed_residual(xp: Any, d: tuple[Array, Array, Array], t: Array, k: Any) -> Array:

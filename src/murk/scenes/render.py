@@ -205,6 +205,24 @@ def _bounds(kind: str, row: np.ndarray) -> tuple[np.ndarray, float]:
 MAX_PIECES = 24
 
 
+def _seabed_numpy(d: tuple[np.ndarray, np.ndarray, np.ndarray], k: list[float], t_cap: float) -> np.ndarray:
+    """:func:`geometry.seabed_t` with the extra steps applied only to the rays that have not converged."""
+    state = geo.seabed_iterate(np, geo.seabed_start(np, d, k, t_cap), k, geo.SEABED_NEWTON_STEPS)
+    todo = np.flatnonzero(state["valid"] & (state["step"] > geo.SEABED_TOL_M))
+    if todo.size:
+        sub = {
+            key: ([np.take(b, todo) for b in val] if key == "bw" else np.take(val, todo)) for key, val in state.items()
+        }
+        done = geo.SEABED_NEWTON_STEPS
+        while done < geo.SEABED_MAX_STEPS and bool((sub["step"] > geo.SEABED_TOL_M).any()):
+            sub = geo.seabed_iterate(np, sub, k, 1)
+            done += 1
+        t = state["t"].copy()
+        t.flat[todo] = sub["t"]
+        state["t"] = t
+    return geo.seabed_finish(np, state, t_cap)
+
+
 def _cull_spheres(kind: str, row: np.ndarray) -> list[tuple[np.ndarray, float]]:
     """Bounding spheres whose union contains the primitive: one, or for a long frustum (a pile, a pipe, a
     rebar) up to :data:`MAX_PIECES` spheres along its axis, so that its screen rectangles stay thin."""
@@ -273,7 +291,7 @@ def render_packed_numpy(
         band = slice(r, r + BAND_ROWS)
         db = (d[0][band], d[1][band], d[2][band])
         if float((db[2] - sb[1] * db[0] - sb[2] * db[1]).min()) < -1e-6:
-            t_buf[band] = geo.seabed_t(np, db, sb, t_cap)
+            t_buf[band] = _seabed_numpy(db, sb, t_cap)
     id_buf = np.where(t_buf < np.inf, 0, -1).astype(np.int32)
     px_angle = frame.px_angle
     rects: list[list[tuple[slice, slice]]] = []
