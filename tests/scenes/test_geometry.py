@@ -237,3 +237,19 @@ def _rays(frame):
     from murk.scenes.render import _rays_numpy
 
     return _rays_numpy(frame)[0]
+
+
+def test_vectorised_screen_rects_match_the_scalar_ones() -> None:
+    from murk.scenes.render import camera_frame, screen_rect, screen_rects
+
+    frame = camera_frame(make_scene(camera=Camera((0.0, 0.0, 0.0), -30.0, 10.0, 0.0, 80.0)), SIZE)
+    rng = np.random.default_rng(1)
+    centres = rng.normal(size=(300, 3)) * 5
+    radii = rng.uniform(0.01, 3.0, 300)
+    many = screen_rects(frame, centres, radii)
+    for (r0, r1, c0, c1), c, r in zip(many.tolist(), centres, radii, strict=True):
+        s0, s1, t0, t1 = screen_rect(frame, c, float(r))
+        if s1 > s0 and t1 > t0:  # a visible sphere: the same rectangle
+            assert (r0, r1, c0, c1) == (s0, s1, t0, t1)
+        else:
+            assert r1 <= r0 or c1 <= c0

@@ -59,10 +59,13 @@ def net_axes(yaw_deg: float, tilt_deg: float) -> tuple[np.ndarray, np.ndarray, n
 
 
 def _perp_basis(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    helper = np.array([0.0, 0.0, 1.0]) if abs(w[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    e1 = np.cross(w, helper)
-    e1 /= np.linalg.norm(e1)
-    return e1, np.cross(w, e1)
+    """Two unit vectors perpendicular to the unit vector ``w`` and to each other (plain Python: 3-vectors)."""
+    wx, wy, wz = (float(c) for c in w)
+    hx, hy, hz = (0.0, 0.0, 1.0) if abs(wz) < 0.9 else (1.0, 0.0, 0.0)
+    ex, ey, ez = wy * hz - wz * hy, wz * hx - wx * hz, wx * hy - wy * hx
+    n = math.sqrt(ex * ex + ey * ey + ez * ez)
+    ex, ey, ez = ex / n, ey / n, ez / n
+    return np.array([ex, ey, ez]), np.array([wy * ez - wz * ey, wz * ex - wx * ez, wx * ey - wy * ex])
 
 
 def pack_box(p: Box, cam: np.ndarray) -> np.ndarray:
@@ -72,7 +75,7 @@ def pack_box(p: Box, cam: np.ndarray) -> np.ndarray:
     rt = r.T
     ol = -(rt @ c)
     h = np.asarray(p.half_size_m)
-    return np.concatenate([rt.ravel(), ol, h, c, [float(np.linalg.norm(h))]])
+    return np.concatenate([rt.ravel(), ol, h, c, [math.sqrt(float(h @ h))]])
 
 
 def pack_frustum(p: Frustum, cam: np.ndarray) -> np.ndarray:
@@ -80,7 +83,7 @@ def pack_frustum(p: Frustum, cam: np.ndarray) -> np.ndarray:
     a = np.asarray(p.start_m) - cam
     b = np.asarray(p.end_m) - cam
     axis = b - a
-    length = float(np.linalg.norm(axis))
+    length = math.sqrt(float(axis @ axis))
     w = axis / length
     slope = (p.radius_end_m - p.radius_start_m) / length
     e1, e2 = _perp_basis(w)
@@ -318,72 +321,95 @@ def seabed_start(xp: Any, d: tuple[Array, Array, Array], k: Any, t_cap: float) -
 
     ``g(t)`` is the height of the ray point above the seabed: ``g = t*den - hc - sum(a sin(A + t B))`` with
     ``den = d_z - sx d_x - sy d_y`` (< 0 for rays descending towards the sloped plane). With ``U = sum |a|``,
-    ``g > 0`` before ``(hc + U) / den`` and ``g <= 0`` at ``(hc - U) / den``, which brackets a root; the search
-    starts at the plane's exact hit ``hc / den``.
+    ``g > 0`` before ``lo = (hc + U) / den`` and ``g <= 0`` at ``hi = (hc - U) / den``, which brackets a root;
+    the search starts at the plane's exact hit ``hc / den``.
     """
     dx, dy, dz = d
     hc, sx, sy = k[0], k[1], k[2]
     den = dz - sx * dx - sy * dy
-    valid = den < -1e-6
-    den_s = xp.where(valid, den, -1.0)
+    descending = den < -1e-6
+    den_s = xp.where(descending, den, -1.0)
     inv = 1.0 / den_s
     amp = sum(abs(k[3 + 4 * i]) for i in range(N_WAVES))
     lo = clamp(xp, (hc + amp) * inv, 0.0, t_cap)
     hi = clamp(xp, (hc - amp) * inv, 0.0, t_cap)
+    valid = descending & (lo < t_cap)  # the first possible hit lies within t_cap
     t = clamp(xp, hc * inv, lo, hi)
     bw = [k[3 + 4 * i + 1] * dx + k[3 + 4 * i + 2] * dy for i in range(N_WAVES)]
-    return {"den": den_s, "valid": valid, "bw": bw, "lo": lo, "hi": hi, "t": t, "step": hi - lo}
+    return {"den": den_s, "valid": valid, "bw": bw, "lo": lo, "hi": hi, "t": t, "cap": t_cap}
 
 
-def seabed_iterate(xp: Any, state: dict[str, Any], k: Any, steps: int) -> dict[str, Any]:
-    """``steps`` safeguarded Newton steps: a Newton step when it stays inside the bracket, else bisection.
+def _seabed_g(xp: Any, state: dict[str, Any], k: Any, t: Array) -> tuple[Array, Array]:
+    g = t * state["den"] - k[0]
+    gp = state["den"]
+    for i in range(N_WAVES):
+        amp, phase0 = k[3 + 4 * i], k[3 + 4 * i + 3]
+        if isinstance(amp, float) and amp == 0.0:
+            continue
+        ph = phase0 + t * state["bw"][i]
+        g = g - amp * xp.sin(ph)
+        gp = gp - (amp * state["bw"][i]) * xp.cos(ph)
+    return g, gp
 
-    Returns the new state; ``state["step"]`` is the size of the last update (m)."""
-    den, bw, lo, hi, t = state["den"], state["bw"], state["lo"], state["hi"], state["t"]
-    step = state["step"]
+
+def seabed_newton(xp: Any, state: dict[str, Any], k: Any, steps: int) -> tuple[Array, Array]:
+    """``steps`` plain Newton steps from the plane's hit; returns (t, converged).
+
+    A ray has converged when its last step was below :data:`SEABED_NEWTON_TOL_M` (Newton converges
+    quadratically, so the remaining error is orders of magnitude smaller) and it never left the bracket.
+    """
+    t = state["t"]
+    inside = state["valid"]
+    step = None
     for _ in range(steps):
-        g = t * den - k[0]
-        gp = den
-        for i in range(N_WAVES):
-            amp, phase0 = k[3 + 4 * i], k[3 + 4 * i + 3]
-            ph = phase0 + t * bw[i]
-            g = g - amp * xp.sin(ph)
-            gp = gp - (amp * bw[i]) * xp.cos(ph)
+        g, gp = _seabed_g(xp, state, k, t)
+        t_new = t - g / _safe(xp, gp, 1e-12)
+        step = xp.abs(t_new - t)
+        t = t_new
+        inside = inside & (t >= state["lo"]) & (t <= state["hi"])
+    # Rays that ran past the bracket's far end at t_cap hit beyond t_cap (the background): done too.
+    return t, (inside & (step < SEABED_NEWTON_TOL_M)) | (t > state["hi"]) & (state["hi"] >= state["cap"])
+
+
+def seabed_safeguarded(xp: Any, state: dict[str, Any], k: Any, steps: int) -> Array:
+    """The robust search: a Newton step when it stays inside the current bracket, else bisection; returns t
+    after ``steps`` steps (or earlier, once every ray's last update is below :data:`SEABED_TOL_M`)."""
+    lo, hi, t = state["lo"], state["hi"], state["t"]
+    for _ in range(steps):
+        g, gp = _seabed_g(xp, state, k, t)
         above = g > 0
         lo = xp.where(above, t, lo)
         hi = xp.where(above, hi, t)
         tn = t - g / _safe(xp, gp, 1e-12)
         ok = (tn >= lo) & (tn <= hi)
         t_new = xp.where(ok, tn, 0.5 * (lo + hi))
-        step = xp.abs(t_new - t)
+        moving = xp.abs(t_new - t) > SEABED_TOL_M
         t = t_new
-    return {**state, "lo": lo, "hi": hi, "t": t, "step": step}
-
-
-def seabed_finish(xp: Any, state: dict[str, Any], t_cap: float) -> Array:
-    """The hit distance from a search state: ``inf`` for rays that miss or hit beyond ``t_cap``."""
-    t = state["t"]
-    return xp.where(state["valid"] & (t < t_cap) & (t > EPS_T), t, INF)
+        if not bool(moving.any()):
+            break
+    return t
 
 
 SEABED_TOL_M = 1e-5
-"""A ray's seabed search has converged when its last update was smaller than this."""
-SEABED_MAX_STEPS = 30
+"""The robust search stops when every ray's last update is smaller than this."""
+SEABED_NEWTON_TOL_M = 1e-3
+"""The Newton phase has converged for a ray when its last step was smaller than this."""
+SEABED_ROBUST_STEPS = 40
 
 
 def seabed_t(xp: Any, d: tuple[Array, Array, Array], k: Any, t_cap: float) -> Array:
     """Hit distance of the seabed height field along each ray (``inf`` where it misses).
 
-    Safeguarded Newton steps on a bracket that holds a root (see :func:`seabed_start`) until every ray's
-    last update is below :data:`SEABED_TOL_M` (at most :data:`SEABED_MAX_STEPS`). For the flat case the
-    first step lands exactly on the plane.
+    :data:`SEABED_NEWTON_STEPS` Newton steps from the plane's exact hit; rays that have not converged then (or
+    that left the bracket of :func:`seabed_start`) get the safeguarded Newton/bisection search from the
+    start, which always converges to a root. For a flat seabed the first step is exact.
     """
-    state = seabed_iterate(xp, seabed_start(xp, d, k, t_cap), k, SEABED_NEWTON_STEPS)
-    done = SEABED_NEWTON_STEPS
-    while done < SEABED_MAX_STEPS and bool((state["valid"] & (state["step"] > SEABED_TOL_M)).any()):
-        state = seabed_iterate(xp, state, k, 1)
-        done += 1
-    return seabed_finish(xp, state, t_cap)
+    state = seabed_start(xp, d, k, t_cap)
+    t, done = seabed_newton(xp, state, k, SEABED_NEWTON_STEPS)
+    todo = state["valid"] & ~done
+    if bool(todo.any()):
+        t = xp.where(todo, seabed_safeguarded(xp, state, k, SEABED_ROBUST_STEPS), t)
+    return xp.where(state["valid"] & (t < t_cap) & (t > EPS_T), t, INF)
 
 
 def seabed_residual(xp: Any, d: tuple[Array, Array, Array], t: Array, k: Any) -> Array:

@@ -33,8 +33,8 @@ KINDS = ("box", "frustum", "sphere", "net")
 _FIELDS = {"box": geo.BOX_FIELDS, "frustum": geo.FRUSTUM_FIELDS, "sphere": geo.SPHERE_FIELDS, "net": geo.NET_FIELDS}
 _PACK = {Box: ("box", geo.pack_box), Frustum: ("frustum", geo.pack_frustum), Sphere: ("sphere", geo.pack_sphere)}
 _PACK[Net] = ("net", geo.pack_net)
-T_CAP_FACTOR = 4.0
-"""Seabed hits are searched up to this many times ``far_m``."""
+T_CAP_FACTOR = 1.0
+"""Hits are searched up to this many times ``far_m`` (beyond ``far_m`` a surface is background anyway)."""
 
 
 @dataclass(frozen=True)
@@ -61,7 +61,13 @@ def camera_frame(params: SceneParams, size: tuple[int, int]) -> CameraFrame:
     yaw, pitch, roll = (math.radians(a) for a in (c.yaw_deg, c.pitch_deg, c.roll_deg))
     fwd = np.array([math.cos(pitch) * math.cos(yaw), math.cos(pitch) * math.sin(yaw), math.sin(pitch)])
     right0 = np.array([math.sin(yaw), -math.cos(yaw), 0.0])
-    up0 = np.cross(right0, fwd)
+    up0 = np.array(
+        [
+            right0[1] * fwd[2] - right0[2] * fwd[1],
+            right0[2] * fwd[0] - right0[0] * fwd[2],
+            right0[0] * fwd[1] - right0[1] * fwd[0],
+        ]
+    )
     right = math.cos(roll) * right0 + math.sin(roll) * up0
     up = -math.sin(roll) * right0 + math.cos(roll) * up0
     width, height = size
@@ -206,21 +212,17 @@ MAX_PIECES = 24
 
 
 def _seabed_numpy(d: tuple[np.ndarray, np.ndarray, np.ndarray], k: list[float], t_cap: float) -> np.ndarray:
-    """:func:`geometry.seabed_t` with the extra steps applied only to the rays that have not converged."""
-    state = geo.seabed_iterate(np, geo.seabed_start(np, d, k, t_cap), k, geo.SEABED_NEWTON_STEPS)
-    todo = np.flatnonzero(state["valid"] & (state["step"] > geo.SEABED_TOL_M))
+    """:func:`geometry.seabed_t`, with the robust search run only on the rays that need it."""
+    state = geo.seabed_start(np, d, k, t_cap)
+    t, done = geo.seabed_newton(np, state, k, geo.SEABED_NEWTON_STEPS)
+    todo = np.flatnonzero(state["valid"] & ~done)
     if todo.size:
         sub = {
-            key: ([np.take(b, todo) for b in val] if key == "bw" else np.take(val, todo)) for key, val in state.items()
+            key: ([np.take(b, todo) for b in val] if key == "bw" else val if key == "cap" else np.take(val, todo))
+            for key, val in state.items()
         }
-        done = geo.SEABED_NEWTON_STEPS
-        while done < geo.SEABED_MAX_STEPS and bool((sub["step"] > geo.SEABED_TOL_M).any()):
-            sub = geo.seabed_iterate(np, sub, k, 1)
-            done += 1
-        t = state["t"].copy()
-        t.flat[todo] = sub["t"]
-        state["t"] = t
-    return geo.seabed_finish(np, state, t_cap)
+        t.flat[todo] = geo.seabed_safeguarded(np, sub, k, geo.SEABED_ROBUST_STEPS)
+    return np.where(state["valid"] & (t < t_cap) & (t > geo.EPS_T), t, np.float32(np.inf))
 
 
 def _cull_spheres(kind: str, row: np.ndarray) -> list[tuple[np.ndarray, float]]:
@@ -241,12 +243,43 @@ def _cull_spheres(kind: str, row: np.ndarray) -> list[tuple[np.ndarray, float]]:
 
 def _cull_rects(frame: CameraFrame, kind: str, row: np.ndarray) -> list[tuple[slice, slice]]:
     """Pixel rectangles covering every ray that can hit the primitive (overlaps are harmless)."""
-    rects = []
-    for centre, radius in _cull_spheres(kind, row):
-        r0, r1, c0, c1 = screen_rect(frame, centre, radius)
-        if r1 > r0 and c1 > c0:
-            rects.append((slice(r0, r1), slice(c0, c1)))
-    return rects
+    spheres = _cull_spheres(kind, row)
+    if len(spheres) == 1:
+        r0, r1, c0, c1 = screen_rect(frame, *spheres[0])
+        return [(slice(r0, r1), slice(c0, c1))] if r1 > r0 and c1 > c0 else []
+    centres = np.array([c for c, _ in spheres])
+    radii = np.array([r for _, r in spheres])
+    rects = screen_rects(frame, centres, radii)
+    return [(slice(r0, r1), slice(c0, c1)) for r0, r1, c0, c1 in rects.tolist() if r1 > r0 and c1 > c0]
+
+
+def _axis_ranges(a: np.ndarray, z: np.ndarray, radius: np.ndarray, focal: float, centre: float, n: int) -> np.ndarray:
+    """Vectorised :func:`_axis_range` for many spheres; returns (K, 2) int pixel ranges [lo, hi)."""
+    rho = np.hypot(a, z)
+    inside = rho <= radius * 1.0001
+    phi = np.arctan2(a, z)
+    delta = np.arcsin(np.minimum(radius / np.maximum(rho, 1e-12), 1.0))
+    lo_ang, hi_ang = phi - delta, phi + delta
+    hidden = (lo_ang >= math.pi / 2) | (hi_ang <= -math.pi / 2)
+    lo_open = lo_ang <= -math.pi / 2 + 1e-9
+    hi_open = hi_ang >= math.pi / 2 - 1e-9
+    with np.errstate(invalid="ignore", over="ignore"):
+        lo = np.floor(focal * np.tan(np.clip(lo_ang, -1.5, 1.5)) + centre - 0.5) - 1
+        hi = np.ceil(focal * np.tan(np.clip(hi_ang, -1.5, 1.5)) + centre - 0.5) + 2
+    lo = np.where(lo_open | inside, 0, np.clip(lo, 0, n))
+    hi = np.where(hi_open | inside, n, np.clip(hi, 0, n))
+    hi = np.where(hidden & ~inside, lo, np.maximum(lo, hi))
+    return np.stack([lo, hi], axis=1).astype(np.int64)
+
+
+def screen_rects(frame: CameraFrame, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """(K, 4) rows (row0, row1, col0, col1) of :func:`screen_rect` for K spheres at once."""
+    z = centres @ frame.forward
+    x = centres @ frame.right
+    y = centres @ frame.down
+    cols = _axis_ranges(x, z, radii, frame.focal_px, frame.width / 2.0, frame.width)
+    rows = _axis_ranges(y, z, radii, frame.focal_px, frame.height / 2.0, frame.height)
+    return np.concatenate([rows, cols], axis=1)
 
 
 def _t_kernel(kind: str, xp: Any, d: Any, k: Any, px_angle: Any) -> Any:
@@ -311,7 +344,7 @@ def render_packed_numpy(
     return image, dist
 
 
-CHUNK = 32768
+CHUNK = 16384
 """Compacted per-pixel passes run on chunks of this many pixels (they stay in cache)."""
 _KIND_CODE = {"seabed": 0, "box": 1, "frustum": 2, "sphere": 3, "net": 4}
 
@@ -355,21 +388,15 @@ def _shade_numpy(
     keys = np.take(key_lut, id_flat)
     order = np.argsort(keys, kind="stable")
     starts = np.searchsorted(np.take(keys, order), np.arange(len(groups) + 1), side="left").tolist()
-    idx, miss = order[: starts[-1]], order[starts[-1] :]
+    idx = order[: starts[-1]]
 
-    planes = [np.empty(h * w, dtype=np.float32) for _ in range(3)]
-    if miss.size:
-        # Open water: the background gradient (what shade() fades to at far_m).
-        up = clamp(np, 0.5 + 1.2 * np.take(d[2].ravel(), miss), 0.0, 1.0)
-        for i in range(3):
-            planes[i][miss] = light[15 + i] + (light[18 + i] - light[15 + i]) * up
-    n = idx.size
-    if n:
-        t = np.minimum(np.take(t_buf.ravel(), idx), np.float32(t_cap))
-        dx, dy, dz = (np.take(a.ravel(), idx) for a in d)
-        ca = np.take(cos_axis.ravel(), idx)
-        nx, ny, nz, u, v = (np.empty(n, dtype=np.float32) for _ in range(5))
-        rgb_c = [np.empty(n, dtype=np.float32) for _ in range(3)]
+    # Open water everywhere first (the background gradient that shade() fades to at far_m); hits overwrite it.
+    up = clamp(np, 0.5 + 1.2 * d[2].ravel(), 0.0, 1.0)
+    planes = [light[15 + i] + (light[18 + i] - light[15 + i]) * up for i in range(3)]
+    if idx.size:
+        t_flat, cos_flat = t_buf.ravel(), cos_axis.ravel()
+        d_flat = [a.ravel() for a in d]
+        cap = np.float32(t_cap)
         for grp, (m, _kcode) in enumerate(groups):
             lo, hi = starts[grp], starts[grp + 1]
             if hi <= lo:
@@ -388,27 +415,21 @@ def _shade_numpy(
                 consts = [np.take(table[:, j], local) for j in range(table.shape[1])]
                 per_pixel = True
             coeffs = packed.materials[m].tolist()
+            tex = textures[int(coeffs[23])] if coeffs[23] >= 0 else None
             for a in range(lo, hi, CHUNK):
                 b = min(hi, a + CHUNK)
-                sl = slice(a, b)
-                dd = (dx[sl], dy[sl], dz[sl])
+                ii = idx[a:b]
+                t = np.minimum(np.take(t_flat, ii), cap)
+                dd = (np.take(d_flat[0], ii), np.take(d_flat[1], ii), np.take(d_flat[2], ii))
                 kk = [c[a - lo : b - lo] for c in consts] if per_pixel else consts
                 if kind == "seabed":
-                    vals = geo.seabed_surface(np, dd, t[sl], kk, cam_xy)
+                    nx, ny, nz, u, v = geo.seabed_surface(np, dd, t, kk, cam_xy)
                 else:
-                    vals = _surface_kernel(kind, np, dd, t[sl], kk)
-                for dst, src in zip((nx, ny, nz, u, v), vals, strict=True):
-                    dst[sl] = src
-                image_rgb = None
-                if coeffs[23] >= 0:
-                    image_rgb = _image_texture_numpy(textures[int(coeffs[23])], coeffs, (u[sl], v[sl]))
-                rgb = shade(
-                    np, t[sl], dd, (nx[sl], ny[sl], nz[sl]), (u[sl], v[sl]), ca[sl], coeffs, light, lookup, image_rgb
-                )
-                for dst, src in zip(rgb_c, rgb, strict=True):
-                    dst[sl] = src
-        for plane, src in zip(planes, rgb_c, strict=True):
-            plane[idx] = src
+                    nx, ny, nz, u, v = _surface_kernel(kind, np, dd, t, kk)
+                image_rgb = None if tex is None else _image_texture_numpy(tex, coeffs, (u, v))
+                rgb = shade(np, t, dd, (nx, ny, nz), (u, v), np.take(cos_flat, ii), coeffs, light, lookup, image_rgb)
+                for plane, src in zip(planes, rgb, strict=True):
+                    plane[ii] = src
     return np.stack([p.reshape(h, w) for p in planes], axis=-1)
 
 

@@ -126,7 +126,8 @@ def shade(
     nx, ny, nz = n
     u, v = uv
     far = light[21]
-    tc = clamp(xp, t, 0.0, far)
+    # numpy callers pass t already limited to [0, far_m]; the torch renderer passes inf for misses.
+    tc = t if xp is np else clamp(xp, t, 0.0, far)
     ndd = nx * dx + ny * dy + nz * dz
     # Texels per pixel on the surface: fades the fine noise where it would alias.
     fp = tc * (light[22] * mat[20] * float(TILE_PX)) / clamp(xp, xp.abs(ndd), 0.25)
@@ -181,15 +182,20 @@ def shade(
     if lamp_on:
         cone = clamp(xp, (cos_axis - light[13]) * (1.0 / (light[12] - light[13])), 0.0, 1.0)
         lamp = cone * clamp(xp, -ndd, 0.0) * light[14] / (tc * tc + 0.5 * light[14])
-    # Far fade into the open-water background (a vertical gradient).
-    fade = clamp(xp, (tc - FADE_START * far) * (1.0 / ((1.0 - FADE_START) * far)), 0.0, 1.0)
-    up = clamp(xp, 0.5 + 1.2 * dz, 0.0, 1.0)
+    # Far fade into the open-water background (a vertical gradient); skipped (exactly: the fade is 0) when a
+    # numpy chunk has no surface beyond FADE_START * far_m.
+    fading = xp is not np or float(tc.max(initial=0.0)) > FADE_START * far
+    if fading:
+        fade = clamp(xp, (tc - FADE_START * far) * (1.0 / ((1.0 - FADE_START) * far)), 0.0, 1.0)
+        up = clamp(xp, 0.5 + 1.2 * dz, 0.0, 1.0)
     out = []
     for i in range(3):
         lit = light[6 + i] * hemi + light[3 + i] * ndl
         if lamp_on:
             lit = lit + light[9 + i] * lamp
         c = base[i] * lit
-        bg = light[15 + i] + (light[18 + i] - light[15 + i]) * up
-        out.append(clamp(xp, c + fade * (bg - c), 0.0, 1.0))
+        if fading:
+            bg = light[15 + i] + (light[18 + i] - light[15 + i]) * up
+            c = c + fade * (bg - c)
+        out.append(clamp(xp, c, 0.0, 1.0))
     return out[0], out[1], out[2]

@@ -13,8 +13,9 @@ Each channel is rank-normalised to a uniform distribution on [0, 1], so a thresh
 ``1 - q`` of a surface. Image textures (``--textures``) are resized to :data:`IMAGE_TEXTURE_PX` squares.
 
 The numpy lookup is ``cv2.remap`` (bilinear, wrap-around). OpenCV 4 snaps map coordinates to 1/32 texel
-(``INTER_BITS = 5``) while OpenCV 5 interpolates float maps exactly, so both lookups snap the coordinates to
-1/32 texel first: every OpenCV version and the torch twin then sample the same texels with the same weights.
+(``INTER_BITS = 5``) while OpenCV 5 interpolates float maps exactly; :func:`opencv_snaps` probes the installed
+OpenCV once and the torch twin snaps exactly when OpenCV does, so both sample the same texels with the same
+weights.
 """
 
 from __future__ import annotations
@@ -103,11 +104,17 @@ def snap(xp: Any, x: Any) -> Any:
     return xp.round(x * float(_SUBPIXEL)) * (1.0 / _SUBPIXEL)
 
 
+@functools.lru_cache(maxsize=1)
+def opencv_snaps() -> bool:
+    """True when the installed OpenCV rounds float remap coordinates to 1/32 pixel (OpenCV 4 does)."""
+    ramp = np.array([[0.0, 1.0, 1.0, 0.0]] * 4, dtype=np.float32)
+    out = cv2.remap(ramp, np.array([[0.01]], np.float32), np.array([[1.0]], np.float32), cv2.INTER_LINEAR)
+    return abs(float(out[0, 0])) < 1e-6
+
+
 def lookup_numpy(table: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Bilinear wrap-around lookup of ``table`` (S, S, C) at texel coordinates ``x``, ``y`` in [0, S) (float32
     arrays of one shape, 1-D or 2-D); returns shape ``x.shape + (C,)``."""
-    x = snap(np, x)
-    y = snap(np, y)
     if x.ndim == 2:
         return cv2.remap(table, x, y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP).reshape(*x.shape, -1)
     # OpenCV maps must have fewer than 32767 columns: look up 1-D arrays in chunks of one row.
@@ -122,12 +129,12 @@ def lookup_numpy(table: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 def lookup_torch(table: Any, x: Any, y: Any) -> Any:
     """Torch twin of :func:`lookup_numpy`: ``table`` (S, S, C) tensor, ``x``, ``y`` texel coordinates in
-    [0, S) (coordinates snapped to 1/32 texel, then exact bilinear weights). Returns ``x.shape + (C,)``."""
+    [0, S) (snapped to 1/32 texel when OpenCV does so, see :func:`opencv_snaps`), bilinear weights.
+    Returns ``x.shape + (C,)``."""
     import torch
 
     s = table.shape[0]
-    xs = snap(torch, x)
-    ys = snap(torch, y)
+    xs, ys = (snap(torch, x), snap(torch, y)) if opencv_snaps() else (x, y)
     x0f = torch.floor(xs)
     y0f = torch.floor(ys)
     fx = xs - x0f
