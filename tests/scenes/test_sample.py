@@ -158,3 +158,22 @@ def test_scene_from_dict_errors(many) -> None:
         scene_from_dict(broken)
     with pytest.raises(TypeError, match="scene: expected a dict"):
         scene_from_dict([1])  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    "cfg",
+    [
+        SceneConfig(),
+        SceneConfig(pitch_deg=(0.0, 60.0), camera_height_m=(10.0, 50.0), hfov_deg=(10.0, 20.0)),
+        SceneConfig(pitch_deg=(-89.0, -80.0), camera_height_m=(0.4, 0.5), hfov_deg=(140.0, 150.0), density=3.0),
+        SceneConfig(far_m=5.0, near_m=0.5, camera_height_m=(0.6, 1.0), undulation_m=(1.0, 2.0), slope_max=0.5),
+    ],
+)
+def test_sampling_never_fails(cfg: SceneConfig) -> None:
+    # Many seeds, including extreme (but valid) configurations: sampling always yields a renderable scene.
+    for i in range(150):
+        p = sample_scene(derive_seed(4242, i), cfg)
+        cam = np.asarray(p.camera.position_m)
+        assert all(_distance(prim, cam) >= cfg.near_m + CLEARANCE_M - 1e-6 for prim in p.primitives())
+    _, dist = render_scene(p, (24, 18))
+    assert dist.min() >= cfg.near_m and dist.max() <= cfg.far_m

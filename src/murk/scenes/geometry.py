@@ -198,19 +198,28 @@ def frustum_t(xp: Any, d: tuple[Array, Array, Array], k: Any) -> Array:
     ow = ox * wx + oy * wy + oz_ * wz
     od = ox * dx + oy * dy + oz_ * dz
     q = ox * ox + oy * oy + oz_ * oz_
-    rr = r0 + slope * ow
-    a2 = 1.0 - dw * dw * (1.0 + slope * slope)
-    bh = od - dw * (ow + slope * rr)
-    cc = q - ow * ow - rr * rr
+    cylinder = isinstance(slope, float) and slope == 0.0
+    if cylinder:
+        a2 = 1.0 - dw * dw
+        bh = od - dw * ow
+        cc = q - ow * ow - r0 * r0
+    else:
+        rr = r0 + slope * ow
+        a2 = 1.0 - dw * dw * (1.0 + slope * slope)
+        bh = od - dw * (ow + slope * rr)
+        cc = q - ow * ow - rr * rr
     disc = bh * bh - a2 * cc
+    real = disc >= 0
     sq = xp.sqrt(clamp(xp, disc, 0.0))
     inv_a = 1.0 / _safe(xp, a2, 1e-9)
     t_min = EPS_T - s0
     best = None
-    for sign in (-1.0, 1.0):
+    # For a cylinder (a2 >= 0) the smaller root is the entry; the larger one is an exit, never the first hit of
+    # a ray from outside (the caps below catch rays that enter through an end). A cone may need both roots.
+    for sign in (-1.0,) if cylinder else (-1.0, 1.0):
         tt = (sign * sq - bh) * inv_a
         zz = ow + tt * dw
-        ok = (disc >= 0) & (tt > t_min) & (zz >= 0) & (zz <= length)
+        ok = real & (tt > t_min) & (zz >= 0) & (zz <= length)
         cand = xp.where(ok, tt, INF)
         best = cand if best is None else xp.minimum(best, cand)
     inv_w = 1.0 / _safe(xp, dw, 1e-12)

@@ -52,7 +52,8 @@ def seabed_height(bed: Seabed, x: float | np.ndarray, y: float | np.ndarray) -> 
 
 
 def _u(rng: np.random.Generator, lo: float, hi: float) -> float:
-    return float(rng.uniform(lo, hi))
+    """A uniform draw from [lo, hi]; an empty range (hi < lo, possible at extreme camera poses) gives lo."""
+    return float(rng.uniform(lo, max(lo, hi)))
 
 
 def _count(rng: np.random.Generator, lo: int, hi: int, density: float) -> int:
@@ -89,17 +90,18 @@ class _Site:
         """The scene's gravel material (rubble-mound caps): the seabed's colours, coarser and darker."""
         if self.gravel_index is None:
             bed = self.materials[0]
-            dark = _u(self.rng, 0.7, 0.9)
+            dark = _u(self.rng, 0.85, 0.97)
             self.gravel_index = self.material(
                 dataclasses.replace(
                     bed,
                     kind="rock",
                     rgb_a=tuple(round(c * dark, 4) for c in bed.rgb_a),  # type: ignore[arg-type]
-                    rgb_b=tuple(round(c * dark * 0.7, 4) for c in bed.rgb_b),  # type: ignore[arg-type]
-                    contrast=1.2,
-                    speckle=0.5,
+                    rgb_b=tuple(round(c * dark * 0.85, 4) for c in bed.rgb_b),  # type: ignore[arg-type]
+                    contrast=min(1.5, bed.contrast * 1.3),
+                    speckle=min(0.6, bed.speckle + 0.15),
+                    growth=bed.growth * 0.5,
                     ripple=0.0,
-                    scale_m=_u(self.rng, 0.3, 0.6),
+                    scale_m=_u(self.rng, 0.4, 0.8),
                     offset=(_u(self.rng, 0, 1), _u(self.rng, 0, 1)),
                 )
             )
@@ -369,7 +371,7 @@ def _rubble(
 ) -> tuple[float, float, float] | None:
     """A rubble mound (a low gravel cap) with ``n`` loose stones on it; returns the mound (see _mound)."""
     rng = s.rng
-    height = _u(rng, 0.12, 0.35) * radius if height is None else height
+    height = _u(rng, 0.08, 0.25) * radius if height is None else height
     mound = _mound(s, x, y, radius, height)
     prims: list[Primitive] = []
     cap = Sphere(_v(x, y, mound[0]), round(mound[1], 4), s.gravel())
@@ -647,8 +649,9 @@ def sample_scene(rng: RngLike, config: SceneConfig | None = None) -> SceneParams
     below_bottom = math.radians(-pitch) + half_v
     below_top = math.radians(-pitch) - half_v
     r_lo = max(0.6, height / math.tan(below_bottom)) if below_bottom > 0.01 else 0.6
+    r_lo = min(r_lo, 0.5 * cfg.far_m)
     r_hi = height / math.tan(below_top) if below_top > 0.02 else cfg.far_m
-    r_hi = min(max(r_hi, r_lo + 1.0), 0.8 * cfg.far_m)
+    r_hi = max(min(r_hi, 0.8 * cfg.far_m), r_lo + 1.0)
     site = _Site(
         rng=gen,
         cfg=cfg,
