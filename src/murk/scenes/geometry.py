@@ -41,15 +41,21 @@ NET_FIELDS = 3 + 3 + 3 + 3 + 4 + 4  # centre-C, normal, u axis, v axis, (hu, hv,
 SEABED_FIELDS = 3 + 4 * N_WAVES  # hc, sx, sy, then (amplitude, kx, ky, phase at the camera) per wave
 
 
-def rotation_matrix(yaw_deg: float, pitch_deg: float, roll_deg: float) -> np.ndarray:
-    """Local-to-world rotation ``Rz(yaw) @ Ry(pitch) @ Rx(roll)`` (float64, 3x3)."""
+def rotation_rows(yaw_deg: float, pitch_deg: float, roll_deg: float) -> tuple[tuple[float, float, float], ...]:
+    """Rows of the local-to-world rotation ``Rz(yaw) @ Ry(pitch) @ Rx(roll)`` (plain Python floats)."""
     cy, sy = math.cos(math.radians(yaw_deg)), math.sin(math.radians(yaw_deg))
     cp, sp = math.cos(math.radians(pitch_deg)), math.sin(math.radians(pitch_deg))
     cr, sr = math.cos(math.radians(roll_deg)), math.sin(math.radians(roll_deg))
-    rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
-    ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
-    rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
-    return rz @ ry @ rx
+    return (
+        (cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
+        (sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
+        (-sp, cp * sr, cp * cr),
+    )
+
+
+def rotation_matrix(yaw_deg: float, pitch_deg: float, roll_deg: float) -> np.ndarray:
+    """Local-to-world rotation ``Rz(yaw) @ Ry(pitch) @ Rx(roll)`` (float64, 3x3)."""
+    return np.array(rotation_rows(yaw_deg, pitch_deg, roll_deg))
 
 
 def net_axes(yaw_deg: float, tilt_deg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -142,9 +148,11 @@ def clamp(xp: Any, x: Array, lo: Any = None, hi: Any = None) -> Array:
 
 
 def _safe(xp: Any, x: Array, eps: float) -> Array:
-    """``x`` with magnitudes below ``eps`` replaced by ``eps`` (safe to divide by; the sign does not matter
-    where it is used)."""
-    return xp.where(xp.abs(x) < eps, eps, x)
+    """``x`` nudged away from 0 so that ``1 / x`` is finite: adds 1e-30, which changes no float32 value of
+    magnitude above ~1e-23 and turns an exact 0 into a huge but finite reciprocal (the sign does not matter
+    where it is used). ``eps`` documents the scale below which values are effectively zero."""
+    del eps
+    return x + 1e-30
 
 
 def _sign(xp: Any, x: Array) -> Array:

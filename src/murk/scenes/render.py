@@ -347,6 +347,8 @@ def render_packed_numpy(
 CHUNK = 16384
 """Compacted per-pixel passes run on chunks of this many pixels (they stay in cache)."""
 _KIND_CODE = {"seabed": 0, "box": 1, "frustum": 2, "sphere": 3, "net": 4}
+_SURFACE_FIELDS = {"box": 15, "frustum": 15, "sphere": 4, "net": 12}
+"""Leading packed constants that the ``*_surface`` kernels read (the rest are culling bounds)."""
 
 
 def _shade_numpy(
@@ -412,7 +414,7 @@ def _shade_numpy(
             else:
                 table = np.stack([packed.prims[g - 1][1] for g in gids]).astype(np.float32)
                 local = np.take(local_lut, np.take(id_flat, idx[lo:hi]))
-                consts = [np.take(table[:, j], local) for j in range(table.shape[1])]
+                consts = [np.take(table[:, j], local) for j in range(_SURFACE_FIELDS[kind])]
                 per_pixel = True
             coeffs = packed.materials[m].tolist()
             tex = textures[int(coeffs[23])] if coeffs[23] >= 0 else None

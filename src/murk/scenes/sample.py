@@ -20,7 +20,7 @@ import numpy as np
 
 from murk.rng import RngLike, as_generator
 from murk.scenes.config import SceneConfig
-from murk.scenes.geometry import N_WAVES, net_axes, rotation_matrix
+from murk.scenes.geometry import N_WAVES, net_axes, rotation_matrix, rotation_rows
 from murk.scenes.params import (
     RGB,
     Box,
@@ -135,16 +135,27 @@ class _Site:
 
 def _distance(p: Primitive, cam: np.ndarray) -> float:
     """A lower bound of the distance from ``cam`` to primitive ``p`` (exact for boxes and spheres)."""
+    cx, cy, cz = float(cam[0]), float(cam[1]), float(cam[2])
     if isinstance(p, Box):
-        q = rotation_matrix(*p.rotation_deg).T @ (cam - np.asarray(p.center_m))
-        return float(np.linalg.norm(np.maximum(np.abs(q) - np.asarray(p.half_size_m), 0.0)))
+        qx, qy, qz = cx - p.center_m[0], cy - p.center_m[1], cz - p.center_m[2]
+        r = rotation_rows(*p.rotation_deg)
+        # Camera in the box frame: R^T q, i.e. the dot products of q with R's columns.
+        out = 0.0
+        for j in range(3):
+            lj = qx * r[0][j] + qy * r[1][j] + qz * r[2][j]
+            e = abs(lj) - p.half_size_m[j]
+            out += e * e if e > 0 else 0.0
+        return math.sqrt(out)
     if isinstance(p, Sphere):
-        return float(np.linalg.norm(cam - np.asarray(p.center_m))) - p.radius_m
+        return math.dist((cx, cy, cz), p.center_m) - p.radius_m
     if isinstance(p, Frustum):
-        a, b = np.asarray(p.start_m), np.asarray(p.end_m)
-        ab = b - a
-        s = float(np.clip((cam - a) @ ab / (ab @ ab), 0.0, 1.0))
-        return float(np.linalg.norm(cam - (a + s * ab))) - max(p.radius_start_m, p.radius_end_m)
+        a, b = p.start_m, p.end_m
+        ab = (b[0] - a[0], b[1] - a[1], b[2] - a[2])
+        aq = (cx - a[0], cy - a[1], cz - a[2])
+        s = (aq[0] * ab[0] + aq[1] * ab[1] + aq[2] * ab[2]) / (ab[0] ** 2 + ab[1] ** 2 + ab[2] ** 2)
+        s = min(1.0, max(0.0, s))
+        near = (a[0] + s * ab[0], a[1] + s * ab[1], a[2] + s * ab[2])
+        return math.dist((cx, cy, cz), near) - max(p.radius_start_m, p.radius_end_m)
     u, v, n = net_axes(*p.rotation_deg)
     q = cam - np.asarray(p.center_m)
     local = np.abs(np.array([q @ u, q @ v, q @ n])) - np.array([*p.half_size_m, 0.02])
