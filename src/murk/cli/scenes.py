@@ -161,8 +161,10 @@ def scenes(
 ) -> None:
     """Generate procedural underwater construction-site scenes: clean RGB + exact metric distance.
 
-    The output is the input layout of [bold]murk synth[/] (rgb/ + depth/ in uint16 mm). Depth is the
-    line-of-sight distance along each pixel's ray, not the z-depth.
+    The output folder is a clean RGB-D input of [bold]murk synth[/]: rgb/, depth/ (uint16 mm), scenes.jsonl.
+
+    Depth = line-of-sight distance along each pixel's ray (not z-depth), in [near_m, far_m] (default
+    0.3-15 m); a ray that hits nothing gets far_m.
     """
     import yaml
 

@@ -334,9 +334,9 @@ def render_packed_numpy(
         k = row.tolist()
         for sl in mine:
             t = _t_kernel(kind, np, (d[0][sl], d[1][sl], d[2][sl]), k, px_angle)
-            closer = t < t_buf[sl]
-            np.copyto(t_buf[sl], t, where=closer)
-            np.copyto(id_buf[sl], gid, where=closer)
+            tb = t_buf[sl]
+            np.copyto(id_buf[sl], gid, where=t < tb)  # strictly nearer: the earlier primitive wins a tie
+            np.minimum(tb, t, out=tb)
         rects.append(mine)
 
     image = _shade_numpy(packed, textures, d, cos_axis, t_buf, id_buf)
