@@ -37,7 +37,7 @@ class SceneConfig:
 
     near_m: float = 0.3
     far_m: float = 15.0
-    camera_height_m: tuple[float, float] = (0.5, 4.0)
+    camera_height_m: tuple[float, float] = (0.4, 4.0)
     pitch_deg: tuple[float, float] = (-50.0, 5.0)
     roll_deg: tuple[float, float] = (-5.0, 5.0)
     hfov_deg: tuple[float, float] = (55.0, 95.0)

@@ -38,7 +38,7 @@ from murk.scenes.params import (
     Wave,
 )
 
-CLEARANCE_M = 0.15
+CLEARANCE_M = 0.05
 """Extra distance beyond ``near_m`` kept between the camera and every object."""
 _TETRA_POLAR = math.acos(-1.0 / 3.0)  # angle between the upward leg and each of the three lower legs
 
@@ -589,9 +589,9 @@ def _layout_mixed(s: _Site) -> None:
 
 
 def _near_object(s: _Site) -> None:
-    """Something close to the camera (0.8-2.5 m) so that short distances occur."""
+    """Something close to the camera (0.5-2.5 m) so that short distances occur."""
     rng = s.rng
-    x, y = s.point(_u(rng, 0.8, 2.5) + 0.5 * (s.r_lo if s.r_lo < 3 else 0.0), _u(rng, -0.8, 0.8))
+    x, y = s.point(_u(rng, 0.5, 2.5) + 0.5 * (s.r_lo if s.r_lo < 3 else 0.0), _u(rng, -0.8, 0.8))
     choice = int(rng.integers(0, 3))
     if choice == 0:
         _block(s, x, y, s.material(_concrete(s, joints=False)), (0.5, 1.2))
