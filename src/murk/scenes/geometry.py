@@ -414,18 +414,46 @@ SEABED_NEWTON_TOL_M = 1e-3
 SEABED_ROBUST_STEPS = 40
 
 
+def _pick(xp: Any, x: Any, idx: Any, shape: Any) -> Any:
+    """Elements ``idx`` of ``x`` broadcast to ``shape`` and flattened (floats pass through)."""
+    if isinstance(x, float):
+        return x
+    if xp is np:
+        return np.take(np.broadcast_to(x, shape), idx) if np.shape(x) != tuple(shape) else np.take(x, idx)
+    return x.expand(shape).reshape(-1)[idx]
+
+
 def seabed_t(xp: Any, d: tuple[Array, Array, Array], k: Any, t_cap: float) -> Array:
     """Hit distance of the seabed height field along each ray (``inf`` where it misses).
 
-    :data:`SEABED_NEWTON_STEPS` Newton steps from the plane's exact hit; rays that have not converged then (or
-    that left the bracket of :func:`seabed_start`) get the safeguarded Newton/bisection search from the
-    start, which always converges to a root. For a flat seabed the first step is exact.
+    :data:`SEABED_NEWTON_STEPS` Newton steps from the plane's exact hit; the rays that have not converged then
+    (or that left the bracket of :func:`seabed_start`) get the safeguarded Newton/bisection search from the
+    start, which always converges to a root; it runs on those rays only. For a flat seabed the first step is
+    exact.
     """
     state = seabed_start(xp, d, k, t_cap)
     t, done = seabed_newton(xp, state, k, SEABED_NEWTON_STEPS)
     todo = state["valid"] & ~done
-    if bool(todo.any()):
-        t = xp.where(todo, seabed_safeguarded(xp, state, k, SEABED_ROBUST_STEPS), t)
+    if xp is np:
+        idx = np.flatnonzero(todo)
+    else:
+        idx = xp.nonzero(todo.reshape(-1)).squeeze(1)
+    if idx.shape[0]:
+        shape = t.shape
+        sub = {
+            key: (
+                [_pick(xp, b, idx, shape) for b in val]
+                if key == "bw"
+                else val
+                if key == "cap"
+                else _pick(xp, val, idx, shape)
+            )
+            for key, val in state.items()
+        }
+        k_sub = [_pick(xp, c, idx, shape) for c in k]
+        t = t.reshape(-1).copy() if xp is np else t.reshape(-1).clone()
+        t[idx] = seabed_safeguarded(xp, sub, k_sub, SEABED_ROBUST_STEPS)
+        t = t.reshape(shape)
     return xp.where(state["valid"] & (t < t_cap) & (t > EPS_T), t, INF)
 
 

@@ -212,17 +212,8 @@ MAX_PIECES = 24
 
 
 def _seabed_numpy(d: tuple[np.ndarray, np.ndarray, np.ndarray], k: list[float], t_cap: float) -> np.ndarray:
-    """:func:`geometry.seabed_t`, with the robust search run only on the rays that need it."""
-    state = geo.seabed_start(np, d, k, t_cap)
-    t, done = geo.seabed_newton(np, state, k, geo.SEABED_NEWTON_STEPS)
-    todo = np.flatnonzero(state["valid"] & ~done)
-    if todo.size:
-        sub = {
-            key: ([np.take(b, todo) for b in val] if key == "bw" else val if key == "cap" else np.take(val, todo))
-            for key, val in state.items()
-        }
-        t.flat[todo] = geo.seabed_safeguarded(np, sub, k, geo.SEABED_ROBUST_STEPS)
-    return np.where(state["valid"] & (t < t_cap) & (t > geo.EPS_T), t, np.float32(np.inf))
+    """:func:`geometry.seabed_t` on one band of rays, as float32."""
+    return geo.seabed_t(np, d, k, t_cap).astype(np.float32, copy=False)
 
 
 def _cull_spheres(kind: str, row: np.ndarray) -> list[tuple[np.ndarray, float]]:
@@ -476,29 +467,70 @@ def render_scene(
 # ---------------------------------------------------------------------------------------------- torch renderer
 
 
+TILE = 16
+"""The torch renderer bins work into TILE x TILE pixel tiles."""
+PAIR_CHUNK_PX = 1 << 22
+"""At most this many (pair, pixel) elements are processed at once by the torch renderer (bounds memory)."""
+
+
+def _tile_pairs(packed: PackedScene, tiles_x: int) -> list[tuple[str, int, int, int]]:
+    """(kind, primitive index in packed.prims, tile index, gid) for every tile that a primitive's culling
+    rectangles touch (duplicates removed)."""
+    frame = packed.frame
+    spheres, owner = [], []
+    for i, (kind, row) in enumerate(packed.prims):
+        for c, r in _cull_spheres(kind, row):
+            spheres.append((c, r))
+            owner.append(i)
+    if not spheres:
+        return []
+    rects = screen_rects(frame, np.array([c for c, _ in spheres]), np.array([r for _, r in spheres]))
+    r0, r1, c0, c1 = rects.T
+    ok = (r1 > r0) & (c1 > c0)
+    ty0, ty1 = r0 // TILE, -(-r1 // TILE)
+    tx0, tx1 = c0 // TILE, -(-c1 // TILE)
+    ny = np.where(ok, ty1 - ty0, 0)
+    nx = np.where(ok, tx1 - tx0, 0)
+    count = ny * nx
+    total = int(count.sum())
+    if total == 0:
+        return []
+    sphere = np.repeat(np.arange(len(spheres)), count)
+    offset = np.arange(total) - np.repeat(np.cumsum(count) - count, count)
+    ty = ty0[sphere] + offset // nx[sphere]
+    tx = tx0[sphere] + offset % nx[sphere]
+    prim = np.asarray(owner)[sphere]
+    keys = np.unique(prim * (1 << 24) + ty * tiles_x + tx)
+    prim_u, tile_u = keys >> 24, keys & ((1 << 24) - 1)
+    return [
+        (packed.prims[p][0], int(p), int(t), int(p) + 1) for p, t in zip(prim_u.tolist(), tile_u.tolist(), strict=True)
+    ]
+
+
 def render_scenes_torch(
     scenes: Sequence[SceneParams],
     size: tuple[int, int],
     device: Any = "cpu",
     *,
     textures: Mapping[str, np.ndarray] | None = None,
-    dtype: Any = None,
 ) -> tuple[Any, Any]:
-    """Render a batch of scenes with torch (CPU or CUDA), the twin of :func:`render_scene`.
+    """Render a batch of scenes with torch (CPU or CUDA, float32), the twin of :func:`render_scene`.
 
-    Every pixel is tested against every primitive slot of the batch (primitive lists are padded per type),
-    which keeps the work in large element-wise kernels on a GPU. Memory is about 60 float32 values per pixel
-    of the batch.
+    The image is cut into 16x16 tiles; every (scene, tile, primitive) pair whose culling rectangle touches the
+    tile is intersected in one batched call per primitive type, and the nearest hit of each pixel is kept with
+    a ``scatter_reduce(amin)`` on a key that packs the distance's float bits with the primitive id, so ties
+    go to the earlier primitive exactly as in :func:`render_scene`. The seabed and the shading run on every
+    pixel of the batch.
 
     Args:
         scenes: the scenes to render (any number >= 1).
         size: (width, height) in pixels.
         device: a torch device or its name.
         textures: as for :func:`render_scene`.
-        dtype: float dtype of the computation and outputs (default ``torch.float32``).
 
     Returns:
-        ``(rgb, dist_m)``: ``(B, 3, H, W)`` in [0, 1] and ``(B, 1, H, W)`` line-of-sight distance in metres.
+        ``(rgb, dist_m)``: float32 ``(B, 3, H, W)`` in [0, 1] and ``(B, 1, H, W)`` line-of-sight distance in
+        metres, on ``device``.
 
     Raises:
         TypeError: ``scenes`` is not a non-empty sequence of SceneParams.
@@ -514,116 +546,133 @@ def render_scenes_torch(
     width, height = _check_size(size)
     tex = _check_textures(textures)
     names = sorted(tex)
-    dtype = dtype or torch.float32
+    dtype = torch.float32
     dev = torch.device(device)
     packs = [pack_scene(s, (width, height), names) for s in scenes]
     b = len(packs)
+    tiles_y, tiles_x = -(-height // TILE), -(-width // TILE)
+    hp, wp = tiles_y * TILE, tiles_x * TILE
+    n_tiles = tiles_y * tiles_x
 
-    def const(rows: np.ndarray) -> list[Any]:
-        t = torch.as_tensor(np.ascontiguousarray(rows, dtype=np.float32), device=dev).to(dtype)
+    def tensor(a: np.ndarray) -> Any:
+        return torch.as_tensor(np.ascontiguousarray(a, dtype=np.float32), device=dev).to(dtype)
+
+    def cols(t: Any) -> list[Any]:
         return [t[:, j : j + 1] for j in range(t.shape[1])]
 
-    # Rays, shape (B, H*W).
-    frame_rows = np.array(
-        [np.concatenate([p.frame.forward, p.frame.right, p.frame.down, [1.0 / p.frame.focal_px]]) for p in packs]
+    def tiled(x: Any) -> Any:
+        """(B, Hp, Wp) -> (B * tiles, TILE * TILE): the pixels of each tile contiguous."""
+        x = x.reshape(b, tiles_y, TILE, tiles_x, TILE).permute(0, 1, 3, 2, 4)
+        return x.reshape(b * n_tiles, TILE * TILE)
+
+    # Rays of the padded image (same intrinsics; the padding is cropped at the end), tiled layout.
+    fr = tensor(
+        np.array([np.concatenate([p.frame.forward, p.frame.right, p.frame.down, [p.frame.px_angle]]) for p in packs])
     )
-    fr = torch.as_tensor(frame_rows.astype(np.float32), device=dev).to(dtype)
     inv_f = fr[:, 9:10]
-    xn = (torch.arange(width, device=dev, dtype=dtype) + (0.5 - width / 2.0))[None, :] * inv_f
-    yn = (torch.arange(height, device=dev, dtype=dtype) + (0.5 - height / 2.0))[None, :] * inv_f
+    xn = (torch.arange(wp, device=dev, dtype=dtype) + (0.5 - width / 2.0))[None, :] * inv_f
+    yn = (torch.arange(hp, device=dev, dtype=dtype) + (0.5 - height / 2.0))[None, :] * inv_f
     inv_norm = 1.0 / torch.sqrt((1.0 + xn * xn)[:, None, :] + (yn * yn)[:, :, None])
-    d = []
-    for i in range(3):
-        f, r, dn = fr[:, i : i + 1], fr[:, 3 + i : 4 + i], fr[:, 6 + i : 7 + i]
-        di = ((f + xn * r)[:, None, :] + (yn * dn)[:, :, None]) * inv_norm
-        d.append(di.reshape(b, -1))
-    dirs = (d[0], d[1], d[2])
-    cos_axis = inv_norm.reshape(b, -1)
-    far = torch.as_tensor([[p.far_m] for p in packs], device=dev, dtype=dtype)
-    near = torch.as_tensor([[p.near_m] for p in packs], device=dev, dtype=dtype)
-    px_angle = inv_f
+    d_img = [
+        ((fr[:, i : i + 1] + xn * fr[:, 3 + i : 4 + i])[:, None, :] + (yn * fr[:, 6 + i : 7 + i])[:, :, None])
+        * inv_norm
+        for i in range(3)
+    ]
+    dirs = tuple(tiled(x) for x in d_img)
+    cos_axis = tiled(inv_norm)
+    per_tile = torch.arange(b, device=dev).repeat_interleave(n_tiles)[:, None]  # scene of each tile row
+    far = tensor(np.array([[p.far_m] for p in packs]))[per_tile[:, 0]]
+    near = tensor(np.array([[p.near_m] for p in packs]))[per_tile[:, 0]]
     t_cap = T_CAP_FACTOR * max(p.far_m for p in packs)
 
-    sb = const(np.stack([p.seabed for p in packs]))
-    t_buf = geo.seabed_t(torch, dirs, sb, t_cap)
-    t_buf = torch.where(t_buf < T_CAP_FACTOR * far, t_buf, torch.inf)
-    id_buf = torch.where(torch.isfinite(t_buf), 0, -1).to(torch.int64)
-
-    slots: list[tuple[str, list[Any], Any]] = []
+    # Seabed on every pixel; then the primitives on their tiles, nearest hit via a packed (t, id) key.
+    sb = cols(tensor(np.stack([p.seabed for p in packs]))[per_tile[:, 0]])
+    t_bed = geo.seabed_t(torch, dirs, sb, t_cap)
+    t_bed = torch.where(t_bed < T_CAP_FACTOR * far, t_bed, torch.inf).to(torch.float32)
+    miss_id = (1 << 31) - 1
+    key = (t_bed.view(torch.int32).to(torch.int64) << 32) | torch.where(torch.isfinite(t_bed), 0, miss_id)
+    key = key.reshape(-1)
+    px_of_tile = torch.arange(TILE * TILE, device=dev)[None, :]
+    work: list[tuple[str, Any, Any, Any, Any]] = []  # kind, tile rows, constants, gid, px angle
     for kind in KINDS:
-        per_scene = [[(gid, row) for gid, (kd, row) in enumerate(p.prims, start=1) if kd == kind] for p in packs]
-        kmax = max(len(x) for x in per_scene)
-        for j in range(kmax):
-            rows = np.zeros((b, _FIELDS[kind]))
-            gids = np.full((b, 1), -2, dtype=np.int64)
-            for s, lst in enumerate(per_scene):
-                if j < len(lst):
-                    gids[s, 0], rows[s] = lst[j]
-                else:
-                    rows[s] = _dummy_row(kind)
-            slots.append((kind, const(rows), torch.as_tensor(gids, device=dev)))
-    for kind, k, gid in slots:
-        t = _t_kernel(kind, torch, dirs, k, px_angle)
-        closer = (t < t_buf) & (gid >= 0)
-        t_buf = torch.where(closer, t, t_buf)
-        id_buf = torch.where(closer, gid, id_buf)
+        rows, tiles_g, gids = [], [], []
+        for s_i, p in enumerate(packs):
+            for kd, prim, tile, gid in _tile_pairs(p, tiles_x):
+                if kd == kind:
+                    rows.append(p.prims[prim][1])
+                    tiles_g.append(s_i * n_tiles + tile)
+                    gids.append(gid)
+        if not rows:
+            continue
+        consts = tensor(np.stack(rows))
+        tile_t = torch.as_tensor(np.asarray(tiles_g, dtype=np.int64), device=dev)
+        gid_t = torch.as_tensor(np.asarray(gids, dtype=np.int64), device=dev)[:, None]
+        step = max(1, PAIR_CHUNK_PX // (TILE * TILE))
+        for a in range(0, len(rows), step):
+            sl = slice(a, a + step)
+            tl = tile_t[sl]
+            k = cols(consts[sl])
+            pa = inv_f[per_tile[tl, 0]]
+            work.append((kind, tl, k, gid_t[sl], pa))
+            dd = tuple(x[tl] for x in dirs)
+            t = _t_kernel(kind, torch, dd, k, pa).to(torch.float32)
+            pair_key = (t.view(torch.int32).to(torch.int64) << 32) | gid_t[sl]
+            idx = (tl[:, None] * (TILE * TILE) + px_of_tile).reshape(-1)
+            key.scatter_reduce_(0, idx, pair_key.reshape(-1), reduce="amin")
+    key = key.reshape(b * n_tiles, TILE * TILE)
+    t_buf = (key >> 32).to(torch.int32).view(torch.float32).to(dtype)
+    id_buf = key & 0xFFFFFFFF
+    id_buf = torch.where(id_buf == miss_id, -1, id_buf)
 
-    cam = torch.as_tensor(np.stack([p.frame.position for p in packs]).astype(np.float32), device=dev).to(dtype)
+    # Surface attributes: the seabed everywhere, then each pair over the pixels its primitive won.
+    cam = tensor(np.stack([p.frame.position for p in packs]))[per_tile[:, 0]]
     t_fin = torch.clamp(t_buf, max=t_cap)
-    nx, ny, nz, u, v = geo.seabed_surface(torch, dirs, t_fin, sb, (cam[:, 0:1], cam[:, 1:2]))
-    for kind, k, gid in slots:
-        mine = id_buf == gid
-        vals = _surface_kernel(kind, torch, dirs, t_fin, k)
-        nx, ny, nz, u, v = (torch.where(mine, val, cur) for val, cur in zip(vals, (nx, ny, nz, u, v), strict=True))
+    attrs = list(geo.seabed_surface(torch, dirs, t_fin, sb, (cam[:, 0:1], cam[:, 1:2])))
+    flat_attrs = [a.reshape(-1).clone() for a in attrs]
+    for kind, tl, k, gid, _pa in work:
+        dd = tuple(x[tl] for x in dirs)
+        mine = id_buf[tl] == gid
+        if not bool(mine.any()):
+            continue
+        vals = _surface_kernel(kind, torch, dd, t_fin[tl], k)
+        idx = (tl[:, None] * (TILE * TILE) + px_of_tile)[mine]
+        for dst, val in zip(flat_attrs, vals, strict=True):
+            dst[idx] = val[mine]
+    nx, ny, nz, u, v = (a.reshape(b * n_tiles, TILE * TILE) for a in flat_attrs)
     miss = id_buf < 0
     nx, ny, u, v = (torch.where(miss, 0.0, a) for a in (nx, ny, u, v))
     nz = torch.where(miss, 1.0, nz)
 
+    # Materials per pixel, then the shading formula shared with numpy.
     gmax = max(len(p.material_of_id) for p in packs)
-    mat_of_id = np.zeros((b, gmax), dtype=np.int64)
     mmax = max(p.materials.shape[0] for p in packs)
+    mat_of_id = np.zeros((b, gmax), dtype=np.int64)
     tables = np.zeros((b, mmax, MATERIAL_FIELDS), dtype=np.float32)
-    for s, p in enumerate(packs):
-        mat_of_id[s, : len(p.material_of_id)] = p.material_of_id
-        tables[s, : p.materials.shape[0]] = p.materials
-    mid = torch.gather(torch.as_tensor(mat_of_id, device=dev), 1, id_buf.clamp(min=0))
-    tab = torch.as_tensor(tables, device=dev).to(dtype)
-    flat_idx = mid + torch.arange(b, device=dev)[:, None] * mmax
-    rows = tab.reshape(b * mmax, MATERIAL_FIELDS)[flat_idx.reshape(-1)].reshape(b, -1, MATERIAL_FIELDS)
-    mat = [rows[..., j] for j in range(MATERIAL_FIELDS)]
-    tile = torch.as_tensor(np.array(noise_tile()), device=dev).to(dtype)
+    for s_i, p in enumerate(packs):
+        mat_of_id[s_i, : len(p.material_of_id)] = p.material_of_id + s_i * mmax
+        tables[s_i, : p.materials.shape[0]] = p.materials
+    mid = torch.as_tensor(mat_of_id, device=dev).reshape(-1)[per_tile * gmax + id_buf.clamp(min=0)]
+    rows_m = tensor(tables.reshape(b * mmax, MATERIAL_FIELDS))[mid.reshape(-1)]
+    rows_m = rows_m.reshape(b * n_tiles, TILE * TILE, MATERIAL_FIELDS)
+    mat = [rows_m[..., j] for j in range(MATERIAL_FIELDS)]
+    tile_tex = tensor(np.array(noise_tile()))
 
     def lookup(x: Any, y: Any) -> Any:
-        return lookup_torch(tile, x, y)
+        return lookup_torch(tile_tex, x, y)
 
     image_rgb = None
     if names:
         image_rgb = _image_texture_torch([tex[n] for n in names], mat, (u, v), dev, dtype)
-    light = const(np.stack([p.light for p in packs]))
+    light = cols(tensor(np.stack([p.light for p in packs]))[per_tile[:, 0]])
     r, g, bl = shade(torch, t_buf, dirs, (nx, ny, nz), (u, v), cos_axis, mat, light, lookup, image_rgb)
-    rgb = torch.stack([r, g, bl], dim=1).reshape(b, 3, height, width)
-    dist = torch.minimum(torch.maximum(t_buf, near), far).reshape(b, 1, height, width)
-    return rgb, dist
+    dist = torch.minimum(torch.maximum(t_buf, near), far)
 
+    def untile(x: Any) -> Any:
+        x = x.reshape(b, tiles_y, tiles_x, TILE, TILE).permute(0, 1, 3, 2, 4).reshape(b, hp, wp)
+        return x[:, :height, :width]
 
-def _dummy_row(kind: str) -> np.ndarray:
-    """Constants of a padding slot (its hits are discarded; finite values avoid NaN work)."""
-    row = np.zeros(_FIELDS[kind])
-    if kind == "box":
-        row[[0, 4, 8]] = 1.0
-        row[12:15] = 1.0
-    elif kind == "frustum":
-        row[5] = 1.0
-        row[6] = 1.0
-        row[7] = 0.1
-        row[[9, 13]] = 1.0
-    elif kind == "sphere":
-        row[3] = 0.1
-    else:
-        row[5] = 1.0
-        row[[6, 10]] = 1.0
-        row[12:16] = 1.0
-    return row
+    rgb = torch.stack([untile(r), untile(g), untile(bl)], dim=1)
+    return rgb, untile(dist)[:, None]
 
 
 def _image_texture_torch(
