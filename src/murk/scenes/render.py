@@ -6,10 +6,11 @@ primitive (:mod:`murk.scenes.geometry`), keep the nearest hit (z-buffer), and sh
 the z-depth; ``z = dist * cos(angle to the optical axis)``), clamped to ``[near_m, far_m]``; rays that hit
 nothing within ``far_m`` get ``far_m`` and show the open-water background.
 
-The numpy renderer culls: each primitive is only intersected with the pixels inside the exact screen
-rectangle of its bounding sphere. The torch renderer tests every pixel of every scene against every
-primitive slot of the batch (padded per primitive type), which suits a GPU. Both call the same kernels, so
-their outputs agree to float32 rounding (a test pins this).
+Both renderers cull: a primitive is only intersected with the pixels inside the exact screen rectangles of
+its bounding spheres (one sphere, or a chain of them along a long frustum). The numpy renderer loops over
+primitives and then shades pixels compacted by material; the torch renderer bins (scene, tile, primitive)
+pairs and processes each primitive type in one batched call, which suits a GPU. Both call the same kernels
+and the same shading formula, so their outputs agree to float32 rounding (a test pins this).
 
 No equation of the paper is implemented here; the output is the clean input of Eq. (1).
 """
@@ -318,7 +319,6 @@ def render_packed_numpy(
             t_buf[band] = _seabed_numpy(db, sb, t_cap)
     id_buf = np.where(t_buf < np.inf, 0, -1).astype(np.int32)
     px_angle = frame.px_angle
-    rects: list[list[tuple[slice, slice]]] = []
     full = [(slice(0, h), slice(0, w))]
     for gid, (kind, row) in enumerate(packed.prims, start=1):
         mine = _cull_rects(frame, kind, row) if cull else full
@@ -328,7 +328,6 @@ def render_packed_numpy(
             tb = t_buf[sl]
             np.copyto(id_buf[sl], gid, where=t < tb)  # strictly nearer: the earlier primitive wins a tie
             np.minimum(tb, t, out=tb)
-        rects.append(mine)
 
     image = _shade_numpy(packed, textures, d, cos_axis, t_buf, id_buf)
     dist = np.clip(t_buf, packed.near_m, far).astype(np.float32, copy=False)
