@@ -472,17 +472,18 @@ PAIR_CHUNK_PX = 1 << 22
 """At most this many (pair, pixel) elements are processed at once by the torch renderer (bounds memory)."""
 
 
-def _tile_pairs(packed: PackedScene, tiles_x: int) -> list[tuple[str, int, int, int]]:
-    """(kind, primitive index in packed.prims, tile index, gid) for every tile that a primitive's culling
-    rectangles touch (duplicates removed)."""
+def _tile_pairs(packed: PackedScene, tiles_x: int) -> tuple[np.ndarray, np.ndarray]:
+    """(primitive index in packed.prims, tile index) for every tile that a primitive's culling rectangles
+    touch, duplicates removed; two int64 arrays."""
     frame = packed.frame
     spheres, owner = [], []
     for i, (kind, row) in enumerate(packed.prims):
         for c, r in _cull_spheres(kind, row):
             spheres.append((c, r))
             owner.append(i)
+    empty = np.zeros(0, dtype=np.int64)
     if not spheres:
-        return []
+        return empty, empty
     rects = screen_rects(frame, np.array([c for c, _ in spheres]), np.array([r for _, r in spheres]))
     r0, r1, c0, c1 = rects.T
     ok = (r1 > r0) & (c1 > c0)
@@ -493,17 +494,14 @@ def _tile_pairs(packed: PackedScene, tiles_x: int) -> list[tuple[str, int, int, 
     count = ny * nx
     total = int(count.sum())
     if total == 0:
-        return []
+        return empty, empty
     sphere = np.repeat(np.arange(len(spheres)), count)
     offset = np.arange(total) - np.repeat(np.cumsum(count) - count, count)
     ty = ty0[sphere] + offset // nx[sphere]
     tx = tx0[sphere] + offset % nx[sphere]
-    prim = np.asarray(owner)[sphere]
+    prim = np.asarray(owner, dtype=np.int64)[sphere]
     keys = np.unique(prim * (1 << 24) + ty * tiles_x + tx)
-    prim_u, tile_u = keys >> 24, keys & ((1 << 24) - 1)
-    return [
-        (packed.prims[p][0], int(p), int(t), int(p) + 1) for p, t in zip(prim_u.tolist(), tile_u.tolist(), strict=True)
-    ]
+    return keys >> 24, keys & ((1 << 24) - 1)
 
 
 def render_scenes_torch(
@@ -593,21 +591,27 @@ def render_scenes_torch(
     key = key.reshape(-1)
     px_of_tile = torch.arange(TILE * TILE, device=dev)[None, :]
     work: list[tuple[str, Any, Any, Any, Any]] = []  # kind, tile rows, constants, gid, px angle
+    pairs = [_tile_pairs(p, tiles_x) for p in packs]
     for kind in KINDS:
         rows, tiles_g, gids = [], [], []
-        for s_i, p in enumerate(packs):
-            for kd, prim, tile, gid in _tile_pairs(p, tiles_x):
-                if kd == kind:
-                    rows.append(p.prims[prim][1])
-                    tiles_g.append(s_i * n_tiles + tile)
-                    gids.append(gid)
-        if not rows:
+        for s_i, (p, (prim, tile)) in enumerate(zip(packs, pairs, strict=True)):
+            of_kind = np.array([kd == kind for kd, _ in p.prims], dtype=bool)
+            if not of_kind.any() or prim.size == 0:
+                continue
+            sel = of_kind[prim]
+            table = np.stack([row for kd, row in p.prims if kd == kind])
+            local = np.cumsum(of_kind) - 1  # row of each primitive of this kind in `table`
+            rows.append(table[local[prim[sel]]])
+            tiles_g.append(s_i * n_tiles + tile[sel])
+            gids.append(prim[sel] + 1)
+        n_pairs = sum(len(g) for g in gids)
+        if n_pairs == 0:
             continue
-        consts = tensor(np.stack(rows))
-        tile_t = torch.as_tensor(np.asarray(tiles_g, dtype=np.int64), device=dev)
-        gid_t = torch.as_tensor(np.asarray(gids, dtype=np.int64), device=dev)[:, None]
+        consts = tensor(np.concatenate(rows))
+        tile_t = torch.as_tensor(np.concatenate(tiles_g), device=dev)
+        gid_t = torch.as_tensor(np.concatenate(gids), device=dev)[:, None]
         step = max(1, PAIR_CHUNK_PX // (TILE * TILE))
-        for a in range(0, len(rows), step):
+        for a in range(0, n_pairs, step):
             sl = slice(a, a + step)
             tl = tile_t[sl]
             k = cols(consts[sl])
