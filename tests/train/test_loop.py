@@ -14,6 +14,7 @@ import torch
 from murk._config import dump_yaml, merge
 from murk.io import discover, read_jsonl
 from murk.models.jointid import load_checkpoint, read_checkpoint
+from murk.rng import derive_seed
 from murk.synth.config import SynthConfig
 from murk.synth.runner import run_synthesis
 from murk.train.config import TrainConfig
@@ -171,3 +172,27 @@ def test_unused_parameters_are_exactly_those_without_gradient() -> None:
     (out.depth_m.mean() + out.enhanced.mean()).backward()
     no_grad = {n for n, p in model.named_parameters() if p.grad is None}
     assert no_grad == set(unused_parameter_names(model)) and no_grad
+
+
+def test_scenes_source_trains_and_matches_murk_scenes(tmp_path: Path) -> None:
+    from murk.scenes import render_scene, sample_scene
+    from murk.train.scenes_source import SceneDataset, render_size
+
+    ds = SceneDataset(range(3, 6), (96, 128), seed=5)
+    s = ds[1]
+    assert s["clean"].shape == (3, 96, 128) and s["index"] == 4
+    rgb, dist = render_scene(sample_scene(derive_seed(5, 4)), (128, 96))  # scene 4 of 'murk scenes --seed 5'
+    np.testing.assert_array_equal(s["clean"].permute(1, 2, 0).numpy(), rgb)
+    np.testing.assert_array_equal(s["depth"][0].numpy(), dist)
+    assert render_size((288, 512)) == (512, 384) and render_size((96, 128)) == (128, 96)
+    cfg = merge(
+        merge(TrainConfig(), TINY),
+        {
+            "data": {"source": "scenes:6", "crop_hw": [64, 96], "val_fraction": 0.2},
+            "out": str(tmp_path),
+            "steps": 2,
+            "eval": {"every": 2},
+        },
+    )
+    summary = train(cfg)
+    assert summary.steps_done == 2 and "val_psnr" in summary.last_eval

@@ -11,6 +11,7 @@ from murk.cli import compare as _compare
 from murk.cli import enhance as _enhance
 from murk.cli import eval as _eval
 from murk.cli import export as _export
+from murk.cli import scenes as _scenes
 from murk.cli import snow as _snow
 from murk.cli import synth as _synth
 from murk.cli import train as _train
@@ -47,6 +48,7 @@ def _root(
 
 app.command("synth")(_synth.synth)
 app.add_typer(_snow.app, name="snow")
+app.command("scenes")(_scenes.scenes)
 app.command("train")(_train.train)
 app.command("enhance")(_enhance.enhance)
 app.command("eval")(_eval.evaluate)
