@@ -1,0 +1,221 @@
+"""Writing procedural scenes to disk in the ``murk synth`` input layout (what ``murk scenes`` runs).
+
+Output folder::
+
+    OUT_DIR/rgb/scene_000000.png      clean RGB (8-bit PNG, or JPEG with rgb_format="jpg")
+    OUT_DIR/depth/scene_000000.png    uint16 millimetres: line-of-sight distance along each pixel's ray
+    OUT_DIR/scenes.jsonl              one line per scene: files, seed, camera intrinsics, the full scene
+    OUT_DIR/scenes_config.yaml        the settings of the run (seed, size, sampler config, murk version)
+
+Scene ``i`` is sampled from ``murk.rng.derive_seed(seed, i)``, so the output never depends on ``workers``.
+Rerunning skips scenes whose RGB and depth files both exist and rewrites scenes.jsonl.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+CONFIG_NAME = "scenes_config.yaml"
+JSONL_NAME = "scenes.jsonl"
+ERRORS_NAME = "errors.jsonl"
+DEPTH_NOTE = (
+    "depth/*.png: uint16, millimetres, line-of-sight distance from the camera centre along each pixel's ray "
+    "(not z-depth; z = distance * cos(angle to the optical axis)); rays that hit nothing within far_m are far_m"
+)
+
+_TEXTURES: dict[str, Any] = {}
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """Parse ``WxH`` (e.g. ``640x480``) into (width, height)."""
+    parts = text.lower().replace("*", "x").split("x")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise ValueError(f"--size: expected WIDTHxHEIGHT such as 640x480, got {text!r}")
+    w, h = (int(p) for p in parts)
+    if not (8 <= w <= 16384 and 8 <= h <= 16384):
+        raise ValueError(f"--size: expected 8 <= width, height <= 16384, got {text!r}")
+    return w, h
+
+
+def stem_of(index: int) -> str:
+    """File stem of scene ``index``."""
+    return f"scene_{index:06d}"
+
+
+def load_textures(folder: Path) -> dict[str, Any]:
+    """Image textures of ``folder`` by file name, resized by :func:`murk.scenes.prepare_image_texture`."""
+    from murk.errors import InputFileError
+    from murk.io import list_images, read_rgb
+    from murk.scenes import prepare_image_texture
+
+    paths = list_images(folder)
+    if not paths:
+        raise InputFileError(folder, "no images found for --textures")
+    return {p.name: prepare_image_texture(read_rgb(p)) for p in paths}
+
+
+def _init_worker(textures: dict[str, Any]) -> None:
+    import cv2
+
+    cv2.setNumThreads(1)
+    _TEXTURES.clear()
+    _TEXTURES.update(textures)
+
+
+def scene_record(index: int, seed: int, size: tuple[int, int], cfg: Any, rgb_suffix: str) -> tuple[Any, dict]:
+    """(params, scenes.jsonl record) of scene ``index`` (sampling only, no rendering)."""
+    from murk.rng import derive_seed
+    from murk.scenes import intrinsics, sample_scene
+
+    scene_seed = derive_seed(seed, index)
+    params = sample_scene(scene_seed, cfg)
+    stem = stem_of(index)
+    record = {
+        "index": index,
+        "stem": stem,
+        "file_name": f"rgb/{stem}{rgb_suffix}",
+        "depth_file": f"depth/{stem}.png",
+        "seed": scene_seed,
+        "size": list(size),
+        "intrinsics": intrinsics(params, size),
+        "depth": "line-of-sight distance in metres along each pixel's ray (not z-depth); stored as uint16 mm",
+        "near_m": params.near_m,
+        "far_m": params.far_m,
+        "scene": params.to_dict(),
+    }
+    return params, record
+
+
+def render_job(job: tuple[int, str, int, tuple[int, int], Any, str]) -> tuple[dict, str, str | None]:
+    """Render and write one scene unless both its files exist; returns (record, status, error)."""
+    from murk.io import write_depth_png, write_rgb
+    from murk.scenes import render_scene
+
+    index, out_dir, seed, size, cfg, rgb_suffix = job
+    params, record = scene_record(index, seed, size, cfg, rgb_suffix)
+    out = Path(out_dir)
+    rgb_path = out / record["file_name"]
+    depth_path = out / record["depth_file"]
+    if rgb_path.is_file() and depth_path.is_file():
+        return record, "skipped", None
+    try:
+        rgb, dist_m = render_scene(params, size, textures=_TEXTURES or None)
+        write_rgb(rgb_path, rgb)
+        write_depth_png(depth_path, dist_m)
+    except (ValueError, OSError) as exc:
+        return record, "failed", str(exc)
+    return record, "rendered", None
+
+
+def _settings(seed: int, size: tuple[int, int], cfg: Any, rgb_format: str, texture_names: list[str]) -> dict:
+    from murk._version import __version__
+    from murk.scenes import SCENE_FORMAT_VERSION
+
+    return {
+        "command": "scenes",
+        "murk_version": __version__,
+        "scene_format_version": SCENE_FORMAT_VERSION,
+        "seed": seed,
+        "size": list(size),
+        "rgb_format": rgb_format,
+        "textures": texture_names,
+        "scene_config": cfg.to_dict(),
+        "depth": DEPTH_NOTE,
+    }
+
+
+def _check_resume(path: Path, settings: dict) -> None:
+    import yaml
+
+    if not path.is_file():
+        return
+    old = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+    keys = ("murk_version", "scene_format_version", "seed", "size", "rgb_format", "textures", "scene_config")
+    diff = [k for k in keys if old.get(k) != settings[k]]
+    if diff:
+        raise ValueError(
+            f"{path}: this folder was written with different settings ({', '.join(diff)}); "
+            "use a new output folder (or delete this one) instead of mixing scenes"
+        )
+
+
+@dataclass
+class ScenesSummary:
+    """What :func:`write_scenes` did."""
+
+    out_dir: Path
+    rendered: int = 0
+    skipped: int = 0
+    failed: int = 0
+    errors: list[dict] = field(default_factory=list)
+
+
+def write_scenes(
+    out_dir: str | Path,
+    *,
+    count: int,
+    size: tuple[int, int] = (640, 480),
+    seed: int = 0,
+    workers: int = 1,
+    config: Any = None,
+    textures: dict[str, Any] | None = None,
+    rgb_format: str = "png",
+    on_progress: Callable[[int, int], None] | None = None,
+) -> ScenesSummary:
+    """Render ``count`` scenes into ``out_dir`` (see the module docstring); resumable.
+
+    Raises:
+        ValueError: bad ``rgb_format``, or a folder written with different settings.
+    """
+    import yaml
+
+    from murk.io import append_jsonl
+    from murk.io.atomic import atomic_path, remove_stale_temporaries, write_text_atomic
+    from murk.io.jsonl import dumps
+    from murk.scenes import SceneConfig
+
+    out_dir = Path(out_dir)
+    cfg = SceneConfig() if config is None else config
+    tex = dict(textures or {})
+    fmt = rgb_format.lower()
+    if fmt not in ("png", "jpg"):
+        raise ValueError(f"rgb_format: expected png or jpg, got {rgb_format!r}")
+    suffix = ".png" if fmt == "png" else ".jpg"
+    out_dir.mkdir(parents=True, exist_ok=True)
+    remove_stale_temporaries(out_dir)
+    settings = _settings(seed, size, cfg, fmt, sorted(tex))
+    _check_resume(out_dir / CONFIG_NAME, settings)
+    write_text_atomic(out_dir / CONFIG_NAME, yaml.safe_dump(settings, sort_keys=False))
+    (out_dir / "rgb").mkdir(exist_ok=True)
+    (out_dir / "depth").mkdir(exist_ok=True)
+    jobs = [(i, str(out_dir), seed, size, cfg, suffix) for i in range(count)]
+    summary = ScenesSummary(out_dir)
+    done = 0
+    with atomic_path(out_dir / JSONL_NAME) as tmp, open(tmp, "w", encoding="utf-8") as f:
+        if workers == 1:
+            _init_worker(tex)
+            results: Any = map(render_job, jobs)
+            pool = None
+        else:
+            from concurrent.futures import ProcessPoolExecutor
+
+            pool = ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(tex,))
+            results = pool.map(render_job, jobs, chunksize=max(1, min(16, count // (4 * workers))))
+        try:
+            for record, status, error in results:
+                f.write(dumps(record) + "\n")
+                setattr(summary, status, getattr(summary, status) + 1)
+                if error is not None:
+                    summary.errors.append({"index": record["index"], "file_name": record["file_name"], "error": error})
+                done += 1
+                if on_progress:
+                    on_progress(done, count)
+        finally:
+            if pool is not None:
+                pool.shutdown(cancel_futures=True)
+    if summary.errors:
+        append_jsonl(out_dir / ERRORS_NAME, summary.errors)
+    return summary
