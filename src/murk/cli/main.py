@@ -8,6 +8,7 @@ import typer
 
 from murk._version import __version__
 from murk.cli import compare as _compare
+from murk.cli import demo as _demo
 from murk.cli import enhance as _enhance
 from murk.cli import eval as _eval
 from murk.cli import export as _export
@@ -54,6 +55,7 @@ app.command("enhance")(_enhance.enhance)
 app.command("eval")(_eval.evaluate)
 app.command("export")(_export.export)
 app.command("compare")(_compare.compare)
+app.command("demo")(_demo.demo)
 
 
 def main() -> None:
