@@ -3,7 +3,7 @@
 Run: PYTHONPATH=src python benchmarks/bench_jointid.py [--cpu-only] [--gpu-only] [--repeats N]
 
 Every speed is a ratio against a baseline measured in the same run:
-- CPU: the network called directly in fp32 (NCHW memory, no denormal flushing) is the baseline; then the
+- CPU: the network called directly in fp32 (NCHW memory) is the baseline; then the
   ``jointid`` restorer end to end (numpy frame in, enhanced + depth out) in fp32 and bf16 autocast, and the
   ONNX export under ONNX Runtime, all with 2 threads at 288x512.
 - GPU: the baseline is the official configuration (fp32 eager, NCHW); then bf16 + channels-last, a CUDA
@@ -88,8 +88,8 @@ def bench_cpu(repeats: int) -> None:
     fp32 = JointIDRestorer(model, precision="fp32", channels_last=True)
     bf16 = JointIDRestorer(model, precision="bf16", channels_last=True)
     configs: dict[str, Callable[[], object]] = {
-        "baseline: network fp32, NCHW, denormals not flushed": baseline,
-        "restorer fp32 (channels-last, denormals flushed)": lambda: fp32.restore(frame[None]),
+        "baseline: network called directly, fp32, NCHW": baseline,
+        "restorer fp32 (channels-last)": lambda: fp32.restore(frame[None]),
         "restorer bf16 autocast": lambda: bf16.restore(frame[None]),
     }
     ort_out = None

@@ -125,7 +125,6 @@ class OnnxJointID:
                 )
             providers.insert(0, "CUDAExecutionProvider")
         opts = ort.SessionOptions()
-        opts.add_session_config_entry("session.set_denormal_as_zero", "1")  # see jointid_restorer: denormals
         if threads is not None:
             opts.intra_op_num_threads = threads
             opts.inter_op_num_threads = 1
