@@ -82,8 +82,8 @@ class JointIDRestorer(Restorer):
             :class:`~murk.models.jointid.onnx_export.OnnxJointID` runner.
         device: where the torch model runs (ONNX runners always exchange CPU tensors).
         precision: ``"fp32"``, or ``"bf16"``/``"fp16"`` autocast (torch backend only).
-        tile: tile size in pixels (a multiple of 32) for large frames; None = whole frames.
-        overlap: overlap of neighbouring tiles in pixels (also the blending-ramp width).
+        tile: tile size in pixels (a multiple of 32) for large frames; None or 0 = whole frames.
+        overlap: overlap of neighbouring tiles in pixels (also the blending-ramp width); None = 64.
         batch: at most this many frames (or tiles) per forward pass; None = as given.
         channels_last: run convolutions in channels-last memory (default: on CUDA only).
         compile: wrap the model with ``torch.compile`` (first call per shape compiles).
@@ -103,7 +103,7 @@ class JointIDRestorer(Restorer):
         device: str | torch.device = "cpu",
         precision: Precision = "fp32",
         tile: int | None = None,
-        overlap: int = DEFAULT_OVERLAP,
+        overlap: int | None = DEFAULT_OVERLAP,
         batch: int | None = None,
         channels_last: bool | None = None,
         compile: bool = False,
@@ -112,6 +112,8 @@ class JointIDRestorer(Restorer):
         from murk.models.jointid.checkpoint import unwrap
         from murk.models.jointid.onnx_export import OnnxJointID
 
+        tile = tile or None  # 0 = off, as None
+        overlap = DEFAULT_OVERLAP if overlap is None else overlap
         if precision not in ("fp32", "bf16", "fp16"):
             raise ValueError(f"precision: expected 'fp32', 'bf16' or 'fp16', got {precision!r}")
         if tile is not None and (isinstance(tile, bool) or tile < SIZE_MULTIPLE or tile % SIZE_MULTIPLE):
@@ -149,7 +151,7 @@ class JointIDRestorer(Restorer):
         if self.channels_last:
             net.to(memory_format=torch.channels_last)
         self.model = net
-        fn: Callable[[Tensor], Any] = torch.compile(net) if compile else net
+        fn: Callable[[Tensor], Any] = torch.compile(net, dynamic=False) if compile else net  # one kernel set per shape
 
         def run(x: Tensor) -> tuple[Tensor, Tensor]:
             with self._autocast():
@@ -217,7 +219,7 @@ def create_jointid(
     device: str = "cpu",
     precision: Precision = "fp32",
     tile: int | None = None,
-    overlap: int = DEFAULT_OVERLAP,
+    overlap: int | None = DEFAULT_OVERLAP,
     trust_checkpoint: bool = False,
     batch: int | None = None,
     compile: bool = False,
