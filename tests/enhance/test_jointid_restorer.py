@@ -93,6 +93,8 @@ def test_tiled_inference_approximates_whole_frame_inference(tiny, underwater):
     # A tile as large as the frame is exactly whole-frame inference.
     big = JointIDRestorer(tiny, tile=512, overlap=64).restore(underwater[None])
     assert np.array_equal(big.images, whole.images) and np.array_equal(big.depth_m, whole.depth_m)
+    off = JointIDRestorer(tiny, tile=0, overlap=None)  # CLI-style "no tiling", default overlap
+    assert off.tile is None and off.overlap == 64
 
 
 def test_batch_option_and_determinism(tiny):

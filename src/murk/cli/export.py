@@ -35,8 +35,11 @@ def export(
     ] = False,
     quiet: QuietOpt = False,
 ) -> None:
-    """Export a Joint-ID checkpoint to ONNX; input 'image' (B, 3, H, W) normalised, H and W multiples of 32;
-    outputs 'depth_m' and 'enhanced'. Run it with: murk enhance --method jointid --checkpoint model.onnx"""
+    """Export a Joint-ID checkpoint to ONNX (dynamic batch, height and width).
+
+    The graph takes 'image' (B, 3, H, W), normalised, H and W multiples of 32, and returns 'depth_m' and
+    'enhanced'. Run it with: murk enhance IMAGES --out OUT --method jointid --checkpoint model.onnx
+    """
     import torch
 
     from murk.models.jointid import load_checkpoint, normalize_input

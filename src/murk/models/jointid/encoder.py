@@ -62,9 +62,9 @@ def rln(
         y, mu, rstd = torch.native_layer_norm(x, x.shape[1:], None, None, eps)
         sigma = torch.reciprocal(rstd)
     c = x.shape[-1]
-    y = y * weight.reshape(1, 1, c) + bias.reshape(1, 1, c)
-    rescale = sigma * scale_w.reshape(1, 1, c) + scale_b.reshape(1, 1, c)
-    rebias = mu * shift_w.reshape(1, 1, c) + shift_b.reshape(1, 1, c)
+    y = torch.addcmul(bias.reshape(1, 1, c), y, weight.reshape(1, 1, c))  # one kernel for y * w + b
+    rescale = torch.addcmul(scale_b.reshape(1, 1, c), sigma, scale_w.reshape(1, 1, c))
+    rebias = torch.addcmul(shift_b.reshape(1, 1, c), mu, shift_w.reshape(1, 1, c))
     return y, rescale, rebias
 
 
@@ -148,9 +148,9 @@ class Block(nn.Module):
 
     def forward(self, x: Tensor, h: int, w: int) -> Tensor:
         y, rescale, rebias = self.norm1(x)
-        x = x + (self.attn(y, h, w) * rescale + rebias)
+        x = torch.addcmul(x + rebias, self.attn(y, h, w), rescale)  # x + (A * rescale + rebias)
         y, rescale, rebias = self.norm2(x)
-        return x + (self.mlp(y, h, w) * rescale + rebias)
+        return torch.addcmul(x + rebias, self.mlp(y, h, w), rescale)
 
 
 class PatchEmbed(nn.Module):
