@@ -9,7 +9,7 @@ TORCH_INDEX ?=
 EXTRAS ?= dev,onnx,video
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.murk-installed
-PYTEST_ARGS ?=
+PYTEST_ARGS ?= -n auto
 
 .PHONY: demo test test-slow browser-test lint bench install clean
 
@@ -22,8 +22,7 @@ $(STAMP): pyproject.toml
 	@touch $(STAMP)
 
 demo: $(STAMP)
-	$(VENV)/bin/murk synth src/murk/data/rgbd murk-demo/synth --stages basic,forward_scatter,marine_snow --size 320x240
-	@echo "demo output: murk-demo/synth (degraded/, clean/, depth/, snow_alpha/, manifest.jsonl)"
+	$(VENV)/bin/murk demo --out murk-demo
 
 test: $(STAMP)
 	$(PY) -m pytest -q $(PYTEST_ARGS)

@@ -1,0 +1,31 @@
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from typer.testing import CliRunner
+
+from murk.cli.main import app
+from murk.io import read_jsonl
+
+runner = CliRunner()
+
+
+def test_demo_quick_runs_the_whole_pipeline(tmp_path: Path) -> None:
+    out = tmp_path / "demo"
+    r = runner.invoke(app, ["demo", "--quick", "--out", str(out), "-q"])
+    assert r.exit_code == 0, r.output
+    assert len(list((out / "scenes" / "rgb").iterdir())) == 6
+    recs = read_jsonl(out / "synth" / "manifest.jsonl")
+    assert len(recs) == 6 and all(
+        "N_p" in x and x["stages"] == ["basic", "forward_scatter", "marine_snow"] for x in recs
+    )
+    assert (out / "train" / "best.pt").exists()
+    doc = json.loads((out / "report" / "metrics.json").read_text())
+    assert [m["label"] for m in doc["methods"]] == ["raw", "post", "jointid-tiny", "jointid-tiny+post"]
+    assert len(doc["rows"]) == 3 * 4 and not doc["errors"]
+    assert "report.html" in r.output and "jointid-tiny+post" in r.output
+    # rerunning resumes: nothing is trained again
+    mtime = (out / "train" / "best.pt").stat().st_mtime
+    r = runner.invoke(app, ["demo", "--quick", "--out", str(out), "-q"])
+    assert r.exit_code == 0 and (out / "train" / "best.pt").stat().st_mtime == mtime
