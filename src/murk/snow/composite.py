@@ -174,12 +174,13 @@ def composite_snow(image: np.ndarray, params: SnowParams, bank: ParticleBank) ->
     if params.bank_id and bank.bank_id and params.bank_id != bank.bank_id:
         raise ValueError(f"bank: the parameters were drawn from bank {params.bank_id}, got bank {bank.bank_id}")
     b, bm, pad = snow_layers(params, bank, h, w)
-    alpha = gaussian_blur(b, params.rho_px)[pad : pad + h, pad : pad + w]  # Eq. (8): a_ms = G_rho * B
-    spread = gaussian_blur(bm, params.rho_px)[pad : pad + h, pad : pad + w]  # a_ms M' = G_rho * (B M)
-    alpha = np.minimum(alpha, np.float32(1.0))
-    one_minus = cv2.cvtColor(np.float32(1.0) - alpha, cv2.COLOR_GRAY2BGR)
+    alpha_c = gaussian_blur(b, params.rho_px)  # Eq. (8): a_ms = G_rho * B (padded canvas)
+    spread_c = gaussian_blur(bm, params.rho_px)  # a_ms M' = G_rho * (B M)
+    # OpenCV reads the strided interior views directly (no copies)
+    alpha = cv2.min(alpha_c[pad : pad + h, pad : pad + w], 1.0)
+    one_minus = cv2.cvtColor(cv2.subtract(1.0, alpha), cv2.COLOR_GRAY2BGR)
     out = cv2.multiply(np.ascontiguousarray(image, dtype=np.float32), one_minus)
-    cv2.add(out, np.ascontiguousarray(spread), out)  # Eq. (7): (1 - a) I_fs + a M'
+    cv2.add(out, spread_c[pad : pad + h, pad : pad + w], out)  # Eq. (7): (1 - a) I_fs + a M'
     return out, alpha
 
 
