@@ -31,6 +31,26 @@ _LAZY = {
     "load_bank": "murk.snow.bank",
     "save_bank": "murk.snow.bank",
     "composite_snow": "murk.snow.composite",
+    # procedural scenes
+    "sample_scene": "murk.scenes",
+    "render_scene": "murk.scenes",
+    "write_scenes": "murk.scenes.dataset",
+    # metrics
+    "uiqm": "murk.metrics",
+    "uciqe": "murk.metrics",
+    "psnr": "murk.metrics",
+    "ssim": "murk.metrics",
+    "depth_errors": "murk.metrics",
+    # restoration
+    "post_process": "murk.enhance.post",
+    "create_restorer": "murk.enhance.restorer",
+    "build_jointid": "murk.models.jointid",
+    "load_checkpoint": "murk.models.jointid",
+    "save_checkpoint": "murk.models.jointid",
+    # training and evaluation
+    "TrainConfig": "murk.train.config",
+    "train": "murk.train.loop",
+    "run_compare": "murk.report.compare",
     # io
     "read_rgb": "murk.io",
     "write_rgb": "murk.io",
@@ -40,9 +60,12 @@ _LAZY = {
 __all__ = ["__version__", "tune_allocator", *_LAZY]
 
 
+_RENAMED = {"create_restorer": "create"}
+
+
 def __getattr__(name: str) -> Any:
     if name in _LAZY:
-        value = getattr(importlib.import_module(_LAZY[name]), name)
+        value = getattr(importlib.import_module(_LAZY[name]), _RENAMED.get(name, name))
         globals()[name] = value
         return value
     raise AttributeError(f"module 'murk' has no attribute {name!r}")

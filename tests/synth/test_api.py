@@ -32,3 +32,10 @@ def test_import_murk_is_light() -> None:
     code = "import sys, murk; print('torch' in sys.modules, 'cv2' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     assert out == ["False", "False"]
+
+
+def test_every_top_level_export_resolves() -> None:
+    for name in murk.__all__:
+        assert getattr(murk, name) is not None, name
+    assert murk.create_restorer("post").name == "post"
+    assert "uiqm" in dir(murk)
