@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+from ._video import make_frames, mjpeg_camera
 
 TESTS_DATA = Path(__file__).resolve().parent / "data"
 
@@ -36,3 +40,17 @@ def small_rgbd(tmp_path: Path) -> Path:
         cv2.imwrite(str(root / "rgb" / f"{stem}.png"), rgb)
         cv2.imwrite(str(root / "depth" / f"{stem}.png"), depth_mm)
     return root
+
+
+@pytest.fixture
+def mjpeg_server() -> Iterator[Callable[..., str]]:
+    """Start MJPEG-over-HTTP cameras on localhost: ``start(frames, delay_s=0.005) -> url``; each serves its
+    frames to a client, then disconnects."""
+    with contextlib.ExitStack() as stack:
+        yield lambda frames, delay_s=0.005: stack.enter_context(mjpeg_camera(frames, delay_s))
+
+
+@pytest.fixture
+def mjpeg_url(mjpeg_server: Callable[..., str]) -> str:
+    """A camera on localhost streaming 15 MJPEG frames over HTTP, then disconnecting."""
+    return mjpeg_server(make_frames(15))

@@ -2,43 +2,14 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
-import cv2
 import numpy as np
 
 from murk.enhance.restorer import Restored, Restorer
 from murk.io.video import Frame, FrameSource
 
+from .._video import make_frames, make_video, read_video
 
-def make_frames(n: int, h: int = 48, w: int = 64) -> list[np.ndarray]:
-    """Smooth uint8 RGB frames; the red level encodes the index (20 + 8 i), robust to lossy codecs."""
-    yy, xx = np.mgrid[0:h, 0:w]
-    return [
-        np.stack([np.full_like(xx, 20 + 8 * i), 60 + xx % 150, 100 + yy % 150], axis=-1).astype(np.uint8)
-        for i in range(n)
-    ]
-
-
-def make_video(path: Path, n: int, fps: float = 10.0, h: int = 48, w: int = 64) -> Path:
-    fourcc = cv2.VideoWriter_fourcc(*("MJPG" if path.suffix == ".avi" else "mp4v"))
-    writer = cv2.VideoWriter(str(path), fourcc, fps, (w, h))
-    for f in make_frames(n, h, w):
-        writer.write(np.ascontiguousarray(f[:, :, ::-1]))
-    writer.release()
-    return path
-
-
-def read_video(path: Path) -> list[np.ndarray]:
-    cap = cv2.VideoCapture(str(path))
-    out = []
-    while True:
-        ok, bgr = cap.read()
-        if not ok:
-            break
-        out.append(np.ascontiguousarray(bgr[:, :, ::-1]))
-    cap.release()
-    return out
+__all__ = ["FakeDepth", "FakeSource", "make_frames", "make_video", "read_video"]
 
 
 class FakeSource(FrameSource):

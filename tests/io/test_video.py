@@ -2,16 +2,10 @@
 
 from __future__ import annotations
 
-import http.server
-import socketserver
 import subprocess
 import sys
 import textwrap
-import threading
-import time
-from collections.abc import Iterator
 from pathlib import Path
-from typing import ClassVar
 
 import cv2
 import numpy as np
@@ -21,32 +15,13 @@ from murk.errors import InputFileError, ShapeError
 from murk.io.atomic import TMP_PREFIX
 from murk.io.video import CaptureSource, VideoSink, default_name, is_stream_url, open_source, redact_url
 
+from .._video import make_frames, read_video
+
 REPO_SRC = Path(__file__).resolve().parents[2] / "src"
 
 
-def _frames(n: int, h: int = 48, w: int = 64) -> list[np.ndarray]:
-    """Smooth RGB frames whose mean level encodes the index (survives lossy codecs)."""
-    yy, xx = np.mgrid[0:h, 0:w]
-    return [
-        np.stack([(20 + 8 * i + 0 * xx), (60 + xx), (100 + yy)], axis=-1).clip(0, 255).astype(np.uint8)
-        for i in range(n)
-    ]
-
-
-def _read_all(path: Path) -> list[np.ndarray]:
-    cap = cv2.VideoCapture(str(path))
-    out = []
-    while True:
-        ok, bgr = cap.read()
-        if not ok:
-            break
-        out.append(bgr[:, :, ::-1])
-    cap.release()
-    return out
-
-
 def test_generated_video_round_trips_through_capture_source(tmp_path: Path) -> None:
-    frames = _frames(12)
+    frames = make_frames(12)
     writer = cv2.VideoWriter(str(tmp_path / "in.mp4"), cv2.VideoWriter_fourcc(*"mp4v"), 10.0, (64, 48))
     for f in frames:
         writer.write(np.ascontiguousarray(f[:, :, ::-1]))
@@ -65,12 +40,12 @@ def test_generated_video_round_trips_through_capture_source(tmp_path: Path) -> N
 def test_video_sink_round_trip_is_atomic(tmp_path: Path, suffix: str) -> None:
     path = tmp_path / f"out{suffix}"
     sink = VideoSink(path, 12.0, (64, 48))
-    for f in _frames(9):
+    for f in make_frames(9):
         sink.write(f)
     assert not path.exists() and len(list(tmp_path.glob(f"{TMP_PREFIX}*"))) == 1  # still a temporary file
     assert sink.close() == path
     assert not list(tmp_path.glob(f"{TMP_PREFIX}*"))
-    back = _read_all(path)
+    back = read_video(path)
     assert len(back) == 9 and back[0].shape == (48, 64, 3)
     cap = cv2.VideoCapture(str(path))
     assert cap.get(cv2.CAP_PROP_FPS) == pytest.approx(12.0)
@@ -80,11 +55,11 @@ def test_video_sink_round_trip_is_atomic(tmp_path: Path, suffix: str) -> None:
 
 def test_video_sink_pads_odd_sizes_and_abort_removes_the_temporary(tmp_path: Path) -> None:
     with VideoSink(tmp_path / "odd.avi", 10.0, (63, 47)) as sink:
-        for f in _frames(3, 47, 63):
+        for f in make_frames(3, 47, 63):
             sink.write(f)
-    assert _read_all(tmp_path / "odd.avi")[0].shape == (48, 64, 3)  # codecs need even sizes: padded, not cropped
+    assert read_video(tmp_path / "odd.avi")[0].shape == (48, 64, 3)  # codecs need even sizes: padded, not cropped
     sink = VideoSink(tmp_path / "gone.mp4", 10.0, (64, 48))
-    sink.write(_frames(1)[0])
+    sink.write(make_frames(1)[0])
     sink.abort()
     assert not (tmp_path / "gone.mp4").exists() and not list(tmp_path.glob(f"{TMP_PREFIX}*"))
 
@@ -121,14 +96,14 @@ def test_killed_pyav_recording_stays_playable(tmp_path: Path) -> None:
     )
     env = {"PYTHONPATH": str(REPO_SRC), "PATH": "/usr/bin:/bin"}
     subprocess.run([sys.executable, "-c", code], check=True, env=env, timeout=120)
-    n = len(_read_all(path))
+    n = len(read_video(path))
     assert 20 <= n <= 35  # fragments every second (10 frames) are complete; at most the last one is lost
 
 
 def test_broken_frame_is_reported_and_the_video_continues(tmp_path: Path) -> None:
     path = tmp_path / "c.avi"
     writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10.0, (64, 48))
-    for f in _frames(10):
+    for f in make_frames(10):
         writer.write(np.ascontiguousarray(f[:, :, ::-1]))
     writer.release()
     data = bytearray(path.read_bytes())
@@ -142,41 +117,6 @@ def test_broken_frame_is_reported_and_the_video_continues(tmp_path: Path) -> Non
     assert got[4].image is None and "could not be decoded" in (got[4].error or "")
     assert all(f.image is not None for i, f in enumerate(got) if i != 4)
     assert abs(float(got[5].image[:, :, 0].mean()) - (20 + 8 * 5)) < 4  # type: ignore[index]  # frame 5 is frame 5
-
-
-class _MJPEGHandler(http.server.BaseHTTPRequestHandler):
-    frames: ClassVar[list[np.ndarray]] = []
-
-    def do_GET(self) -> None:
-        self.send_response(200)
-        self.send_header("Content-Type", "multipart/x-mixed-replace; boundary=frame")
-        self.end_headers()
-        for f in self.frames:
-            _, buf = cv2.imencode(".jpg", np.ascontiguousarray(f[:, :, ::-1]))
-            b = buf.tobytes()
-            head = b"--frame\r\nContent-Type: image/jpeg\r\nContent-Length: %d\r\n\r\n" % len(b)
-            self.wfile.write(head + b + b"\r\n")
-            self.wfile.flush()
-            time.sleep(0.005)
-        # returning closes the connection: the stream disconnects
-
-    def log_message(self, *args: object) -> None:
-        pass
-
-
-@pytest.fixture
-def mjpeg_url() -> Iterator[str]:
-    """An MJPEG-over-HTTP camera on localhost serving 15 frames, then disconnecting."""
-    handler = type("H", (_MJPEGHandler,), {"frames": _frames(15)})
-    server = socketserver.ThreadingTCPServer(("127.0.0.1", 0), handler)
-    server.daemon_threads = True
-    thread = threading.Thread(target=server.serve_forever, daemon=True)
-    thread.start()
-    try:
-        yield f"http://127.0.0.1:{server.server_address[1]}/cam.mjpg"
-    finally:
-        server.shutdown()
-        server.server_close()
 
 
 def test_mjpeg_http_stream_is_read_live_until_disconnect(mjpeg_url: str) -> None:
@@ -211,9 +151,9 @@ def test_pyav_sink_round_trip(tmp_path: Path, suffix: str) -> None:
     pytest.importorskip("av")
     path = tmp_path / f"av{suffix}"
     with VideoSink(path, 10.0, (63, 47), backend="av") as sink:
-        for f in _frames(12, 47, 63):
+        for f in make_frames(12, 47, 63):
             sink.write(f)
-    back = _read_all(path)
+    back = read_video(path)
     assert len(back) == 12 and back[0].shape == (48, 64, 3)
     assert abs(float(back[7][:47, :63, 0].mean()) - (20 + 8 * 7)) < 4
     assert not list(tmp_path.glob(f"{TMP_PREFIX}*"))
