@@ -91,3 +91,15 @@ def test_synth_usage_errors_exit_2(tmp_path: Path) -> None:
     assert r.exit_code == 2 and "expected RGBD_DIR OUT_DIR" in r.output
     r = runner.invoke(app, ["synth", str(sample_rgbd_dir()), str(tmp_path / "o"), "--invalid-depth", "fail"])
     assert r.exit_code == 1 and "invalid depth pixels" in r.output  # Redwood/TUM have holes
+
+
+def test_synth_warns_about_implausible_depth_and_explains_unpaired_files(small_rgbd: Path, tmp_path: Path) -> None:
+    r = runner.invoke(app, ["synth", str(small_rgbd), str(tmp_path / "o"), "--variants", "1", "--depth-scale", "10"])
+    assert r.exit_code == 0 and "median depth" in r.output and "is implausible" in r.output
+    bad = tmp_path / "bad"
+    (bad / "rgb").mkdir(parents=True)
+    (bad / "depth").mkdir()
+    cv2.imwrite(str(bad / "rgb" / "x.png"), np.zeros((4, 4, 3), np.uint8))
+    cv2.imwrite(str(bad / "depth" / "y.png"), np.ones((4, 4), np.uint16))
+    r = runner.invoke(app, ["synth", str(bad), str(tmp_path / "o2")])
+    assert r.exit_code == 2 and "no RGB-D pairs found" in r.output and "no depth file with stem 'x'" in r.output

@@ -94,3 +94,20 @@ def test_nyu_mat_transposed_layout(tmp_path: Path) -> None:
     (tmp_path / "x.mat").write_bytes(b"MATLAB 5.0 MAT-file")
     with pytest.raises(InputFileError, match="not an HDF5"):
         read_nyu_mat(tmp_path / "x.mat", 0)
+
+
+def test_sun_and_kinect_encodings(tmp_path: Path) -> None:
+    # SUN RGB-D stores mm rotated right by 3 bits; 1234 mm -> stored as ((1234 << 3) | (1234 >> 13)) & 0xFFFF
+    stored = np.array([[(1234 << 3) & 0xFFFF, 0]], np.uint16)
+    cv2.imwrite(str(tmp_path / "sun.png"), stored)
+    d = read_depth(tmp_path / "sun.png", encoding="sun")
+    assert d[0, 0] == pytest.approx(1.234) and d[0, 1] == 0
+    # raw Kinect disparity 800 -> 351.3 / (1092.5 - 800) m; 2047 = invalid; PGM samples are little-endian
+    raw = np.array([[800, 2047]], np.uint16)
+    cv2.imwrite(str(tmp_path / "k.pgm"), raw.byteswap())  # what NYU's dumps look like to a big-endian reader
+    d = read_depth(tmp_path / "k.pgm", encoding="kinect-disparity")
+    assert d[0, 0] == pytest.approx(351.3 / 292.5, rel=1e-6) and d[0, 1] == 0
+    cv2.imwrite(str(tmp_path / "k.png"), raw)
+    assert read_depth(tmp_path / "k.png", encoding="kinect-disparity")[0, 0] == pytest.approx(351.3 / 292.5, rel=1e-6)
+    with pytest.raises(ValueError, match="depth_encoding: expected one of linear, sun, kinect-disparity"):
+        read_depth(tmp_path / "k.png", encoding="kinect")  # type: ignore[arg-type]

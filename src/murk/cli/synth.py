@@ -69,6 +69,14 @@ def synth(
         float | None,
         typer.Option("--depth-scale", help="Raw depth units per metre: 1000 (mm, default), TUM 5000, KITTI 256."),
     ] = None,
+    depth_encoding: Annotated[
+        str | None,
+        typer.Option(
+            "--depth-encoding",
+            help="linear (value / --depth-scale, default), sun (SUN RGB-D bit-rotated PNG) or kinect-disparity "
+            "(raw NYU-v2 Kinect disparity, e.g. its .pgm dumps).",
+        ),
+    ] = None,
     depth_relative: Annotated[
         bool | None, typer.Option("--depth-relative", help="Depth is 8-bit RELATIVE (larger = farther).")
     ] = None,
@@ -125,6 +133,7 @@ def synth(
         overrides["output"] = {"save_intermediate": save_intermediate}
     for key, value in (
         ("depth_scale", depth_scale),
+        ("depth_encoding", depth_encoding),
         ("depth_relative", depth_relative),
         ("invalid_depth", invalid_depth),
         ("crop_px", crop),
@@ -147,7 +156,10 @@ def synth(
         bank_path = config.marine_snow.bank or str(default_snow_bank())
     shard_obj = Shard.parse(shard)
     if not sources:
-        raise ValueError(f"{paths[0] if list_file is None else list_file}: no RGB-D pairs found")
+        why = "; ".join(f"{p.path}: {p.error}" for p in problems[:3])
+        raise ValueError(
+            f"{paths[0] if list_file is None else list_file}: no RGB-D pairs found" + (f" ({why})" if why else "")
+        )
 
     with Progress(
         TextColumn("[bold]synth[/]"),
@@ -174,6 +186,8 @@ def synth(
         f"{summary.variants_per_s:.1f} variants/s -> {summary.out_dir}",
         soft_wrap=True,
     )
+    for note in summary.notes[:10]:
+        console.print(f"  [yellow]warning:[/] {note}", soft_wrap=True)
     if summary.failures:
         for p in summary.failures[:10]:
             console.print(f"  [red]failed:[/] {p.path}: {p.error}", markup=True, soft_wrap=True)

@@ -12,6 +12,15 @@ Supported encodings:
   0.3-15 m (:data:`RELATIVE_NEAR_M`, :data:`RELATIVE_FAR_M`); only the normalised distance mode of the
   synthesis can use it meaningfully.
 - NYU-v2 ``nyu_depth_v2_labeled.mat`` (HDF5; arrays stored transposed), see :func:`read_nyu_mat`.
+
+Encodings of integer depth images (``encoding``):
+
+- ``linear`` (default): metres = value / ``depth_scale``.
+- ``sun``: SUN RGB-D's bit-rotated PNGs: metres = ((v >> 3) | (v << 13) & 0xFFFF) / 1000.
+- ``kinect-disparity``: raw Kinect v1 disparity as in NYU-v2's raw dumps: metres = 351.3 / (1092.5 - raw),
+  raw >= 2047 invalid. NYU's raw ``.pgm`` files store the samples little-endian although the PGM header
+  implies big-endian, so PGM input is byte-swapped. Raw NYU depth is NOT registered to the colour image:
+  use it for loader checks or with registered data only.
 """
 
 from __future__ import annotations
@@ -27,17 +36,22 @@ from murk.errors import InputFileError
 from murk.io.atomic import atomic_path
 
 InvalidDepthMode = Literal["fill", "far", "fail"]
+DepthEncoding = Literal["linear", "sun", "kinect-disparity"]
+DEPTH_ENCODINGS: tuple[str, ...] = ("linear", "sun", "kinect-disparity")
 RELATIVE_NEAR_M = 0.3
 RELATIVE_FAR_M = 15.0
 
 
-def read_depth(path: str | Path, *, depth_scale: float = 1000.0, relative: bool = False) -> np.ndarray:
+def read_depth(
+    path: str | Path, *, depth_scale: float = 1000.0, relative: bool = False, encoding: DepthEncoding = "linear"
+) -> np.ndarray:
     """Read a depth file as float32 metres, shape (H, W). Invalid pixels keep their raw value (0, NaN, inf).
 
     Args:
         path: a uint16 PNG/TIFF, an 8-bit image (with ``relative=True``) or a ``.npy`` file in metres.
         depth_scale: raw units per metre for integer images (1000 = millimetres).
         relative: accept 8-bit relative depth (larger = farther) and map it linearly to 0.3-15 m.
+        encoding: how integer samples map to metres (see the module docstring).
 
     Raises:
         InputFileError: missing/undecodable file, wrong number of channels, or 8-bit depth without
@@ -48,6 +62,8 @@ def read_depth(path: str | Path, *, depth_scale: float = 1000.0, relative: bool 
         raise InputFileError(path, "depth file not found")
     if not (np.isfinite(depth_scale) and depth_scale > 0):
         raise ValueError(f"depth_scale: expected a finite number > 0, got {depth_scale}")
+    if encoding not in DEPTH_ENCODINGS:
+        raise ValueError(f"depth_encoding: expected one of {', '.join(DEPTH_ENCODINGS)}, got {encoding!r}")
     if path.suffix.lower() == ".npy":
         try:
             raw = np.load(path, allow_pickle=False)
@@ -80,6 +96,15 @@ def read_depth(path: str | Path, *, depth_scale: float = 1000.0, relative: bool 
         )
     if np.issubdtype(raw.dtype, np.floating):
         return raw.astype(np.float32)  # float TIFF/EXR: metres
+    if encoding == "sun":
+        v = raw.astype(np.uint32)
+        return ((((v >> 3) | (v << 13)) & 0xFFFF).astype(np.float64) / 1000.0).astype(np.float32)
+    if encoding == "kinect-disparity":
+        r = raw.byteswap() if path.suffix.lower() == ".pgm" else raw
+        r = r.astype(np.float64)
+        with np.errstate(divide="ignore"):
+            m = np.where(r < 2047, 351.3 / (1092.5 - r), 0.0)
+        return np.where(m > 0, m, 0.0).astype(np.float32)
     return (raw.astype(np.float64) / depth_scale).astype(np.float32)
 
 

@@ -12,10 +12,10 @@ from pathlib import Path
 import numpy as np
 
 from murk.errors import InputFileError
-from murk.io.depth import InvalidDepthMode, nyu_mat_count, read_depth, read_nyu_mat, resolve_invalid
+from murk.io.depth import DepthEncoding, InvalidDepthMode, nyu_mat_count, read_depth, read_nyu_mat, resolve_invalid
 from murk.io.images import IMAGE_SUFFIXES, read_image, to_float
 
-DEPTH_SUFFIXES = (*IMAGE_SUFFIXES, ".npy")
+DEPTH_SUFFIXES = (*IMAGE_SUFFIXES, ".pgm", ".npy")
 
 
 @dataclass(frozen=True)
@@ -36,6 +36,7 @@ class DepthOptions:
     relative: bool = False
     invalid: InvalidDepthMode = "fill"
     crop_px: int = 0
+    encoding: DepthEncoding = "linear"
 
 
 @dataclass(frozen=True)
@@ -67,7 +68,7 @@ def discover(path: str | Path) -> tuple[list[RGBDSource], list[Problem]]:
     rgbs = _by_stem(rgb_dir, IMAGE_SUFFIXES)
     depths = _by_stem(depth_dir, DEPTH_SUFFIXES)
     if not rgbs:
-        raise InputFileError(rgb_dir, "no images found")
+        raise InputFileError(rgb_dir, f"no images found (recognised suffixes: {', '.join(IMAGE_SUFFIXES)})")
     sources, problems = [], []
     for stem in sorted(rgbs):
         if stem in depths:
@@ -124,7 +125,9 @@ def load_pair(source: RGBDSource, options: DepthOptions) -> tuple[np.ndarray, np
         where = f"{source.rgb_path}[{source.mat_index}]"
     else:
         rgb_u, _ = read_image(source.rgb_path)
-        depth = read_depth(source.depth_path, depth_scale=options.depth_scale, relative=options.relative)
+        depth = read_depth(
+            source.depth_path, depth_scale=options.depth_scale, relative=options.relative, encoding=options.encoding
+        )
         where = source.depth_path
     if rgb_u.shape[:2] != depth.shape:
         raise InputFileError(

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from murk._checks import check_interval, check_positive, check_range
-from murk.io.depth import InvalidDepthMode
+from murk.io.depth import DEPTH_ENCODINGS, DepthEncoding, InvalidDepthMode
 from murk.physics.forward_scatter import FsMode
 from murk.physics.jerlov import WATER_TYPES, parse_water_types
 from murk.physics.medium import DistanceMode
@@ -124,6 +124,8 @@ class InputConfig:
 
     depth_scale: float = 1000.0
     """Raw units per metre of integer depth images (1000 = mm; TUM 5000; KITTI 256)."""
+    depth_encoding: DepthEncoding = "linear"
+    """How integer depth maps to metres: linear (value / depth_scale), sun (SUN RGB-D), kinect-disparity (raw NYU)."""
     depth_relative: bool = False
     """Accept 8-bit relative depth (larger = farther); needs distance_mode 'normalized'."""
     invalid_depth: InvalidDepthMode = "fill"
@@ -134,6 +136,10 @@ class InputConfig:
 
     def __post_init__(self) -> None:
         check_positive("depth_scale", self.depth_scale)
+        if self.depth_encoding not in DEPTH_ENCODINGS:
+            raise ValueError(
+                f"depth_encoding: expected one of {', '.join(DEPTH_ENCODINGS)}, got {self.depth_encoding!r}"
+            )
         if self.invalid_depth not in ("fill", "far", "fail"):
             raise ValueError(f"invalid_depth: expected 'fill', 'far' or 'fail', got {self.invalid_depth!r}")
         if self.crop_px < 0:

@@ -89,6 +89,8 @@ class RunSummary:
     variants_skipped: int = 0
     failures: list[Problem] = field(default_factory=list)
     seconds: float = 0.0
+    notes: list[str] = field(default_factory=list)
+    """Warnings about the inputs (e.g. implausible depth ranges)."""
 
     @property
     def variants_per_s(self) -> float:
@@ -194,12 +196,13 @@ def process_source(
     bank = _WORKER_BANK if bank is None else bank
     out = Path(out_dir)
     inp = config.input
-    opts = DepthOptions(inp.depth_scale, inp.depth_relative, inp.invalid_depth, inp.crop_px)
+    opts = DepthOptions(inp.depth_scale, inp.depth_relative, inp.invalid_depth, inp.crop_px, inp.depth_encoding)
     try:
         rgb, depth, valid = load_pair(source, opts)
         rgb, depth, valid = fit_size(rgb, depth, valid, inp.size)
     except (ValueError, OSError) as exc:
         return [], [Problem(source.rgb_path, str(exc))]
+    note = depth_range_note(source, depth[valid])
     png = config.output.png_compression
     files0 = paths_for(source.stem, 0)
     if not (out / files0["clean"]).exists():
@@ -231,8 +234,23 @@ def process_source(
             "sigma_max": res.sigma_max_px,
             "valid_depth_fraction": float(valid.mean()),
         }
+        if note:
+            info["depth_warning"] = note
         records.append(manifest_record(source, k, seed, params, info, keep))
     return records, []
+
+
+def depth_range_note(source: RGBDSource, valid_depth_m: np.ndarray) -> str | None:
+    """A warning when a depth map's values are implausible in metres (a wrong --depth-scale/--depth-encoding)."""
+    if valid_depth_m.size == 0 or source.mat_index is not None:
+        return None
+    med = float(np.median(valid_depth_m))
+    if 0.1 <= med <= 20.0:  # underwater scenes end at 15 m: a larger median means a wrong scale or encoding
+        return None
+    return (
+        f"{source.depth_path}: median depth {med:.3g} m is implausible for a camera scene; check --depth-scale "
+        "(1000 mm, 5000 TUM, 256 KITTI) and --depth-encoding (sun, kinect-disparity)"
+    )
 
 
 # ---------------------------------------------------------------------------------------------- the run
@@ -354,7 +372,9 @@ def run_synthesis(
             futures = {ex.submit(process_source, s, ks, config, str(out)): len(ks) for s, ks in todo}
             for fut in as_completed(futures):
                 collect(*fut.result(), futures[fut])
-    write_index(out, load_records(out))
+    final = load_records(out)
+    write_index(out, final)
+    summary.notes = sorted({r["depth_warning"] for r in final.values() if r.get("depth_warning")})
     errors_path = out / "errors.jsonl"
     if summary.failures:
         write_jsonl(errors_path, [{"path": p.path, "error": p.error} for p in summary.failures])

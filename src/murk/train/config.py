@@ -45,6 +45,7 @@ class DataConfig:
     workers: int = 2
     """DataLoader worker processes per training process."""
     depth_scale: float = 1000.0
+    depth_encoding: Literal["linear", "sun", "kinect-disparity"] = "linear"
     invalid_depth: Literal["fill", "far", "fail"] = "fill"
     scenes_count: int = 2000
     """Number of procedural scenes (``source: scenes``); scene i is the same in every epoch."""

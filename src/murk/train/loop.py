@@ -111,7 +111,7 @@ def build_data(config: TrainConfig) -> DataSetup:
         return DataSetup(PairDataset(tr, crop), PairDataset(va, crop) if va else None, None, kind)
     if kind == "rgbd":
         sources = rgbd_sources(d.source)
-        opts = DepthOptions(depth_scale=d.depth_scale, invalid=d.invalid_depth)
+        opts = DepthOptions(depth_scale=d.depth_scale, invalid=d.invalid_depth, encoding=d.depth_encoding)
         ti, vi = split_by_stem([s.stem for s in sources], d.val_fraction, config.seed)
         online = OnlineDegrader(d.synthesis, seed=config.seed)
         train = CleanRGBDDataset([sources[i] for i in ti], crop, opts)
