@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import os
 import platform
 import statistics
@@ -38,6 +39,12 @@ def interleaved(fns: dict[str, Callable[[], object]], *, rounds: int = 7, inner:
                 f()
             samples[k].append((time.perf_counter() - t0) / inner * 1e3)
     return {k: statistics.median(v) for k, v in samples.items()}
+
+
+def cycler(items: list) -> Callable[[], object]:
+    """A function returning the items of ``items`` in turn (so repeated timings see varied parameters)."""
+    it = itertools.cycle(items)
+    return lambda: next(it)
 
 
 def machine() -> str:

@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import interleaved, machine, pin_one_core
+from _common import cycler, interleaved, machine, pin_one_core
 
 pin_one_core()
 
@@ -122,11 +122,7 @@ def main() -> None:
 def run(image: np.ndarray, bank: ParticleBank) -> None:
     pats = patches(bank)
     params = [sample_snow(s, bank, n_particles=(N, N)) for s in range(8)]
-    it = {"i": 0}
-
-    def nxt():
-        it["i"] = (it["i"] + 1) % len(params)
-        return params[it["i"]]
+    nxt = cycler(params)
 
     ms = interleaved(
         {

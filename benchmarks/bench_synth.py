@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import interleaved, machine, pin_one_core
+from _common import cycler, interleaved, machine, pin_one_core
 
 pin_one_core()
 
@@ -49,16 +49,6 @@ def baseline(clean_u8: np.ndarray, depth_mm: np.ndarray, p, forward_scatter: boo
     return np.clip(img, 0.0, 1.0)
 
 
-def _cycler(items: list) -> object:
-    state = {"i": 0}
-
-    def nxt():
-        state["i"] = (state["i"] + 1) % len(items)
-        return items[state["i"]]
-
-    return nxt
-
-
 def main() -> None:
     sources, _ = discover(sample_rgbd_dir())
     src = next(s for s in sources if s.stem.startswith("redwood"))  # 640x480
@@ -71,7 +61,7 @@ def main() -> None:
     for stages in (("basic",), ("basic", "forward_scatter")):
         cfg = merge(SynthConfig(), {"stages": list(stages)})
         params = [sample_variant(s, cfg) for s in range(8)]
-        nxt = _cycler(params)
+        nxt = cycler(params)
 
         fs = "forward_scatter" in stages
         ms = interleaved(

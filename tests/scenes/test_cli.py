@@ -101,8 +101,8 @@ def test_config_textures_and_jpeg(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--size", "64by48"], "--size: expected WIDTHxHEIGHT"),
-        (["--size", "4x48"], "--size: expected 8 <= width, height <= 16384"),
+        (["--size", "64by48"], "--size: expected WxH"),
+        (["--size", "4x48"], "size: expected 8 <= width, height <= 16384"),
         (["--rgb-format", "tif"], "--rgb-format: expected png or jpg"),
         (["--config", "missing.yaml"], "missing.yaml: config file not found"),
         (["--textures", "nowhere"], "nowhere: not a folder"),

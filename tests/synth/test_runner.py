@@ -10,7 +10,7 @@ import pytest
 
 from murk._config import merge
 from murk.data import default_snow_bank
-from murk.io import DepthOptions, discover, load_pair, read_jsonl, read_rgb, to_float
+from murk.io import DepthOptions, discover, load_pair, read_jsonl, read_rgb
 from murk.snow.bank import load_bank
 from murk.synth.config import SynthConfig
 from murk.synth.params import variant_from_dict
@@ -162,4 +162,3 @@ def test_relative_depth_and_size_via_config(tmp_path: Path) -> None:
     assert out.shape == (30, 30, 3)
     rec = json.loads((tmp_path / "out" / "manifest.jsonl").read_text().splitlines()[0])
     assert rec["width"] == 30 and rec["dist_max_m"] == pytest.approx(rec["H"], rel=1e-5)
-    assert to_float(np.array([[[255, 0, 0]]], np.uint8)).max() == 1.0

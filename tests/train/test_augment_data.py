@@ -8,7 +8,7 @@ import torch
 
 from murk._config import merge
 from murk.errors import InputFileError
-from murk.io import DepthOptions, discover, load_pair
+from murk.io import DepthOptions, discover
 from murk.synth.config import SynthConfig
 from murk.synth.pipeline import render
 from murk.synth.runner import run_synthesis
@@ -130,5 +130,3 @@ def test_online_batches_equal_numpy_synthesis(small_rgbd: Path, stages: list[str
         ref = render(clean[i].permute(1, 2, 0).numpy(), depth[i, 0].numpy(), p, bank=deg.bank).degraded
         assert np.abs(out[i].permute(1, 2, 0).numpy() - ref).max() < 1 / 255
     assert deg.params(3, [0]) == deg.params(3, [0]) and deg.params(4, [0]) != deg.params(3, [0])
-    rgb, _, _ = load_pair(sources[0], DepthOptions())
-    assert rgb.shape == (48, 64, 3)

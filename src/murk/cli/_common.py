@@ -48,6 +48,18 @@ def make_console(quiet: bool = False) -> Console:
     return Console(stderr=True, quiet=quiet, highlight=False)
 
 
+def parse_size(text: str, *, option: str = "--size") -> tuple[int, int]:
+    """Parse ``WxH`` (e.g. ``640x480``) into (width, height), both >= 1; the error names ``option``."""
+    parts = text.lower().strip().split("x")
+    try:
+        w, h = (int(p) for p in parts)
+    except ValueError:
+        raise ValueError(f"{option}: expected WxH with integers >= 1 (e.g. 640x480), got {text!r}") from None
+    if w < 1 or h < 1:
+        raise ValueError(f"{option}: expected WxH with integers >= 1 (e.g. 640x480), got {text!r}")
+    return w, h
+
+
 def resolve_device(device: str) -> str:
     """Validate a ``--device`` value; ``cuda`` without a GPU is an error that says so."""
     import torch

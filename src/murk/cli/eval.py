@@ -15,7 +15,7 @@ from typing import Annotated, Any
 
 import typer
 
-from murk.cli._common import EXIT_OK, EXIT_PARTIAL, QuietOpt, make_console, print_error
+from murk.cli._common import EXIT_OK, EXIT_PARTIAL, QuietOpt, make_console, parse_size, print_error
 
 _NOREF_COLUMNS = ("uiqm", "uicm", "uism", "uiconm", "uciqe", "sigma_c", "con_l", "mu_s")
 _REF_COLUMNS = ("psnr", "ssim")
@@ -84,7 +84,7 @@ def evaluate(
     from murk.metrics.reference import SSIM_WINDOWS
 
     uiqm_preset, uciqe_preset = _parse_presets(preset or [], UIQM_PRESETS, UCIQE_PRESETS)
-    size_wh = _parse_size(resize) if resize is not None else None
+    size_wh = parse_size(resize, option="--resize") if resize is not None else None
     if ssim_window not in SSIM_WINDOWS:
         raise ValueError(f"--ssim-window: expected one of {', '.join(SSIM_WINDOWS)}, got {ssim_window!r}")
     if not (math.isfinite(depth_scale) and depth_scale > 0):
@@ -154,17 +154,6 @@ def _parse_presets(values: list[str], uiqm_presets: tuple[str, ...], uciqe_prese
             raise ValueError(f"--preset: two {kind.upper()} presets given; give at most one per metric")
         seen.add(kind)
     return uiqm_p, uciqe_p
-
-
-def _parse_size(text: str) -> tuple[int, int]:
-    parts = text.lower().split("x")
-    try:
-        w, h = (int(p) for p in parts)
-    except ValueError:
-        raise ValueError(f"--resize: expected WxH with integers >= 1 (e.g. 256x256), got {text!r}") from None
-    if w < 1 or h < 1:
-        raise ValueError(f"--resize: expected WxH with integers >= 1 (e.g. 256x256), got {text!r}")
-    return w, h
 
 
 # ----------------------------------------------------------------------------------------------------------

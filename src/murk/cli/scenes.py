@@ -8,7 +8,7 @@ from typing import Annotated, Any
 
 import typer
 
-from murk.cli._common import EXIT_PARTIAL, QuietOpt, make_console
+from murk.cli._common import EXIT_PARTIAL, QuietOpt, make_console, parse_size
 
 
 def scenes(
@@ -37,7 +37,7 @@ def scenes(
 
     from murk.errors import InputFileError
     from murk.scenes import SceneConfig
-    from murk.scenes.dataset import load_textures, parse_size
+    from murk.scenes.dataset import load_textures
 
     console = make_console(quiet)
     wh = parse_size(size)

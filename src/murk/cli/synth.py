@@ -7,15 +7,7 @@ from typing import Annotated, Any
 
 import typer
 
-from murk.cli._common import EXIT_PARTIAL, QuietOpt, make_console
-
-
-def _parse_size(spec: str) -> list[int]:
-    try:
-        w, h = (int(v) for v in spec.lower().split("x"))
-    except ValueError:
-        raise ValueError(f"--size: expected WxH (e.g. 640x480), got {spec!r}") from None
-    return [w, h]
+from murk.cli._common import EXIT_PARTIAL, QuietOpt, make_console, parse_size
 
 
 def synth(
@@ -141,7 +133,7 @@ def synth(
         if value is not None:
             inp[key] = value
     if size is not None:
-        inp["size"] = _parse_size(size)
+        inp["size"] = list(parse_size(size))
     if snow_bank is not None:
         overrides["marine_snow"] = {"bank": str(snow_bank)}
     if medium:

@@ -29,17 +29,6 @@ DEPTH_NOTE = (
 _TEXTURES: dict[str, Any] = {}
 
 
-def parse_size(text: str) -> tuple[int, int]:
-    """Parse ``WxH`` (e.g. ``640x480``) into (width, height)."""
-    parts = text.lower().replace("*", "x").split("x")
-    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
-        raise ValueError(f"--size: expected WIDTHxHEIGHT such as 640x480, got {text!r}")
-    w, h = (int(p) for p in parts)
-    if not (8 <= w <= 16384 and 8 <= h <= 16384):
-        raise ValueError(f"--size: expected 8 <= width, height <= 16384, got {text!r}")
-    return w, h
-
-
 def stem_of(index: int) -> str:
     """File stem of scene ``index``."""
     return f"scene_{index:06d}"
@@ -178,6 +167,8 @@ def write_scenes(
     from murk.scenes import SceneConfig
 
     out_dir = Path(out_dir)
+    if len(size) != 2 or not all(8 <= v <= 16384 for v in size):
+        raise ValueError(f"size: expected 8 <= width, height <= 16384, got {size[0]}x{size[1]}")
     cfg = SceneConfig() if config is None else config
     tex = dict(textures or {})
     fmt = rgb_format.lower()

@@ -144,15 +144,6 @@ def _dist_info() -> tuple[int, int, int]:
     return int(os.environ.get("RANK", "0")), world, int(os.environ.get("LOCAL_RANK", "0"))
 
 
-def _pad32(x: torch.Tensor) -> tuple[torch.Tensor, tuple[int, int]]:
-    h, w = x.shape[-2:]
-    ph, pw = (-h) % 32, (-w) % 32
-    if ph or pw:
-        mode = "reflect" if ph < h and pw < w else "replicate"
-        x = F.pad(x, (0, pw, 0, ph), mode=mode)
-    return x, (h, w)
-
-
 def _to_device(batch: dict[str, Any], device: torch.device) -> dict[str, Any]:
     return {k: v.to(device, non_blocking=True) if torch.is_tensor(v) else v for k, v in batch.items()}
 
@@ -436,7 +427,8 @@ def evaluate(
 ) -> dict[str, float]:
     """PSNR/SSIM and depth errors on the held-out synthetic split; UIQM/UCIQE on real images."""
     from murk.metrics import depth_errors_torch, psnr_torch, ssim_torch, uciqe_torch, uiqm_torch
-    from murk.models.jointid import normalize_input
+    from murk.models.jointid import SIZE_MULTIPLE, normalize_input
+    from murk.models.padding import pad_to_multiple
 
     was_training = model.training
     model.eval()
@@ -477,8 +469,8 @@ def evaluate(
             x = torch.from_numpy(img).permute(2, 0, 1)[None].to(device)
             if scale < 1.0:
                 x = F.interpolate(x, scale_factor=scale, mode="area")
-            xp, (hh, ww) = _pad32(x)
-            o = model(normalize_input(xp)).enhanced.float()[..., :hh, :ww].clamp(0, 1)
+            xp, padding = pad_to_multiple(x, SIZE_MULTIPLE)
+            o = padding.crop(model(normalize_input(xp)).enhanced.float()).clamp(0, 1)
             uiqms.append(uiqm_torch(o, data_range=1.0).uiqm)
             uciqes.append(uciqe_torch(o, data_range=1.0).uciqe)
         if uiqms:

@@ -162,7 +162,7 @@ def _check_input(x: Tensor) -> None:
     if h < SIZE_MULTIPLE or w < SIZE_MULTIPLE or h % SIZE_MULTIPLE or w % SIZE_MULTIPLE:
         raise ShapeError(
             f"x: expected height and width that are positive multiples of {SIZE_MULTIPLE}, got {h}x{w} "
-            "(pad with murk.enhance.tiling.pad_to_multiple)"
+            "(pad with murk.models.padding.pad_to_multiple)"
         )
 
 

@@ -1,0 +1,92 @@
+"""Padding to a size multiple without resizing (generic, torch).
+
+Networks with a total stride (Joint-ID: 32) need input sizes that are multiples of it. Instead of resizing
+(which the original Joint-ID inference does, and which blurs and distorts the output), the image is
+reflect-padded up to the next multiple and the output cropped back, so every output pixel corresponds to the
+input pixel at the same place. Used by inference (:mod:`murk.enhance.tiling`, the ``jointid`` restorer) and by
+evaluation during training.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import torch.nn.functional as F
+from torch import Tensor
+
+PadMode = Literal["reflect", "replicate"]
+
+
+@dataclass(frozen=True)
+class Padding:
+    """Pixels added on each side by :func:`pad_to_multiple`; :meth:`crop` removes them."""
+
+    top: int
+    bottom: int
+    left: int
+    right: int
+
+    def crop(self, x: Tensor) -> Tensor:
+        """Remove the padding from a (..., H_padded, W_padded) tensor."""
+        h, w = x.shape[-2], x.shape[-1]
+        return x[..., self.top : h - self.bottom, self.left : w - self.right]
+
+
+def padding_for(height: int, width: int, multiple: int = 32) -> Padding:
+    """The symmetric padding (extra pixel at the bottom/right) that makes (height, width) multiples of ``multiple``.
+
+    Raises:
+        ValueError: non-positive sizes or multiple.
+    """
+    if height < 1 or width < 1:
+        raise ValueError(f"size: expected a positive height and width, got {height}x{width}")
+    if multiple < 1:
+        raise ValueError(f"multiple: expected a positive integer, got {multiple}")
+    ph = -height % multiple
+    pw = -width % multiple
+    return Padding(ph // 2, ph - ph // 2, pw // 2, pw - pw // 2)
+
+
+def _pad_axis(x: Tensor, before: int, after: int, dim: int, mode: PadMode) -> Tensor:
+    """Pad one spatial axis (dim -1 or -2); reflection is repeated when the pad exceeds the size - 1."""
+    while before > 0 or after > 0:
+        size = x.shape[dim]
+        step = size - 1 if mode == "reflect" else max(before, after)
+        if step < 1:  # a single row/column cannot be reflected: replicate it
+            mode, step = "replicate", max(before, after)
+        b, a = min(before, step), min(after, step)
+        pads = (b, a, 0, 0) if dim == -1 else (0, 0, b, a)
+        x = F.pad(x, pads, mode=mode)
+        before, after = before - b, after - a
+    return x
+
+
+def pad_to_multiple(x: Tensor, multiple: int = 32, mode: PadMode = "reflect") -> tuple[Tensor, Padding]:
+    """Pad a (B, C, H, W) batch so that H and W become multiples of ``multiple``; never resizes.
+
+    Reflection mirrors without repeating the edge pixel (like ``numpy.pad(mode="reflect")``) and is repeated
+    when the padding is larger than the image; a 1-pixel axis is replicated instead.
+
+    Args:
+        x: (B, C, H, W) tensor, any float dtype/device.
+        multiple: the size multiple (32 for Joint-ID).
+        mode: ``"reflect"`` or ``"replicate"``.
+
+    Returns:
+        The padded tensor and the :class:`Padding`, whose ``crop`` undoes it.
+
+    Raises:
+        ShapeError: ``x`` is not 4-D.
+        ValueError: unknown mode.
+    """
+    from murk.errors import ShapeError
+
+    if x.ndim != 4:
+        raise ShapeError(f"x: expected shape (B, C, H, W), got {tuple(x.shape)}")
+    if mode not in ("reflect", "replicate"):
+        raise ValueError(f"mode: expected 'reflect' or 'replicate', got {mode!r}")
+    pad = padding_for(x.shape[2], x.shape[3], multiple)
+    x = _pad_axis(x, pad.top, pad.bottom, -2, mode)
+    x = _pad_axis(x, pad.left, pad.right, -1, mode)
+    return x, pad
