@@ -98,3 +98,19 @@ def test_torch_twin_equals_numpy(rng: np.random.Generator) -> None:
         np.testing.assert_allclose(alpha_t[i, 0].numpy(), alpha, atol=1e-5)
     with pytest.raises(ValueError, match="expected 3 snow parameter sets"):
         composite_snow_torch(torch.from_numpy(imgs).permute(0, 3, 1, 2), params[:2], bank)
+
+
+def test_reference_area_scales_the_count_with_the_image_area() -> None:
+    """reference_area_px: N_p counts particles per reference frame, so a crop keeps a full frame's density."""
+    from dataclasses import replace
+
+    from murk.snow.composite import particle_count
+
+    p = replace(_params(1200), reference_area_px=640 * 480)
+    assert particle_count(p, 640, 480) == 1200
+    assert particle_count(p, 160, 120) == 75  # 1/16 of the area
+    assert len(snow_layout(p, 10, 160, 120).index) == 75
+    assert particle_count(_params(1200), 160, 120) == 1200  # default: per image, as in the paper
+    g = np.random.default_rng(0)
+    bank = load_bank(default_snow_bank())
+    assert sample_snow(g, bank, reference_area_px=307200).reference_area_px == 307200

@@ -45,6 +45,16 @@ class SnowParams:
     bank_id: str
     reference_width_px: int = 0
     """If > 0, scales are multiplied by (image width / reference_width_px)."""
+    reference_area_px: int = 0
+    """If > 0, ``n_particles`` is a count per this many pixels: an image of ``H * W`` pixels gets
+    ``round(n_particles * H * W / reference_area_px)`` particles (the same density at every crop size)."""
+
+
+def particle_count(params: SnowParams, width: int, height: int) -> int:
+    """The number of particles drawn for an image of ``width`` x ``height`` (see ``reference_area_px``)."""
+    if params.reference_area_px > 0:
+        return int(round(params.n_particles * width * height / params.reference_area_px))
+    return params.n_particles
 
 
 @dataclass(frozen=True)
@@ -64,6 +74,7 @@ def sample_snow(
     scale: tuple[float, float] = (0.3, 0.6),
     rho_px: tuple[float, float] = (0.2, 1.0),
     reference_width_px: int = 0,
+    reference_area_px: int = 0,
 ) -> SnowParams:
     """Draw N_p ~ U{a..b}, rho ~ U[a, b] and the layout seed of one image."""
     g = as_generator(rng)
@@ -74,6 +85,7 @@ def sample_snow(
         layout_seed=int(g.integers(0, 2**63 - 1)),
         bank_id=bank.bank_id,
         reference_width_px=int(reference_width_px),
+        reference_area_px=int(reference_area_px),
     )
 
 
@@ -82,7 +94,7 @@ def snow_layout(params: SnowParams, bank_size: int, width: int, height: int) -> 
     if bank_size < 1:
         raise ValueError("bank: expected at least one particle, got an empty bank")
     g = np.random.default_rng(params.layout_seed)
-    n = params.n_particles
+    n = particle_count(params, width, height)
     index = g.integers(0, bank_size, size=n)
     scale = g.uniform(params.scale_range[0], params.scale_range[1], size=n)
     if params.reference_width_px > 0:

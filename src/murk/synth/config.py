@@ -107,6 +107,10 @@ class SnowConfig:
     reference_width_px: int = 0
     """If > 0, particle sizes are multiplied by (image width / this), so snow keeps its look across
     resolutions; 0 = sizes in the bank's pixels, as in the paper."""
+    reference_area_px: int = 0
+    """If > 0, ``n_particles`` counts particles per this many pixels (e.g. 307200 = the paper's counts on a
+    640x480 frame), so a small training crop gets the same snow density as a full frame; 0 = per image, as in
+    the paper."""
 
     def __post_init__(self) -> None:
         lo, hi = self.n_particles
@@ -116,6 +120,8 @@ class SnowConfig:
         check_interval("rho_px", self.rho_px, 1e-3, 100.0)
         if self.reference_width_px < 0:
             raise ValueError(f"reference_width_px: expected >= 0, got {self.reference_width_px}")
+        if self.reference_area_px < 0:
+            raise ValueError(f"reference_area_px: expected >= 0, got {self.reference_area_px}")
 
 
 @dataclass(frozen=True)

@@ -130,6 +130,7 @@ def snow_sampler_for(config: SynthConfig, bank: Any) -> Any:
             scale=sc.scale,
             rho_px=sc.rho_px,
             reference_width_px=sc.reference_width_px,
+            reference_area_px=sc.reference_area_px,
         )
 
     return sampler
