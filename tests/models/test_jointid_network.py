@@ -234,3 +234,19 @@ def test_rln_matches_the_spec_formula(monkeypatch, onnx_path):
     np.testing.assert_allclose(y.numpy(), (xn - mu) / sigma * w.numpy() + b.numpy(), rtol=1e-5, atol=1e-5)
     np.testing.assert_allclose(rescale.numpy(), sigma * sw.numpy() + sb.numpy(), rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(rebias.numpy(), mu * hw.numpy() + hb.numpy(), rtol=1e-5, atol=1e-6)
+
+
+def test_small_variant_size_and_residual_identity() -> None:
+    """'small' ships in the package (<= 10 MB in fp16) and, with a zero head, returns its input exactly."""
+    from murk.models.jointid.network import RESIDUAL_EPS
+
+    model = build_jointid("small")
+    n = sum(p.numel() for p in model.parameters())
+    assert n * 2 <= 10 * 2**20, n
+    assert model.config.residual_output and not build_jointid("base", init=False).config.residual_output
+    with torch.no_grad():
+        model.enhanced_structure.decoder.linear_pred1.weight.zero_()
+        model.enhanced_structure.decoder.linear_pred1.bias.zero_()
+    x = torch.rand(2, 3, 64, 96, generator=torch.Generator().manual_seed(0))
+    out = model(normalize_input(x)).enhanced
+    torch.testing.assert_close(out, x.clamp(RESIDUAL_EPS, 1 - RESIDUAL_EPS), atol=2e-5, rtol=0)

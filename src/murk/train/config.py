@@ -17,7 +17,7 @@ DataKind = Literal["auto", "synth", "list", "rgbd", "scenes"]
 class ModelConfig:
     """Which network, and optionally the weights to start from."""
 
-    variant: Literal["base", "tiny"] = "base"
+    variant: Literal["base", "small", "tiny"] = "base"
     init_checkpoint: str | None = None
     """Start from these weights (murk or official format) instead of the random initialisation."""
     trust_checkpoint: bool = False
@@ -49,6 +49,9 @@ class DataConfig:
     invalid_depth: Literal["fill", "far", "fail"] = "fill"
     scenes_count: int = 2000
     """Number of procedural scenes (``source: scenes``); scene i is the same in every epoch."""
+    cache_scenes: bool = False
+    """Keep rendered scenes in memory (``source: scenes``, ``workers: 0``): each scene is rendered once instead
+    of every epoch (about 12 ms per 128x160 scene; 0.33 MB each)."""
     synthesis: SynthConfig = field(
         default_factory=lambda: SynthConfig(stages=("basic", "forward_scatter", "marine_snow"))
     )

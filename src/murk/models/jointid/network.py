@@ -25,7 +25,7 @@ from murk.errors import ShapeError
 from murk.models.jointid.decoder import Decoder, JointBlock, Task
 from murk.models.jointid.encoder import Encoder
 
-Variant = Literal["base", "tiny"]
+Variant = Literal["base", "small", "tiny"]
 
 INPUT_MEAN = (0.13553666, 0.41034216, 0.34636855)
 """Per-channel (R, G, B) mean of the input normalisation of the training recipe."""
@@ -47,6 +47,11 @@ class JointIDConfig:
     decoder_blocks: int = 3
     decoder_dim: int = 256
     max_depth_m: float = 15.0
+    residual_output: bool = False
+    """False (the original): ``enhanced = sigmoid(head)``. True: ``enhanced = sigmoid(head + logit(input))``,
+    i.e. the head predicts a correction of the input in logit space, so full-resolution detail does not have
+    to pass through the decoder's 1/4-resolution skips. murk's ``small`` CPU variant uses it (docs/models.md
+    gives the measurements); the official ``base`` model does not."""
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict (lists and numbers only), safe for ``torch.load(weights_only=True)`` and JSON."""
@@ -67,6 +72,16 @@ class JointIDConfig:
 
 VARIANTS: dict[str, JointIDConfig] = {
     "base": JointIDConfig(),
+    # The model murk trains on 2 CPU cores and ships (docs/models.md): tiny's widths with two blocks per
+    # encoder stage (more context), one mix block per decoder scale, and the residual output.
+    "small": JointIDConfig(
+        embed_dims=(16, 32, 64, 128),
+        depths=(2, 2, 2, 2),
+        num_heads=(1, 1, 2, 4),
+        decoder_blocks=1,
+        decoder_dim=32,
+        residual_output=True,
+    ),
     # Same structure with small widths and depths: CPU tests, demos and quick experiments.
     "tiny": JointIDConfig(
         embed_dims=(16, 32, 64, 128),
@@ -142,8 +157,23 @@ class JointID(nn.Module):
                 xd = dbr.decoder.up(s, jd)
                 xe = ebr.decoder.up(s, je)
         depth_m = self.config.max_depth_m * torch.sigmoid(dbr.decoder.head(skips_d))
-        enhanced = torch.sigmoid(ebr.decoder.head(skips_e))
-        return JointIDOutput(depth_m, enhanced)
+        logits = ebr.decoder.head(skips_e)
+        if self.config.residual_output:
+            logits = logits + input_logit(x)
+        return JointIDOutput(depth_m, torch.sigmoid(logits))
+
+
+RESIDUAL_EPS = 1e-3
+"""The input is clamped to [eps, 1 - eps] before its logit is taken (finite logits for black/white pixels)."""
+
+
+def input_logit(x: Tensor) -> Tensor:
+    """``logit(clamp(rgb, eps, 1 - eps))`` of the RGB image behind a normalised batch ``x`` (undoes
+    :func:`normalize_input`); the residual output adds it to the head's logits."""
+    mean = torch.tensor(INPUT_MEAN, dtype=x.dtype, device=x.device).view(1, 3, 1, 1)
+    std = torch.tensor(INPUT_STD, dtype=x.dtype, device=x.device).view(1, 3, 1, 1)
+    rgb = (x * std + mean).clamp(RESIDUAL_EPS, 1.0 - RESIDUAL_EPS)
+    return torch.log(rgb) - torch.log1p(-rgb)
 
 
 def _strip_official_prefix(module: nn.Module, state_dict: dict, prefix: str, *args: Any, **kwargs: Any) -> None:
@@ -204,8 +234,9 @@ def build_jointid(variant: Variant | JointIDConfig = "base", *, init: bool = Tru
     """Build a Joint-ID network.
 
     Args:
-        variant: ``"base"`` (the official model, 150,248,900 parameters), ``"tiny"`` (same structure, small
-            widths/depths) or an explicit :class:`JointIDConfig`.
+        variant: ``"base"`` (the official model, 150,248,900 parameters), ``"small"`` (the model murk ships,
+            3.9 M parameters, residual output), ``"tiny"`` (same structure, small widths/depths) or an explicit
+            :class:`JointIDConfig`.
         init: apply :func:`init_weights` (skip it when weights are loaded right after).
 
     Raises:
