@@ -130,3 +130,17 @@ def test_online_batches_equal_numpy_synthesis(small_rgbd: Path, stages: list[str
         ref = render(clean[i].permute(1, 2, 0).numpy(), depth[i, 0].numpy(), p, bank=deg.bank).degraded
         assert np.abs(out[i].permute(1, 2, 0).numpy() - ref).max() < 1 / 255
     assert deg.params(3, [0]) == deg.params(3, [0]) and deg.params(4, [0]) != deg.params(3, [0])
+
+
+def test_cached_scenes_equal_rendered_scenes() -> None:
+    """data.cache_scenes renders each scene once; what it returns equals a fresh render and is a copy."""
+    from murk.train.scenes_source import SceneDataset
+
+    fresh = SceneDataset([3, 5], (32, 64), seed=1)
+    cached = SceneDataset([3, 5], (32, 64), seed=1, cache=True)
+    for i in (0, 1, 0):
+        a, b = fresh[i], cached[i]
+        for k in ("clean", "depth", "depth_filled"):
+            assert torch.equal(a[k], b[k])
+    cached[0]["clean"].zero_()  # callers may modify what they get
+    assert torch.equal(cached[0]["clean"], fresh[0]["clean"])

@@ -123,8 +123,9 @@ def build_data(config: TrainConfig) -> DataSetup:
         count = int(d.source.split(":", 1)[1]) if ":" in d.source else d.scenes_count
         n_val = max(1, round(d.val_fraction * count)) if d.val_fraction > 0 else 0
         online = OnlineDegrader(d.synthesis, seed=config.seed)
-        train = SceneDataset(range(n_val, count), crop, seed=config.seed)
-        val = SceneDataset(range(n_val), crop, seed=config.seed) if n_val else None
+        cache = d.cache_scenes and d.workers == 0
+        train = SceneDataset(range(n_val, count), crop, seed=config.seed, cache=cache)
+        val = SceneDataset(range(n_val), crop, seed=config.seed, cache=cache) if n_val else None
         return DataSetup(train, val, online, kind)
     raise ValueError(f"data.kind: expected auto, synth, list, rgbd or scenes, got {kind!r}")
 

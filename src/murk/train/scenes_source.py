@@ -30,16 +30,26 @@ def render_size(crop_hw: tuple[int, int]) -> tuple[int, int]:
 class SceneDataset(Dataset):
     """Clean RGB + exact distance of procedural scenes: ``clean``, ``depth_filled``, ``depth`` and ``index``."""
 
-    def __init__(self, indices: Sequence[int], crop_hw: tuple[int, int], *, seed: int, config: Any = None) -> None:
+    def __init__(
+        self, indices: Sequence[int], crop_hw: tuple[int, int], *, seed: int, config: Any = None, cache: bool = False
+    ) -> None:
         self.indices = list(indices)
         self.crop_hw = crop_hw
         self.seed = seed
         self.config = config
+        self._cache: dict[int, dict[str, Any]] | None = {} if cache else None
 
     def __len__(self) -> int:
         return len(self.indices)
 
     def __getitem__(self, i: int) -> dict[str, Any]:
+        if self._cache is None:
+            return self._render(i)
+        if i not in self._cache:
+            self._cache[i] = self._render(i)
+        return {k: v.clone() if torch.is_tensor(v) else v for k, v in self._cache[i].items()}
+
+    def _render(self, i: int) -> dict[str, Any]:
         from murk.scenes import render_scene, sample_scene
 
         scene = sample_scene(derive_seed(self.seed, self.indices[i]), self.config)
