@@ -14,6 +14,7 @@ from murk.cli import eval as _eval
 from murk.cli import export as _export
 from murk.cli import scenes as _scenes
 from murk.cli import snow as _snow
+from murk.cli import study as _study
 from murk.cli import synth as _synth
 from murk.cli import train as _train
 from murk.cli._common import MurkGroup
@@ -51,6 +52,7 @@ app.command("synth")(_synth.synth)
 app.add_typer(_snow.app, name="snow")
 app.command("scenes")(_scenes.scenes)
 app.command("train")(_train.train)
+app.command("study")(_study.study)
 app.command("enhance")(_enhance.enhance)
 app.command("eval")(_eval.evaluate)
 app.command("export")(_export.export)

@@ -1,0 +1,85 @@
+"""murk study: arm configs differ only in stages/out; arms train as subprocesses; finished arms are skipped."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+
+from murk._config import to_dict
+from murk.train.config import TrainConfig
+from murk.train.study import ArmConfig, StudyConfig, arm_config, arm_finished, load_study, train_arms
+
+TRAIN = {
+    "model": {"variant": "tiny"},
+    "data": {"source": "scenes", "scenes_count": 6, "crop_hw": [32, 64], "workers": 0, "val_fraction": 0.2},
+    "eval": {"every": 2, "val_batches": 1, "real": None},
+    "steps": 2,
+    "batch": 2,
+    "log_every": 1,
+}
+
+
+def _write(tmp: Path, jobs: int = 1) -> Path:
+    (tmp / "train.yaml").write_text(yaml.safe_dump(TRAIN))
+    study = {
+        "train": "train.yaml",
+        "arms": [{"name": "basic", "stages": ["basic"]}, {"name": "snowy", "stages": ["marine_snow", "basic"]}],
+        "jobs": jobs,
+        "threads_per_job": 1,
+    }
+    (tmp / "study.yaml").write_text(yaml.safe_dump(study))
+    return tmp / "study.yaml"
+
+
+def test_arm_configs_differ_only_in_stages_and_out(tmp_path: Path) -> None:
+    study, base = load_study(_write(tmp_path))
+    assert base.steps == 2  # the training config was found relative to the study file
+    a, b = (to_dict(arm_config(base, arm, tmp_path / "s")) for arm in study.arms)
+    assert a["data"]["synthesis"]["stages"] == ["basic"]
+    assert b["data"]["synthesis"]["stages"] == ["basic", "marine_snow"]  # application order
+    assert a["out"].endswith("models/basic") and b["out"].endswith("models/snowy")
+    for d in (a, b):
+        d["data"]["synthesis"].pop("stages")
+        d.pop("out")
+    assert a == b
+
+
+def test_study_config_errors() -> None:
+    with pytest.raises(ValueError, match="train: expected the path"):
+        StudyConfig()
+    with pytest.raises(ValueError, match="unique names"):
+        StudyConfig(train="t.yaml", arms=(ArmConfig("a", ("basic",)), ArmConfig("a", ("basic",))))
+    with pytest.raises(ValueError, match="stages"):
+        ArmConfig("a", ("fog",))
+    with pytest.raises(ValueError, match="arms.name"):
+        ArmConfig("a/b", ("basic",))
+
+
+def test_train_arms_then_skip_finished(tmp_path: Path) -> None:
+    study, base = load_study(_write(tmp_path, jobs=2))
+    out = tmp_path / "study"
+    events: list[str] = []
+    runs = train_arms(study, base, out, on_event=events.append)
+    assert [r.status for r in runs] == ["trained", "trained"], [(out / "models" / r.name / "train.out").read_text() for r in runs]
+    for arm in study.arms:
+        cfg = arm_config(base, arm, out)
+        assert arm_finished(cfg)
+        assert (out / "models" / arm.name / "latest.pt").is_file()
+        written = yaml.safe_load((out / "configs" / f"{arm.name}.yaml").read_text())
+        assert written["data"]["synthesis"]["stages"] == list(arm.stages)
+    before = (out / "models" / "basic" / "latest.pt").stat().st_mtime_ns
+    runs = train_arms(study, base, out)
+    assert [r.status for r in runs] == ["done", "done"]
+    assert (out / "models" / "basic" / "latest.pt").stat().st_mtime_ns == before  # not retrained
+
+
+def test_arm_finished_needs_all_steps(tmp_path: Path) -> None:
+    cfg = TrainConfig(out=str(tmp_path))
+    assert not arm_finished(cfg)
+    (tmp_path / "summary.json").write_text(json.dumps({"steps_done": 3, "total_steps": 5}))
+    assert not arm_finished(cfg)
+    (tmp_path / "summary.json").write_text(json.dumps({"steps_done": 5, "total_steps": 5}))
+    assert arm_finished(cfg)
