@@ -54,7 +54,7 @@ def test_study_config_errors() -> None:
         StudyConfig(train="t.yaml", arms=(ArmConfig("a", ("basic",)), ArmConfig("a", ("basic",))))
     with pytest.raises(ValueError, match="stages"):
         ArmConfig("a", ("fog",))
-    with pytest.raises(ValueError, match="arms.name"):
+    with pytest.raises(ValueError, match=r"arms\.name"):
         ArmConfig("a/b", ("basic",))
 
 
@@ -63,7 +63,9 @@ def test_train_arms_then_skip_finished(tmp_path: Path) -> None:
     out = tmp_path / "study"
     events: list[str] = []
     runs = train_arms(study, base, out, on_event=events.append)
-    assert [r.status for r in runs] == ["trained", "trained"], [(out / "models" / r.name / "train.out").read_text() for r in runs]
+    assert [r.status for r in runs] == ["trained", "trained"], [
+        (out / "models" / r.name / "train.out").read_text() for r in runs
+    ]
     for arm in study.arms:
         cfg = arm_config(base, arm, out)
         assert arm_finished(cfg)

@@ -426,7 +426,8 @@ def _replica_checksums(model: torch.nn.Module, distributed: bool) -> list[float]
 def evaluate(
     model: torch.nn.Module, data: DataSetup, config: TrainConfig, device: torch.device, step: int
 ) -> dict[str, float]:
-    """PSNR/SSIM and depth errors on the held-out synthetic split; UIQM/UCIQE on real images."""
+    """Loss, PSNR/SSIM (and the degraded input's PSNR) and depth errors on the held-out synthetic split (the
+    same ``eval.val_batches`` batches every time, unaugmented); UIQM/UCIQE on real images."""
     from murk.metrics import depth_errors_torch, psnr_torch, ssim_torch, uciqe_torch, uiqm_torch
     from murk.models.jointid import SIZE_MULTIPLE, normalize_input
     from murk.models.padding import pad_to_multiple
@@ -436,7 +437,7 @@ def evaluate(
     out: dict[str, float] = {}
     if data.val is not None and len(data.val) > 0:
         loader = DataLoader(data.val, batch_size=config.batch, shuffle=False, num_workers=0)
-        ps, ss, errs = [], [], []
+        ps, ss, errs, in_ps, losses = [], [], [], [], []
         for bi, batch in enumerate(loader):
             if bi >= config.eval.val_batches:
                 break
@@ -448,11 +449,17 @@ def evaluate(
             else:
                 inputs, targets = batch["input"], batch["target"]
             o = model(normalize_input(inputs))
+            losses.append(
+                float(jointid_loss(o.enhanced.float(), targets, o.depth_m.float(), batch["depth"], config.loss).total)
+            )
+            in_ps.append(psnr_torch(inputs.float().clamp(0, 1), targets, data_range=1.0))
             ps.append(psnr_torch(o.enhanced.float().clamp(0, 1), targets, data_range=1.0))
             ss.append(ssim_torch(o.enhanced.float().clamp(0, 1), targets, data_range=1.0))
             errs.append(depth_errors_torch(o.depth_m.float(), batch["depth"]))
         if ps:
+            out["val_loss"] = float(np.mean(losses))
             out["val_psnr"] = float(torch.cat(ps).clamp(max=100).mean())
+            out["val_input_psnr"] = float(torch.cat(in_ps).clamp(max=100).mean())
             out["val_ssim"] = float(torch.cat(ss).mean())
             for name in ("silog", "abs_rel", "rmse", "d1"):
                 vals = [getattr(e, name, None) for e in errs]

@@ -124,6 +124,21 @@ def arm_finished(config: TrainConfig) -> bool:
     return int(s.get("steps_done", -1)) >= int(s.get("total_steps", 1 << 62))
 
 
+WALL_FILE = "study_wall.json"
+"""Per arm: training wall seconds summed over all invocations (resumed runs add up)."""
+
+
+def _add_wall_seconds(arm_dir: Path, seconds: float) -> None:
+    path = arm_dir / WALL_FILE
+    total = 0.0
+    if path.is_file():
+        try:
+            total = float(json.loads(path.read_text(encoding="utf-8"))["wall_s"])
+        except (OSError, ValueError, KeyError, TypeError):
+            total = 0.0
+    write_text_atomic(path, json.dumps({"wall_s": total + seconds}) + "\n")
+
+
 @dataclass
 class ArmRun:
     """What happened to one arm in this invocation."""
@@ -174,7 +189,7 @@ def train_arms(
             cmd = [python, "-m", "murk", "train", "--config", str(cfg_path), "--quiet"]
             if (out / "latest.pt").is_file():
                 cmd.append("--resume")
-            log = open(out / "train.out", "a", encoding="utf-8")  # noqa: SIM115 (closed when the process ends)
+            log = open(out / "train.out", "a", encoding="utf-8")
             log.write(f"$ {' '.join(cmd)}\n")
             log.flush()
             proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env)
@@ -189,6 +204,7 @@ def train_arms(
                 continue
             log.close()
             dt = time.perf_counter() - t0
+            _add_wall_seconds(study_dir / "models" / arm.name, dt)
             if code == 0:
                 runs[arm.name] = ArmRun(arm.name, "trained", dt)
                 say(f"{arm.name}: trained in {dt / 60:.1f} min")
