@@ -42,8 +42,10 @@ def test_enhance_with_a_jointid_checkpoint_writes_images_and_depth(tmp_path: Pat
     d = cv2.imread(str(out / "depth" / "f0.png"), cv2.IMREAD_UNCHANGED)
     assert d.dtype == np.uint16 and d.shape == (40, 70) and 0 < d.max() <= 15000  # mm, Joint-ID's 15 m cap
     assert (out / "depth_preview" / "f1.jpg").exists()
-    r = runner.invoke(app, ["enhance", str(src), "--out", str(tmp_path / "o2"), "--method", "jointid"])
-    assert r.exit_code == 2 and "needs weights: --checkpoint FILE" in r.output
+    r = runner.invoke(app, ["enhance", str(src), "--out", str(tmp_path / "o2"), "--method", "jointid+post"])
+    assert r.exit_code == 0, r.output  # no --checkpoint: the shipped weights, named in the output
+    assert "jointid weights:" in r.output and "jointid-small.pt" in r.output and "shipped" in r.output
+    assert cv2.imread(str(tmp_path / "o2" / "f0.png")).shape == (40, 70, 3)
     r = runner.invoke(
         app,
         [

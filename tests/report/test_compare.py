@@ -2,6 +2,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -11,9 +12,11 @@ from typer.testing import CliRunner
 
 from murk.cli.main import app
 from murk.data import sample_underwater_dir
+from murk.enhance import restorer as restorer_registry
+from murk.enhance.restorer import Restored, Restorer
 from murk.io import read_rgb
-from murk.metrics import uciqe, uiqm
-from murk.report.compare import run_compare, summarise
+from murk.metrics import FLAG_NAMES, MEASURE_KEYS, restoration_measures, uciqe, uiqm
+from murk.report.compare import METRIC_KEYS, run_compare, summarise
 from murk.report.figures import Box, auto_boxes, comparison_grid, parse_box
 from murk.report.methods import parse_method
 
@@ -34,8 +37,8 @@ def test_parse_method() -> None:
     assert (m.label, m.method, m.checkpoint) == ("retrained+post", "jointid+post", "runs/x/best.pt")
     assert dict(m.options) == {"precision": "bf16", "tile": 512}
     assert parse_method("post").label == "post" and parse_method("jointid:runs/abc/best.pt").label == "jointid:abc"
-    with pytest.raises(ValueError, match="Joint-ID needs weights"):
-        parse_method("jointid+post")
+    shipped = parse_method("jointid+post")  # no checkpoint: the weights shipped with murk
+    assert (shipped.label, shipped.method, shipped.checkpoint) == ("jointid+post", "jointid+post", None)
     with pytest.raises(ValueError, match="expected KEY=VALUE options"):
         parse_method("post?he")
 
@@ -63,6 +66,28 @@ def test_compare_outputs_are_consistent(three_images: Path, tmp_path: Path) -> N
     assert doc["summary"]["post"]["uiqm"]["mean"] == pytest.approx(post_uiqm.mean())
     assert doc["summary"]["post"]["uiqm"]["std"] == pytest.approx(post_uiqm.std())
     assert doc["summary"]["post"]["uiqm"]["mean"] > doc["summary"]["raw"]["uiqm"]["mean"]  # HE+LoG raises UIQM
+    # restoration measures: identity values for raw, restoration_measures(input, output) for post
+    assert set(MEASURE_KEYS) <= set(METRIC_KEYS) and set(MEASURE_KEYS) <= set(csv_rows[0])
+    for r in (r for r in doc["rows"] if r["method"] == "raw"):
+        assert r["structure_gms"] == 1.0 and r["artefact_periodic_ratio"] == 1.0 and r["contrast_ratio"] == 1.0
+        assert r["particle_residue_ratio"] == 1.0 and r["flags"] == ""
+    post_lake = next(r for r in doc["rows"] if r["method"] == "post" and r["image"] == "Lake.jpg")
+    from murk.report.methods import build_restorer
+
+    restored = np.clip(build_restorer(parse_method("post")).restore(img[None]).images[0], 0.0, 1.0)
+    expected = restoration_measures(img, restored.astype(np.float32))
+    for k in MEASURE_KEYS:
+        assert post_lake[k] == pytest.approx(expected[k], rel=1e-9, abs=1e-12), k
+    assert post_lake["contrast_ratio"] > 1.1  # HE stretches the hazy lake image
+    gms = np.array([r["structure_gms"] for r in doc["rows"] if r["method"] == "post"])
+    assert doc["summary"]["post"]["structure_gms"]["mean"] == pytest.approx(gms.mean())
+    # flags: joined names in the rows and the CSV, counted per method in the summary
+    for c, j in zip(csv_rows, doc["rows"], strict=True):
+        assert c["flags"] == j["flags"]
+    post_flags = [r["flags"] for r in doc["rows"] if r["method"] == "post"]
+    assert doc["summary"]["post"]["flags"]["n"] == 3
+    assert doc["summary"]["post"]["flags"]["flagged"] == sum(bool(f) for f in post_flags)
+    assert doc["summary"]["raw"]["flags"] == {"flagged": 0, "n": 3, **dict.fromkeys(FLAG_NAMES, 0)}
     # the HTML has the summary table, one grid per image, and embeds everything
     html = (out / "report.html").read_text()
     assert html.count("<section>") == 3 and html.count('src="data:image/jpeg;base64,') == 3
@@ -123,3 +148,40 @@ def test_grid_layout() -> None:
     assert grid.shape[0] == 22 + 100 + 100  # label bar, full image, zoom row (two 100-px squares)
     assert parse_box("1,2,30,40") == Box(1, 2, 30, 40)
     assert summarise([], ["x"])["x"]["uiqm"]["n"] == 0
+    assert summarise([], ["x"])["x"]["flags"]["flagged"] == 0
+
+
+class _Checkerboard(Restorer):
+    """A destroyed output: the input plus a period-2 checkerboard (what a broken pixel-shuffle produces)."""
+
+    name = "checkerboard"
+
+    def restore(self, images: np.ndarray) -> Restored:
+        yy, xx = np.mgrid[0 : images.shape[1], 0 : images.shape[2]]
+        board = np.float32(0.06) * (2.0 * ((yy + xx) % 2) - 1.0)[None, :, :, None]
+        return Restored(np.clip(images + board, 0.0, 1.0).astype(np.float32))
+
+
+def test_compare_flags_a_destroyed_method(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    restorer_registry.available()  # load the built-in methods first
+    monkeypatch.setitem(restorer_registry._REGISTRY, "checkerboard", lambda **_: _Checkerboard())
+    images = [sample_underwater_dir() / "suim" / "n_l_52_.jpg", sample_underwater_dir() / "funie_euvp" / "3.jpg"]
+    res = run_compare(images, [parse_method("raw"), parse_method("broken=checkerboard")], tmp_path / "rep")
+    assert not res.errors
+    broken = [r for r in res.rows if r["method"] == "broken"]
+    assert len(broken) == 2
+    for r in broken:
+        raw = next(x for x in res.rows if x["method"] == "raw" and x["image"] == r["image"])
+        assert r["uiqm"] > raw["uiqm"]  # UIQM is fooled ...
+        assert r["artefact_periodic_ratio"] > 10.0 and "artefacts" in r["flags"].split("; ")  # ... the flags are not
+    assert res.summary["broken"]["flags"]["flagged"] == 2 and res.summary["broken"]["flags"]["artefacts"] == 2
+    assert res.summary["raw"]["flags"]["flagged"] == 0
+    html = (tmp_path / "rep" / "report.html").read_text()
+    summary_rows = re.findall(r'<tr class="([^"]*)"><td class="l">(raw|broken)</td><td class="l"><code>', html)
+    assert dict((lab, cls.split()) for cls, lab in summary_rows) == {"raw": [], "broken": ["best", "flagged"]}
+    assert "2/2 flagged: artefacts 2" in html
+    per_image = re.findall(r'<tr class="(flagged|)"><td class="l">(raw|broken)</td><td>', html)
+    assert sorted(per_image) == [("", "raw"), ("", "raw"), ("flagged", "broken"), ("flagged", "broken")]
+    with open(tmp_path / "rep" / "metrics.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["flags"] != "" for r in rows] == [r["method"] == "broken" for r in rows]

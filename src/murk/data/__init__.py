@@ -6,6 +6,8 @@
   layout.
 - ``snow/default_bank.npz``: the default marine-snow particle bank, cut from the two shipped frames with real
   suspended particles (``underwater/ufen_gan``); how it was made is in ``DATA_LICENSES.md``.
+- ``models/jointid-small.pt``: the Joint-ID weights murk trained itself (variant ``small``, fp16 storage; model
+  card: ``docs/models.md``), used by ``jointid`` when no checkpoint is given.
 """
 
 from __future__ import annotations
@@ -33,6 +35,14 @@ def sample_underwater_images() -> list[Path]:
 def sample_rgbd_dir() -> Path:
     """Folder with ``rgb/`` and ``depth/`` (millimetre PNG) clean RGB-D pairs: a ``murk synth`` input."""
     return _HERE / "rgbd"
+
+
+SHIPPED_JOINTID = "jointid-small.pt"
+
+
+def shipped_jointid_weights() -> Path:
+    """Path of the Joint-ID weights shipped with murk (``small`` variant; model card ``docs/models.md``)."""
+    return _HERE / "models" / SHIPPED_JOINTID
 
 
 def default_snow_bank() -> Path:

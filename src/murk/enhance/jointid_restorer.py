@@ -125,6 +125,8 @@ class JointIDRestorer(Restorer):
         if batch is not None and (isinstance(batch, bool) or batch < 1):
             raise ValueError(f"batch: expected None or a positive integer, got {batch!r}")
         self.precision = precision
+        self.weights: str | None = None
+        """The weights file this restorer was loaded from (set by the ``jointid`` factory)."""
         self._mean: Tensor | None = None
         self._std: Tensor | None = None
         self.tile = tile
@@ -228,7 +230,9 @@ def create_jointid(
 ) -> JointIDRestorer:
     """Registry factory of ``jointid``: load ``checkpoint`` (or the ``onnx`` file) and wrap it.
 
-    A checkpoint path ending in ``.onnx`` runs with ONNX Runtime. Other options: see
+    Without either, the weights shipped with murk are used (``murk.data.shipped_jointid_weights()``: the
+    ``small`` Joint-ID murk trained itself, model card ``docs/models.md``). The restorer's ``weights``
+    attribute names the file used. A checkpoint path ending in ``.onnx`` runs with ONNX Runtime. Other options: see
     :class:`JointIDRestorer`; options meant for other methods are ignored.
 
     Raises:
@@ -242,13 +246,22 @@ def create_jointid(
         raise ValueError("checkpoint/onnx: give one of them, not both")
     path = onnx if onnx is not None else checkpoint
     if path is None:
-        raise ValueError(
-            "checkpoint: the jointid method needs weights: --checkpoint FILE (a murk or the official Joint-ID "
-            "checkpoint, or an .onnx export)"
-        )
+        from murk.data import shipped_jointid_weights
+
+        path = shipped_jointid_weights()
+        if not path.is_file():
+            raise ValueError(
+                f"checkpoint: the shipped weights {path} are missing from this installation; give --checkpoint FILE "
+                "(a murk or the official Joint-ID checkpoint, or an .onnx export)"
+            )
     common = {"precision": precision, "tile": tile, "overlap": overlap, "batch": batch}
     if onnx is not None or str(path).lower().endswith(".onnx"):
-        return JointIDRestorer(OnnxJointID(path, device=str(device)), **common, compile=compile, cuda_graph=cuda_graph)
-    dev = _resolve_device(device)
-    model = load_checkpoint(path, trust=trust_checkpoint, device="cpu")
-    return JointIDRestorer(model, device=dev, **common, compile=compile, cuda_graph=cuda_graph)
+        restorer = JointIDRestorer(
+            OnnxJointID(path, device=str(device)), **common, compile=compile, cuda_graph=cuda_graph
+        )
+    else:
+        dev = _resolve_device(device)
+        model = load_checkpoint(path, trust=trust_checkpoint, device="cpu")
+        restorer = JointIDRestorer(model, device=dev, **common, compile=compile, cuda_graph=cuda_graph)
+    restorer.weights = str(path)
+    return restorer

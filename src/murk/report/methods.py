@@ -2,10 +2,12 @@
 
 ``METHOD`` is ``raw`` (the input itself) or any restorer of the enhance registry, chained with ``+``
 (``post``, ``jointid``, ``jointid+post``); ``CHECKPOINT`` is the Joint-ID weights (a murk checkpoint, the
-official ``joint_id_ckpt.pth``, or an ``.onnx`` export). Examples::
+official ``joint_id_ckpt.pth``, or an ``.onnx`` export); without it Joint-ID uses the weights shipped with murk
+(the ``small`` model murk trained itself, ``docs/models.md``). Examples::
 
     raw
     post
+    jointid+post
     original=jointid:joint_id_ckpt.pth
     retrained+post=jointid+post:runs/base-gpu/best.pt
     clahe=post?he=clahe,clahe_clip=3
@@ -36,7 +38,7 @@ def parse_method(text: str) -> MethodSpec:
     """Parse ``[LABEL=]METHOD[:CHECKPOINT]``.
 
     Raises:
-        ValueError: empty parts, or a Joint-ID method without a checkpoint.
+        ValueError: empty parts.
     """
     raw = text.strip()
     body, _, opt_text = raw.partition("?")
@@ -46,8 +48,6 @@ def parse_method(text: str) -> MethodSpec:
     method, ckpt, label = method.strip(), ckpt.strip(), label.strip()
     if not method:
         raise ValueError(f"--method: expected [LABEL=]METHOD[:CHECKPOINT], got {text!r}")
-    if "jointid" in method.split("+") and not ckpt:
-        raise ValueError(f"--method {text}: Joint-ID needs weights, e.g. {method}:runs/base-gpu/best.pt")
     if not label:
         label = method if not ckpt else f"{method}:{Path(ckpt).parent.name or Path(ckpt).stem}"
     return MethodSpec(raw, label, method, ckpt or None, options)
