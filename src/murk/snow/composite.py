@@ -53,7 +53,7 @@ class SnowParams:
 def particle_count(params: SnowParams, width: int, height: int) -> int:
     """The number of particles drawn for an image of ``width`` x ``height`` (see ``reference_area_px``)."""
     if params.reference_area_px > 0:
-        return int(round(params.n_particles * width * height / params.reference_area_px))
+        return round(params.n_particles * width * height / params.reference_area_px)
     return params.n_particles
 
 
