@@ -20,7 +20,17 @@ from typer.testing import CliRunner
 from murk.cli.main import app
 from murk.data import sample_underwater_dir
 from murk.io import read_depth, read_image, to_float
-from murk.metrics import depth_errors, pil_bicubic_resize, psnr, ssim, uciqe, uiqm
+from murk.metrics import (
+    MEASURE_KEYS,
+    depth_errors,
+    flags,
+    pil_bicubic_resize,
+    psnr,
+    restoration_measures,
+    ssim,
+    uciqe,
+    uiqm,
+)
 
 from .metrics_refdata import records
 
@@ -109,6 +119,56 @@ def test_reference_folder_adds_psnr_ssim(folder: Path, tmp_path: Path) -> None:
     assert doc["summary"]["images"]["psnr"]["n_inf"] == 1
     assert doc["summary"]["images"]["psnr"]["mean"] == pytest.approx(diff["psnr"])
     assert "inf" in res.stdout
+
+
+def test_input_folder_adds_restoration_measures_and_flags(folder: Path, tmp_path: Path) -> None:
+    """--input pairs each scored (restored) image with its raw input by stem: measures, flags, summary."""
+    restored = tmp_path / "restored"
+    restored.mkdir()
+    shutil.copy(folder / "3.jpg", restored / "3.jpg")  # unchanged: identity values, no flag
+    raw, _ = read_image(folder / "n_l_52_.jpg")
+    yy, xx = np.mgrid[0 : raw.shape[0], 0 : raw.shape[1]]
+    board = np.where((yy + xx) % 2 == 0, 12, -12)[..., None]
+    broken = np.clip(raw.astype(np.int16) + board, 0, 255).astype(np.uint8)  # a period-2 checkerboard
+    cv2.imwrite(str(restored / "n_l_52_.png"), broken[:, :, ::-1])  # matched by stem, another suffix
+    out = tmp_path / "out"
+    res = _run(str(restored), "--input", str(folder), "--json", str(out / "r.json"), "--csv", str(out / "r.csv"))
+    assert res.exit_code == 0, res.output
+    doc = json.loads((out / "r.json").read_text())
+    same, bad = doc["images"]
+    assert Path(same["input"]).name == "3.jpg" and Path(bad["input"]).name == "n_l_52_.jpg"
+    assert same["structure_gms"] == 1.0 and same["artefact_periodic_ratio"] == 1.0 and same["flags"] == ""
+    expected = restoration_measures(to_float(raw), to_float(broken))
+    for k in MEASURE_KEYS:
+        assert bad[k] == pytest.approx(expected[k], rel=1e-9, abs=1e-12), k
+    assert bad["artefact_periodic_ratio"] > 10.0 and "artefacts" in flags(expected)
+    assert bad["flags"] == "; ".join(flags(expected))
+    assert bad["uiqm"] > uiqm(raw, data_range=255).uiqm  # UIQM prefers the destroyed image
+    summary = doc["summary"]["images"]
+    assert summary["flags"]["flagged"] == 1 and summary["flags"]["n"] == 2 and summary["flags"]["artefacts"] == 1
+    assert summary["structure_gms"]["mean"] == pytest.approx((1.0 + bad["structure_gms"]) / 2)
+    rows = list(csv.DictReader((out / "r.csv").open()))
+    assert [r["flags"] for r in rows] == ["", bad["flags"]]
+    assert float(rows[1]["artefact_periodic_ratio"]) == pytest.approx(bad["artefact_periodic_ratio"], rel=1e-12)
+    assert "1/2 flagged" in res.stdout and "artefacts" in res.stdout
+
+
+def test_input_without_match_or_size_is_a_file_failure(folder: Path, tmp_path: Path) -> None:
+    raws = tmp_path / "raws"
+    raws.mkdir()
+    rgb, _ = read_image(folder / "3.jpg")
+    cv2.imwrite(str(raws / "3.png"), cv2.resize(rgb, (64, 48))[:, :, ::-1])
+    res = _run(str(folder), "--input", str(raws), "--json", str(tmp_path / "r.json"))
+    assert res.exit_code == 1
+    assert "no raw input image with stem 'n_l_52_' in --input" in _err(res)
+    assert "differs from the raw input" in _err(res)
+    doc = json.loads((tmp_path / "r.json").read_text())
+    assert doc["images"] == [] and len(doc["errors"]) == 2
+    res = _run(str(folder), "--json", str(tmp_path / "plain.json"), "--csv", str(tmp_path / "plain.csv"))
+    assert res.exit_code == 0
+    assert "flags" not in json.loads((tmp_path / "plain.json").read_text())["summary"]["images"]
+    header = (tmp_path / "plain.csv").read_text().splitlines()[0].split(",")
+    assert "flags" not in header and "input" not in header and "structure_gms" not in header
 
 
 def test_missing_reference_is_a_file_failure(folder: Path, tmp_path: Path) -> None:
@@ -213,6 +273,8 @@ def test_depth_single_files(tmp_path: Path) -> None:
         (["--depth", "{folder}"], "give both"),
         (["--ref", "{folder}"], "--ref: needs IMAGES"),
         (["{folder}", "--ref", "{folder}/3.jpg"], "expected a folder of reference images"),
+        (["--input", "{folder}"], "--input: needs IMAGES"),
+        (["{folder}", "--input", "{folder}/3.jpg"], "--input: expected a folder of raw input images"),
     ],
 )
 def test_usage_errors_exit_2(folder: Path, args: list[str], message: str) -> None:

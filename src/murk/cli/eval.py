@@ -1,4 +1,5 @@
-"""``murk eval``: UIQM/UCIQE of images, PSNR/SSIM against references, depth errors; table, CSV and JSON.
+"""``murk eval``: UIQM/UCIQE of images, PSNR/SSIM against references, input-vs-output restoration measures
+and flags (``--input``), depth errors; table, CSV and JSON.
 
 Exit codes: 0 = every file was scored; 1 = some files failed (listed on stderr, and in ``errors.jsonl`` beside
 the ``--json``/``--csv`` output when one is given); 2 = bad usage (unknown preset, missing path, nothing to
@@ -42,6 +43,15 @@ def evaluate(
         Path | None,
         typer.Option("--ref", help="Folder of reference images matched to IMAGES by file stem: adds PSNR and SSIM."),
     ] = None,
+    input_dir: Annotated[
+        Path | None,
+        typer.Option(
+            "--input",
+            help="Folder of the raw input images matched to IMAGES (their restorations) by file stem: adds the "
+            "restoration measures (artefact ratios, structure GMS, particles, cast, luminance, contrast; full "
+            "resolution, not --resize) and their flags.",
+        ),
+    ] = None,
     depth: Annotated[
         Path | None,
         typer.Option("--depth", help="Predicted depth: a file or a folder (uint16 PNG in mm, or .npy in metres)."),
@@ -78,8 +88,9 @@ def evaluate(
     ] = None,
     quiet: QuietOpt = False,
 ) -> None:
-    """Score images: UIQM (Eq. 10, with UICM/UISM/UIConM) and UCIQE; PSNR/SSIM with --ref; depth errors with
-    --depth/--depth-ref. Prints a per-file table and mean +- std (population std over files)."""
+    """Score images: UIQM (Eq. 10, with UICM/UISM/UIConM) and UCIQE; PSNR/SSIM with --ref; restoration measures
+    and flags against the raw inputs with --input; depth errors with --depth/--depth-ref. Prints a per-file
+    table and mean +- std (population std over files)."""
     from murk.metrics import UCIQE_PRESETS, UIQM_PRESETS
     from murk.metrics.reference import SSIM_WINDOWS
 
@@ -93,6 +104,8 @@ def evaluate(
         raise ValueError("--depth and --depth-ref: give both (predicted and ground-truth depth) or neither")
     if ref is not None and not images:
         raise ValueError("--ref: needs IMAGES (the predictions to compare with the references)")
+    if input_dir is not None and not images:
+        raise ValueError("--input: needs IMAGES (the restored images to compare with their raw inputs)")
     if not images and depth is None:
         raise ValueError("nothing to evaluate: give IMAGES (files or folders) and/or --depth PRED --depth-ref GT")
 
@@ -100,8 +113,9 @@ def evaluate(
     out = _Outcome()
     if images:
         files = _collect_images(images, recursive)
-        refs = _index_refs(ref, recursive) if ref is not None else None
-        _score_images(files, refs, uiqm_preset, uciqe_preset, size_wh, ssim_window, out, console)
+        refs = _index_folder(ref, recursive, "--ref", "reference") if ref is not None else None
+        inputs = _index_folder(input_dir, recursive, "--input", "raw input") if input_dir is not None else None
+        _score_images(files, refs, inputs, uiqm_preset, uciqe_preset, size_wh, ssim_window, out, console)
     if depth is not None and depth_ref is not None:
         _score_depth(depth, depth_ref, depth_scale, recursive, out, console)
 
@@ -180,16 +194,43 @@ def _collect_images(paths: list[Path], recursive: bool) -> list[tuple[str, Path]
     return found
 
 
-def _index_refs(ref: Path, recursive: bool) -> dict[str, list[Path]]:
+def _index_folder(folder: Path, recursive: bool, option: str, what: str) -> dict[str, list[Path]]:
+    """Images of ``folder`` by file stem (for --ref and --input)."""
     from murk.errors import InputFileError
     from murk.io import list_images
 
-    if not ref.is_dir():
-        raise InputFileError(ref, "--ref: expected a folder of reference images")
+    if not folder.is_dir():
+        raise InputFileError(folder, f"{option}: expected a folder of {what} images")
     index: dict[str, list[Path]] = {}
-    for f in list_images(ref, recursive=recursive):
+    for f in list_images(folder, recursive=recursive):
         index.setdefault(f.stem, []).append(f)
     return index
+
+
+def _match(path: Path, index: dict[str, list[Path]], option: str, what: str) -> Path:
+    """The one image of ``index`` with the stem of ``path``; a file failure when there is none or several."""
+    from murk.errors import InputFileError
+
+    matches = index.get(path.stem, [])
+    if not matches:
+        raise InputFileError(path, f"no {what} image with stem {path.stem!r} in {option}")
+    if len(matches) > 1:
+        raise InputFileError(path, f"several {what} images with stem {path.stem!r}: {matches}")
+    return matches[0]
+
+
+def _read_same_size(path: Path, other: Path, shape: tuple[int, ...], what: str) -> Any:
+    """Read ``other`` (decoded RGB); a file failure for ``path`` when its size differs from ``shape``."""
+    from murk.errors import InputFileError
+    from murk.io import read_image
+
+    rgb, _ = read_image(other)
+    if rgb.shape != shape:
+        raise InputFileError(
+            path,
+            f"size {shape[1]}x{shape[0]} differs from the {what} {other} ({rgb.shape[1]}x{rgb.shape[0]})",
+        )
+    return rgb
 
 
 def _depth_files(path: Path, recursive: bool) -> dict[str, Path]:
@@ -217,6 +258,7 @@ def _depth_files(path: Path, recursive: bool) -> dict[str, Path]:
 def _score_images(
     files: list[tuple[str, Path]],
     refs: dict[str, list[Path]] | None,
+    inputs: dict[str, list[Path]] | None,
     uiqm_preset: str,
     uciqe_preset: str,
     size_wh: tuple[int, int] | None,
@@ -227,9 +269,8 @@ def _score_images(
     import numpy as np
     from rich.progress import Progress
 
-    from murk.errors import InputFileError
     from murk.io import read_image, to_float, to_uint
-    from murk.metrics import pil_bicubic_resize, psnr, ssim, uciqe, uiqm
+    from murk.metrics import flags, join_flags, pil_bicubic_resize, psnr, restoration_measures, ssim, uciqe, uiqm
 
     with Progress(console=console, transient=True) as progress:
         task = progress.add_task("scoring images", total=len(files))
@@ -249,22 +290,19 @@ def _score_images(
                     row.update({k: getattr(q, k) for k in _NOREF_COLUMNS[:4]})
                     row.update({k: getattr(c, k) for k in _NOREF_COLUMNS[4:]})
                     if refs is not None:
-                        matches = refs.get(path.stem, [])
-                        if not matches:
-                            raise InputFileError(path, f"no reference image with stem {path.stem!r} in --ref")
-                        if len(matches) > 1:
-                            raise InputFileError(path, f"several reference images with stem {path.stem!r}: {matches}")
-                        ref_rgb, _ = read_image(matches[0])
-                        if ref_rgb.shape != rgb.shape:
-                            raise InputFileError(
-                                path,
-                                f"size {rgb.shape[1]}x{rgb.shape[0]} differs from the reference {matches[0]} "
-                                f"({ref_rgb.shape[1]}x{ref_rgb.shape[0]})",
-                            )
+                        ref_path = _match(path, refs, "--ref", "reference")
+                        ref_rgb = _read_same_size(path, ref_path, rgb.shape, "reference")
                         pred01, ref01 = to_float(rgb), to_float(ref_rgb)
-                        row["ref"] = str(matches[0])
+                        row["ref"] = str(ref_path)
                         row["psnr"] = psnr(pred01, ref01, data_range=1.0)
                         row["ssim"] = ssim(pred01, ref01, data_range=1.0, window=ssim_window)  # type: ignore[arg-type]
+                    if inputs is not None:
+                        input_path = _match(path, inputs, "--input", "raw input")
+                        raw_rgb = _read_same_size(path, input_path, rgb.shape, "raw input")
+                        measures = restoration_measures(to_float(raw_rgb), to_float(rgb))
+                        row["input"] = str(input_path)
+                        row.update(measures)
+                        row["flags"] = join_flags(flags(measures))
                 row["warnings"] = sorted({str(w.message) for w in caught})
                 for msg in row["warnings"]:
                     console.print(f"[yellow]note:[/] {name}: {msg}")
@@ -307,9 +345,9 @@ def _problem(exc: Exception) -> str:
 
 
 def _columns(rows: list[dict[str, Any]]) -> list[str]:
-    from murk.metrics import DEPTH_ERROR_NAMES
+    from murk.metrics import DEPTH_ERROR_NAMES, MEASURE_KEYS
 
-    order = (*_NOREF_COLUMNS, *_REF_COLUMNS, *DEPTH_ERROR_NAMES)
+    order = (*_NOREF_COLUMNS, *_REF_COLUMNS, *MEASURE_KEYS, *DEPTH_ERROR_NAMES)
     present = {k for r in rows for k in r}
     return [c for c in order if c in present]
 
@@ -317,9 +355,12 @@ def _columns(rows: list[dict[str, Any]]) -> list[str]:
 def summarize(rows: list[dict[str, Any]]) -> dict[str, dict[str, float | int]]:
     """Mean, population std and count of each metric column over ``rows``.
 
-    Infinite values (PSNR of an exact copy) are left out of mean/std and counted in ``n_inf``.
+    Infinite values (PSNR of an exact copy) are left out of mean/std and counted in ``n_inf``. With --input,
+    ``flags`` holds the flag counts of :func:`murk.metrics.count_flags`.
     """
     import numpy as np
+
+    from murk.metrics import count_flags
 
     summary: dict[str, dict[str, float | int]] = {}
     for col in _columns(rows):
@@ -333,6 +374,8 @@ def summarize(rows: list[dict[str, Any]]) -> dict[str, dict[str, float | int]]:
         if n_inf:
             entry["n_inf"] = n_inf
         summary[col] = entry
+    if any("flags" in r for r in rows):
+        summary["flags"] = dict(count_flags(r["flags"] for r in rows if "flags" in r))
     return summary
 
 
@@ -351,17 +394,22 @@ def _print_tables(out: _Outcome, quiet: bool) -> None:
         if not rows:
             continue
         cols = _columns(rows)
+        summary = summarize(rows)
+        counts = summary.get("flags")  # only with --input
         table = Table(title=f"{title} ({len(rows)})", title_justify="left", box=None, pad_edge=False)
         table.add_column("file", overflow="fold")
         for c in cols:
             table.add_column(c, justify="right")
+        if counts is not None:
+            table.add_column("flags")
         if not quiet:
             for r in rows:
-                table.add_row(r["file"], *(_fmt(r[c]) if c in r else "" for c in cols))
+                flag_cell = [r.get("flags", "")] if counts is not None else []
+                table.add_row(r["file"], *(_fmt(r[c]) if c in r else "" for c in cols), *flag_cell)
             table.add_section()
-        summary = summarize(rows)
-        table.add_row("mean", *(_fmt(summary[c].get("mean", math.nan)) for c in cols))
-        table.add_row("std", *(_fmt(summary[c].get("std", math.nan)) for c in cols))
+        flag_total = [f"{counts['flagged']}/{counts['n']} flagged"] if counts is not None else []
+        table.add_row("mean", *(_fmt(summary[c].get("mean", math.nan)) for c in cols), *flag_total)
+        table.add_row("std", *(_fmt(summary[c].get("std", math.nan)) for c in cols), *([""] * len(flag_total)))
         stdout.print(table)
 
 
@@ -399,7 +447,8 @@ def _write_csv(path: Path, out: _Outcome) -> None:
     from murk.io import write_text_atomic
 
     rows = out.images + out.depth
-    cols = ["file", "ref", *_columns(rows), "warnings"]
+    paired = any("input" in r for r in rows)  # --input adds the raw input's path and the flags
+    cols = ["file", "ref", *(["input"] if paired else []), *_columns(rows), *(["flags"] if paired else []), "warnings"]
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=cols, extrasaction="ignore", lineterminator="\n")
     writer.writeheader()

@@ -1,9 +1,14 @@
-"""``murk compare``: every method on every real image, scored with UIQM (Eq. 10, with its parts) and UCIQE.
+"""``murk compare``: every method on every real image, scored with UIQM (Eq. 10, with its parts) and UCIQE,
+and compared with its input by the restoration measures that noise cannot fool (:mod:`murk.metrics.fidelity`).
 
 Writes into the report folder: ``metrics.csv`` and ``metrics.json`` (per image and method, plus the per-method
-mean +- std: the paper's Fig. 8), ``grids/<stem>.jpg`` (methods side by side with zoomed boxes: Figs. 7 and
-9), ``report.html`` (self-contained), optionally ``restored/<label>/<stem>.png``, and ``errors.jsonl`` when
-images failed.
+mean +- std: the paper's Fig. 8, and per-method flag counts), ``grids/<stem>.jpg`` (methods side by side with
+zoomed boxes: Figs. 7 and 9), ``report.html`` (self-contained; flagged methods marked), optionally
+``restored/<label>/<stem>.png``, and ``errors.jsonl`` when images failed.
+
+Each row holds the input-vs-output measures (:data:`murk.metrics.MEASURE_KEYS`; input = the raw image read,
+output = the method's result, so the ``raw`` method gets the identity values) and ``flags``, the names
+:func:`murk.metrics.flags` raised, joined with ``"; "`` (empty when none).
 """
 
 from __future__ import annotations
@@ -26,11 +31,16 @@ from murk._version import __version__
 from murk.io.atomic import write_text_atomic
 from murk.io.images import read_rgb, write_rgb, write_uint
 from murk.io.jsonl import write_jsonl
+from murk.metrics import fidelity
+from murk.metrics.fidelity import MEASURE_KEYS, count_flags, flags, join_flags, restoration_measures
 from murk.report.figures import Box, auto_boxes, comparison_grid
 from murk.report.html import SUMMARY_METRICS, render_report
 from murk.report.methods import MethodSpec, build_restorer
 
-METRIC_KEYS = ("uiqm", "uicm", "uism", "uiconm", "uciqe", "sigma_c", "con_l", "mu_s")
+SCORE_KEYS = ("uiqm", "uicm", "uism", "uiconm", "uciqe", "sigma_c", "con_l", "mu_s")
+"""No-reference scores of the output alone (:func:`score`)."""
+METRIC_KEYS = (*SCORE_KEYS, *MEASURE_KEYS)
+"""Every numeric column of a row (besides ``ms``), summarised per method."""
 
 
 @dataclass
@@ -62,7 +72,8 @@ def score(image: np.ndarray, *, uiqm_preset: str = "panetta2016", uciqe_preset: 
 
 
 def summarise(rows: Sequence[dict[str, Any]], labels: Sequence[str]) -> dict[str, dict[str, dict[str, float]]]:
-    """Per method and metric: mean and population std over images (finite values), and n."""
+    """Per method and metric: mean and population std over images (finite values), and n; under ``"flags"``
+    the flag counts of :func:`murk.metrics.count_flags` (rows flagged, rows, and rows per flag name)."""
     out: dict[str, dict[str, dict[str, float]]] = {}
     for lab in labels:
         mine = [r for r in rows if r["method"] == lab]
@@ -74,6 +85,7 @@ def summarise(rows: Sequence[dict[str, Any]], labels: Sequence[str]) -> dict[str
                 if len(vals)
                 else {"mean": float("nan"), "std": float("nan"), "n": 0}
             )
+        out[lab]["flags"] = dict(count_flags(r["flags"] for r in mine if isinstance(r.get("flags"), str)))
     return out
 
 
@@ -124,7 +136,9 @@ def run_compare(
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
                 metrics = score(restored, uiqm_preset=uiqm_preset, uciqe_preset=uciqe_preset)
+                metrics.update(restoration_measures(img, restored))
             row = {"image": path.name, "path": str(path), "method": spec.label, "spec": spec.text, "ms": ms, **metrics}
+            row["flags"] = join_flags(flags(metrics))
             if caught:
                 row["warnings"] = "; ".join(sorted({str(w.message) for w in caught}))
             rows.append(row)
@@ -155,6 +169,13 @@ def run_compare(
             if boxes
             else "chosen automatically: most structure (gradient energy), then most marine snow (top-hat response)."
         ),
+        "Restoration measures compare each output with its input (docs/metrics.md): artefact ratios (periodic: "
+        "checkerboard/tiling peaks; isolated: pixel noise), structure GMS (do the edges follow the input), "
+        f"particle residue, colour cast, luminance and contrast. Flags: artefacts (a ratio > "
+        f"{fidelity.ARTEFACT_RATIO_MAX:g}), structure loss (GMS < {fidelity.STRUCTURE_GMS_MIN:g}), grey collapse "
+        f"(contrast ratio < {fidelity.CONTRAST_RATIO_MIN:g}), darkened (luminance ratio < "
+        f"{fidelity.LUMINANCE_RATIO_MIN:g}), particles not removed (particle ratio > {fidelity.PARTICLE_RATIO_MAX:g})."
+        " UIQM and UCIQE reward noise and artefacts: read them with the flags.",
     ]
     html_text = render_report(
         title=title,
@@ -186,7 +207,7 @@ def _shrink(grid: np.ndarray, max_width: int = 1600) -> np.ndarray:
 def _write_tables(
     out: Path, result: CompareResult, methods: Sequence[MethodSpec], uiqm_preset: str, uciqe_preset: str
 ) -> None:
-    cols = ["image", "method", "spec", *METRIC_KEYS, "ms", "warnings"]
+    cols = ["image", "method", "spec", *METRIC_KEYS, "ms", "flags", "warnings"]
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=cols, extrasaction="ignore", lineterminator="\n")
     w.writeheader()

@@ -3,6 +3,9 @@
 Images are embedded as base64 JPEG data URIs and the bar chart is inline SVG, so the file can be mailed or
 opened offline. A few lines of script record, once the page has loaded, how many images decoded
 (``body[data-images-loaded]`` of ``data-images-total``): the browser test reads them.
+
+Methods and rows that :func:`murk.metrics.flags` flagged (artefacts, structure loss, grey collapse, darkened,
+particles not removed) get the ``flagged`` class (red background) and their flags in a ``flags`` column.
 """
 
 from __future__ import annotations
@@ -15,7 +18,21 @@ from typing import Any
 import cv2
 import numpy as np
 
-SUMMARY_METRICS = (("uiqm", "UIQM"), ("uicm", "UICM"), ("uism", "UISM"), ("uiconm", "UIConM"), ("uciqe", "UCIQE"))
+SUMMARY_METRICS = (
+    ("uiqm", "UIQM"),
+    ("uicm", "UICM"),
+    ("uism", "UISM"),
+    ("uiconm", "UIConM"),
+    ("uciqe", "UCIQE"),
+    ("structure_gms", "structure GMS"),
+    ("artefact_periodic_ratio", "periodic artefacts &times;"),
+    ("artefact_isolated_ratio", "isolated artefacts &times;"),
+    ("particle_residue_ratio", "particles &times;"),
+    ("contrast_ratio", "contrast &times;"),
+    ("luminance_ratio", "luminance &times;"),
+)
+"""(key, column heading) of the summary and per-image tables; headings are HTML. The ``&times;`` columns are
+output/input ratios of the restoration measures (1 = unchanged)."""
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:24px;color:#1d2733;background:#fafbfc}
@@ -23,6 +40,7 @@ h1{font-size:22px;margin:0 0 4px} h2{font-size:17px;margin:28px 0 8px} .meta{col
 table{border-collapse:collapse;font-size:13px;margin:8px 0;background:#fff}
 th,td{border:1px solid #d5dce3;padding:4px 8px;text-align:right} th{background:#eef2f6} td.l,th.l{text-align:left}
 tr.best td{font-weight:600} img{max-width:100%;border:1px solid #d5dce3} .note{font-size:12px;color:#5b6b7c}
+tr.flagged td{background:#fdecea} td.flags{color:#b3261e;text-align:left}
 """
 
 _SCRIPT = """
@@ -78,6 +96,14 @@ def _fmt(stat: dict[str, float] | None) -> str:
     return f"{stat['mean']:.3f} &plusmn; {stat['std']:.3f}"
 
 
+def _flag_summary(counts: dict[str, float] | None) -> str:
+    """``"2/3 flagged: artefacts 2, darkened 1"`` from :func:`murk.metrics.count_flags` counts (HTML-escaped)."""
+    if not counts or not counts.get("flagged"):
+        return "" if not counts else "none"
+    named = ", ".join(f"{k} {int(v)}" for k, v in counts.items() if k not in ("flagged", "n") and v)
+    return html.escape(f"{int(counts['flagged'])}/{int(counts['n'])} flagged: {named}")
+
+
 def render_report(
     *,
     title: str,
@@ -91,8 +117,9 @@ def render_report(
 
     Args:
         methods: ``{"label", "spec"}`` per method, in display order.
-        summary: label -> metric -> ``{"mean", "std", "n"}`` (plus ``ms``: time per image).
-        images: per image ``{"name", "grid_u8", "rows": [{"label", metric: value, ...}]}``.
+        summary: label -> metric -> ``{"mean", "std", "n"}`` (plus ``ms``: time per image, and optionally
+            ``flags``: the counts of :func:`murk.metrics.count_flags`).
+        images: per image ``{"name", "grid_u8", "rows": [{"method", metric: value, ..., "flags": "a; b"}]}``.
     """
     labels = [m["label"] for m in methods]
     means = [summary[lab]["uiqm"]["mean"] if summary[lab]["uiqm"]["n"] else 0.0 for lab in labels]
@@ -104,10 +131,14 @@ def render_report(
         s = summary[lab]
         cells = "".join(f"<td>{_fmt(s.get(k))}</td>" for k, _ in SUMMARY_METRICS)
         ms = s.get("ms", {}).get("mean")
+        flag_counts = s.get("flags")
+        classes = " ".join(
+            c for c, on in (("best", lab == best), ("flagged", bool(flag_counts and flag_counts.get("flagged")))) if on
+        )
         rows.append(
-            f'<tr class="{"best" if lab == best else ""}"><td class="l">{html.escape(lab)}</td>'
+            f'<tr class="{classes}"><td class="l">{html.escape(lab)}</td>'
             f'<td class="l"><code>{html.escape(m["spec"])}</code></td>{cells}<td>{s["uiqm"]["n"]}</td>'
-            f"<td>{'-' if ms is None else f'{ms:.0f}'}</td></tr>"
+            f'<td>{"-" if ms is None else f"{ms:.0f}"}</td><td class="flags">{_flag_summary(flag_counts)}</td></tr>'
         )
     stds = [summary[lab]["uiqm"]["std"] if summary[lab]["uiqm"]["n"] else 0.0 for lab in labels]
     chart = bar_chart_svg(labels, means, stds, title="Mean UIQM per method (whisker: +- std)")
@@ -115,15 +146,15 @@ def render_report(
     for im in images:
         cols = "".join(f"<th>{name}</th>" for _, name in SUMMARY_METRICS)
         trs = "".join(
-            f'<tr><td class="l">{html.escape(r["method"])}</td>'
+            f'<tr class="{"flagged" if r.get("flags") else ""}"><td class="l">{html.escape(r["method"])}</td>'
             + "".join(f"<td>{r.get(k, float('nan')):.3f}</td>" for k, _ in SUMMARY_METRICS)
-            + "</tr>"
+            + f'<td class="flags">{html.escape(r.get("flags", ""))}</td></tr>'
             for r in im["rows"]
         )
         sections.append(
             f'<section><h2>{html.escape(im["name"])}</h2><img alt="{html.escape(im["name"])}" '
-            f'src="{jpeg_data_uri(im["grid_u8"])}"><table><thead><tr><th class="l">method</th>{cols}</tr></thead>'
-            f"<tbody>{trs}</tbody></table></section>"
+            f'src="{jpeg_data_uri(im["grid_u8"])}"><table><thead><tr><th class="l">method</th>{cols}'
+            f'<th class="l">flags</th></tr></thead><tbody>{trs}</tbody></table></section>'
         )
     notes_html = "".join(f"<li>{html.escape(n)}</li>" for n in notes)
     return (
@@ -131,7 +162,8 @@ def render_report(
         f"<style>{_CSS}</style></head><body><h1>{html.escape(title)}</h1>"
         f'<div class="meta">{html.escape(meta)}</div>'
         f'<h2>Summary (the paper\'s Fig. 8)</h2><table id="summary"><thead><tr><th class="l">method</th>'
-        f'<th class="l">spec</th>{head}<th>images</th><th>ms / image</th></tr></thead><tbody>{"".join(rows)}'
+        f'<th class="l">spec</th>{head}<th>images</th><th>ms / image</th><th class="l">flags</th></tr></thead>'
+        f"<tbody>{''.join(rows)}"
         f"</tbody></table>{chart}<ul class='note'>{notes_html}</ul>"
         f"<h2>Per image (the paper's Figs. 7 and 9)</h2>{''.join(sections)}"
         f"<script>{_SCRIPT}</script></body></html>"

@@ -165,8 +165,23 @@ def extract_particles(rgb: np.ndarray, config: ExtractConfig, *, source: str = "
             f"{int(np.median(gray))}), more than marine snow can cover (limit --max-coverage "
             f"{100 * config.max_coverage:.0f} %): {hint}"
         )
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
     particles: list[Particle] = []
+    for x, y, w, h, m in kept_components(mask, config):
+        patch = np.where(m[:, :, None], rgb[y : y + h, x : x + w], 0).astype(np.uint8)
+        particles.append(Particle(patch, m, x, y))
+    return Extraction(mask, particles, coverage)
+
+
+def kept_components(mask: np.ndarray, config: ExtractConfig) -> list[tuple[int, int, int, int, np.ndarray]]:
+    """The connected components (8-connectivity) of a binary (H, W) mask that count as particles: area within
+    [``min_area_px``, ``max_area_px``] and elongation at most ``max_elongation`` (0: no elongation filter).
+
+    Returns:
+        ``(x, y, w, h, component_mask)`` per kept component, in label order; ``component_mask`` is the (h, w)
+        bool mask of that component inside its bounding box with top-left corner (x, y).
+    """
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+    kept: list[tuple[int, int, int, int, np.ndarray]] = []
     for i in range(1, n):
         x, y, w, h, area = (int(v) for v in stats[i])
         if not config.min_area_px <= area <= config.max_area_px:
@@ -174,6 +189,5 @@ def extract_particles(rgb: np.ndarray, config: ExtractConfig, *, source: str = "
         m = labels[y : y + h, x : x + w] == i
         if config.max_elongation and elongation(m) > config.max_elongation:
             continue
-        patch = np.where(m[:, :, None], rgb[y : y + h, x : x + w], 0).astype(np.uint8)
-        particles.append(Particle(patch, m, x, y))
-    return Extraction(mask, particles, coverage)
+        kept.append((x, y, w, h, m))
+    return kept
