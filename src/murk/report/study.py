@@ -1,13 +1,32 @@
-"""``murk study``: train the arms (:mod:`murk.train.study`), then evaluate them and write the report."""
+"""``murk study``: train the arms (:mod:`murk.train.study`), then evaluate them and write the report.
+
+Outputs in the study folder (besides ``models/`` and ``configs/``):
+
+- ``real/``: ``murk compare`` on the real images with the methods ``raw``, ``post`` (Eq. 9 only), every arm,
+  and the last arm (the proposed data) + ``post``: ``metrics.csv``/``metrics.json`` (per image and method,
+  UIQM/UCIQE and the restoration measures of :mod:`murk.metrics.fidelity`, with flags), ``grids/`` (Fig. 9:
+  the methods side by side with zoomed boxes) and ``report.html``;
+- ``heldout.json``: PSNR/SSIM and depth errors of every arm on held-out degraded procedural scenes;
+- ``study.json`` (everything) and ``study.md`` (the Fig. 8 table as mean +- std per method over the real
+  images, the held-out table, and the training record of every arm).
+
+Evaluation is rerun on every invocation (it takes a minute or two); training is not.
+"""
 
 from __future__ import annotations
 
+import json
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from murk.train.study import ArmRun, load_study, train_arms
+from murk._config import merge
+from murk._version import __version__
+from murk.io.atomic import write_text_atomic
+from murk.train.config import TrainConfig
+from murk.train.study import WALL_FILE, ArmRun, StudyConfig, arm_config, load_study, train_arms
 
 
 @dataclass
@@ -41,4 +60,148 @@ def run_study(
     if train_only:
         result.message = f"study: {len(result.arms)} arm(s) trained -> {out / 'models'}"
         return result
-    raise NotImplementedError("evaluation")
+    result.report = evaluate_study(study, base, out, on_event=on_event)
+    if result.report["real"]["errors"]:
+        result.ok = False
+    result.message = f"study: report -> {out / 'study.md'} and {out / 'real' / 'report.html'}"
+    return result
+
+
+def evaluate_study(
+    study: StudyConfig, base: TrainConfig, out: Path, *, on_event: Callable[[str], None] | None = None
+) -> dict[str, Any]:
+    """Evaluate the trained arms (their final weights, ``latest.pt``) and write the study report."""
+    from murk.data import resolve_builtin
+    from murk.enhance.restorer import create
+    from murk.io.images import list_images
+    from murk.report.compare import run_compare
+    from murk.report.heldout import make_heldout, score_heldout
+    from murk.report.methods import parse_method
+
+    say = on_event or (lambda _m: None)
+    ev = study.eval
+    ckpts = {a.name: Path(arm_config(base, a, out).out) / "latest.pt" for a in study.arms}
+    for name, path in ckpts.items():
+        if not path.is_file():
+            raise ValueError(f"study arm {name}: {path} not found (train the arms first)")
+    report: dict[str, Any] = {"murk_version": __version__, "arms": _training_record(study, base, out)}
+
+    heldout: dict[str, Any] = {}
+    if ev.synthetic_scenes > 0:
+        say(f"held-out: rendering {ev.synthetic_scenes} scenes at {ev.synthetic_hw[1]}x{ev.synthetic_hw[0]}")
+        synthesis = merge(base.data.synthesis, {"stages": ["basic", "forward_scatter", "marine_snow"]})
+        data = make_heldout(ev.synthetic_scenes, seed=ev.synthetic_seed, size_hw=ev.synthetic_hw, synthesis=synthesis)
+        restorers = {name: create("jointid", checkpoint=str(p)) for name, p in ckpts.items()}
+        heldout = {
+            "scenes": ev.synthetic_scenes,
+            "seed": ev.synthetic_seed,
+            "size_hw": list(ev.synthetic_hw),
+            "stages": list(synthesis.stages),
+            "scores": score_heldout(data, restorers, on_method=lambda m: say(f"held-out: scoring {m}")),
+        }
+        write_text_atomic(out / "heldout.json", json.dumps(_finite(heldout), indent=2) + "\n")
+    report["heldout"] = heldout
+
+    real_dir = Path(resolve_builtin(ev.real))
+    images = list_images(real_dir, recursive=True)
+    if not images:
+        raise ValueError(f"eval.real: {real_dir} holds no images")
+    last = study.arms[-1].name
+    specs = ["raw", f"post?lam={ev.post_lambda}"]
+    specs += [f"{name}=jointid:{p}" for name, p in ckpts.items()]
+    specs.append(f"{last}+post=jointid+post:{ckpts[last]}?lam={ev.post_lambda}")
+    methods = [parse_method(s) for s in specs]
+    say(f"real: {len(images)} images x {len(methods)} methods")
+    res = run_compare(images, methods, out / "real", title="murk study: the paper's ablation")
+    report["real"] = {
+        "folder": str(real_dir),
+        "images": len(images),
+        "methods": [m.label for m in methods],
+        "summary": res.summary,
+        "errors": res.errors,
+    }
+    write_text_atomic(out / "study.json", json.dumps(_finite(report), indent=2) + "\n")
+    write_text_atomic(out / "study.md", study_markdown(report))
+    return report
+
+
+def _training_record(study: StudyConfig, base: TrainConfig, out: Path) -> dict[str, Any]:
+    record = {}
+    for arm in study.arms:
+        cfg = arm_config(base, arm, out)
+        d = Path(cfg.out)
+        summary = json.loads((d / "summary.json").read_text(encoding="utf-8")) if (d / "summary.json").is_file() else {}
+        wall = json.loads((d / WALL_FILE).read_text(encoding="utf-8"))["wall_s"] if (d / WALL_FILE).is_file() else None
+        record[arm.name] = {
+            "stages": list(arm.stages),
+            "steps": summary.get("steps_done"),
+            "wall_s": wall,
+            "last_eval": summary.get("last_eval", {}),
+            "checkpoint": str(d / "latest.pt"),
+        }
+    return record
+
+
+SUMMARY_KEYS = (
+    ("uiqm", "UIQM"),
+    ("uciqe", "UCIQE"),
+    ("artefact_periodic_ratio", "artefact periodic x"),
+    ("artefact_isolated_ratio", "artefact isolated x"),
+    ("structure_gms", "structure GMS"),
+    ("particle_residue_ratio", "particles out/in"),
+    ("cast_out", "colour cast"),
+    ("luminance_ratio", "luminance out/in"),
+    ("contrast_ratio", "contrast out/in"),
+)
+
+
+def study_markdown(report: dict[str, Any]) -> str:
+    """The study report as Markdown (tables of the real-image and held-out evaluations, training record)."""
+    from murk.report.heldout import heldout_table
+
+    lines = [f"# murk study (murk {report['murk_version']})", ""]
+    real = report["real"]
+    lines += [f"## Real images: mean +- std over {real['images']} images of {real['folder']} (Fig. 8)", ""]
+    keys = [(k, name) for k, name in SUMMARY_KEYS if any(k in real["summary"][m] for m in real["methods"])]
+    lines.append("| method | " + " | ".join(name for _, name in keys) + " | images flagged |")
+    lines.append("|---|" + "---|" * (len(keys) + 1))
+    for m in real["methods"]:
+        s = real["summary"][m]
+        cells = []
+        for k, _ in keys:
+            v = s.get(k, {})
+            mean, std = v.get("mean"), v.get("std")
+            ok = isinstance(mean, (int, float)) and math.isfinite(mean)
+            cells.append(f"{mean:.3f} +- {std:.3f}" if ok else "-")
+        fl = s.get("flags", {})
+        flagged = f"{fl.get('flagged', 0)}/{fl.get('n', 0)}" if fl else "-"
+        lines.append(f"| {m} | " + " | ".join(cells) + f" | {flagged} |")
+    lines += ["", "Grids (Fig. 9): `real/grids/`; per-image numbers: `real/metrics.csv`; `real/report.html`.", ""]
+    if report.get("heldout"):
+        h = report["heldout"]
+        hh, ww = h["size_hw"]
+        lines += [
+            f"## Held-out procedural scenes ({h['scenes']} scenes, {ww}x{hh}, seed {h['seed']}, stages "
+            f"{', '.join(h['stages'])})",
+            "",
+            heldout_table(h["scores"]),
+            "",
+        ]
+    lines += ["## Training", "", "| arm | stages | steps | wall min | last val PSNR |", "|---|---|---|---|---|"]
+    for name, a in report["arms"].items():
+        wall = f"{a['wall_s'] / 60:.1f}" if a.get("wall_s") else "-"
+        vp = a.get("last_eval", {}).get("val_psnr")
+        lines.append(
+            f"| {name} | {', '.join(a['stages'])} | {a['steps']} | {wall} | {f'{vp:.2f}' if vp is not None else '-'} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _finite(obj: Any) -> Any:
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    return obj

@@ -1,0 +1,131 @@
+"""A fixed held-out set of degraded procedural scenes with references, and the scores of restorers on it.
+
+Scene ``i`` is ``sample_scene(derive_seed(seed, "heldout", i))``, rendered at ``size_hw``, and degraded with
+``synthesis`` (parameters from ``derive_seed(seed, "online", 0, i)``, as in online training). Training uses
+``derive_seed(train_seed, i)`` for its scenes, so a held-out seed never reproduces a training scene.
+
+Scores per method: PSNR and SSIM of the enhanced image against the clean render (and of the degraded input,
+the ``input`` row), and depth errors (AbsRel, RMSE, SILog, delta < 1.25) against the exact distance on pixels
+that hit a surface (open-water background at the scene's far limit has no meaningful depth and is skipped).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+
+from murk.rng import derive_seed
+
+
+@dataclass(frozen=True)
+class HeldoutSet:
+    """Degraded inputs, clean references and exact distances: (N, H, W, 3) float32 and (N, H, W) metres
+    (NaN where a ray hit nothing: no depth reference there)."""
+
+    degraded: np.ndarray
+    clean: np.ndarray
+    dist_m: np.ndarray
+    seed: int
+
+
+def make_heldout(n: int, *, seed: int, size_hw: tuple[int, int], synthesis: Any) -> HeldoutSet:
+    """Render and degrade ``n`` held-out scenes (deterministic in ``seed``)."""
+    from murk.scenes import render_scene, sample_scene
+    from murk.train.data import OnlineDegrader
+    from murk.train.scenes_source import render_size
+
+    if n < 1:
+        raise ValueError(f"n: expected at least one scene, got {n}")
+    h, w = size_hw
+    cleans, dists, fars = [], [], []
+    for i in range(n):
+        scene = sample_scene(derive_seed(seed, "heldout", i))
+        rw, rh = render_size((h, w))
+        rgb, dist = render_scene(scene, (rw, rh))
+        y0, x0 = (rh - h) // 2, (rw - w) // 2
+        cleans.append(rgb[y0 : y0 + h, x0 : x0 + w])
+        dists.append(dist[y0 : y0 + h, x0 : x0 + w])
+        fars.append(scene.far_m)
+    clean = np.stack(cleans).astype(np.float32)
+    dist = np.stack(dists).astype(np.float32)
+    degrader = OnlineDegrader(synthesis, seed=seed)
+    to_t = torch.from_numpy
+    degraded = degrader(to_t(clean).permute(0, 3, 1, 2), to_t(dist)[:, None], 0, list(range(n)))
+    degraded_np = degraded.clamp(0.0, 1.0).permute(0, 2, 3, 1).numpy().astype(np.float32)
+    far = np.asarray(fars, np.float32)[:, None, None]
+    dist_ref = np.where(dist < far - 1e-3, dist, np.nan).astype(np.float32)
+    return HeldoutSet(degraded_np, clean, dist_ref, seed)
+
+
+def score_heldout(
+    data: HeldoutSet,
+    restorers: Mapping[str, Any],
+    *,
+    batch: int = 8,
+    on_method: Callable[[str], None] | None = None,
+) -> dict[str, dict[str, float]]:
+    """Mean PSNR/SSIM (and depth errors where the method estimates depth) per method, plus ``input``.
+
+    ``restorers`` maps a label to a restorer (``restore(numpy batch) -> Restored``) or None (the input).
+    """
+    from murk.metrics import depth_errors, psnr, ssim
+
+    out: dict[str, dict[str, float]] = {"input": _image_scores(data.degraded, data.clean, psnr, ssim)}
+    for label, rest in restorers.items():
+        if on_method:
+            on_method(label)
+        if rest is None:
+            continue
+        images, depths = [], []
+        for i in range(0, len(data.degraded), batch):
+            r = rest.restore(data.degraded[i : i + batch])
+            images.append(np.clip(r.images, 0.0, 1.0))
+            depths.append(r.depth_m)
+        enhanced = np.concatenate(images)
+        row = _image_scores(enhanced, data.clean, psnr, ssim)
+        if all(d is not None for d in depths):
+            pred = np.concatenate(depths)
+            errs = [
+                depth_errors(p, np.nan_to_num(g, nan=0.0))
+                for p, g in zip(pred, data.dist_m, strict=True)
+                if np.isfinite(g).any()
+            ]
+            for name in ("abs_rel", "rmse", "silog", "d1"):
+                row[name] = float(np.mean([getattr(e, name) for e in errs]))
+        out[label] = row
+    return out
+
+
+def _image_scores(images: np.ndarray, refs: np.ndarray, psnr: Any, ssim: Any) -> dict[str, float]:
+    ps = [psnr(a, b, data_range=1.0) for a, b in zip(images, refs, strict=True)]
+    ss = [ssim(a, b, data_range=1.0) for a, b in zip(images, refs, strict=True)]
+    return {
+        "psnr": float(np.mean(ps)),
+        "psnr_std": float(np.std(ps)),
+        "ssim": float(np.mean(ss)),
+        "ssim_std": float(np.std(ss)),
+        "n": float(len(ps)),
+    }
+
+
+def heldout_table(scores: Mapping[str, Mapping[str, float]], order: Sequence[str] | None = None) -> str:
+    """A Markdown table of :func:`score_heldout` results."""
+    lines = [
+        "| method | PSNR dB | SSIM | depth AbsRel | depth RMSE m | delta<1.25 |",
+        "|---|---|---|---|---|---|",
+    ]
+    for label in order or list(scores):
+        r = scores[label]
+
+        def f(k: str, fmt: str = "{:.3f}", r: Mapping[str, float] = r) -> str:
+            return fmt.format(r[k]) if k in r else "-"
+
+        lines.append(
+            f"| {label} | {r['psnr']:.2f} +- {r['psnr_std']:.2f} | {r['ssim']:.3f} +- {r['ssim_std']:.3f} | "
+            f"{f('abs_rel')} | {f('rmse', '{:.2f}')} | {f('d1')} |"
+        )
+    return "\n".join(lines)
