@@ -22,9 +22,11 @@ def test_demo_quick_runs_the_whole_pipeline(tmp_path: Path) -> None:
     )
     assert (out / "train" / "best.pt").exists()
     doc = json.loads((out / "report" / "metrics.json").read_text())
-    assert [m["label"] for m in doc["methods"]] == ["raw", "post", "jointid-tiny", "jointid-tiny+post"]
-    assert len(doc["rows"]) == 3 * 4 and not doc["errors"]
-    assert "report.html" in r.output and "jointid-tiny+post" in r.output
+    labels = ["raw", "post", "jointid", "jointid+post", "train-illustration"]
+    assert [m["label"] for m in doc["methods"]] == labels
+    assert doc["methods"][2]["checkpoint"] is None  # the shipped weights
+    assert len(doc["rows"]) == 3 * 5 and not doc["errors"]
+    assert "report.html" in r.output and "jointid+post" in r.output and "shipped" in r.output
     # rerunning resumes: nothing is trained again
     mtime = (out / "train" / "best.pt").stat().st_mtime
     r = runner.invoke(app, ["demo", "--quick", "--out", str(out), "-q"])

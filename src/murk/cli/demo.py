@@ -17,9 +17,8 @@ def demo(
     quiet: QuietOpt = False,
 ) -> None:
     """Run the paper's whole pipeline on embedded data: procedural scenes -> synthesis (3 stages) -> a short
-    CPU training of the tiny Joint-ID -> restoration of real underwater images -> compare -> report.html.
-
-    The tiny network after a few CPU minutes illustrates the pipeline; it is not the paper's result.
+    illustration of murk train -> restoration of real underwater images with the SHIPPED murk-trained Joint-ID
+    -> compare -> report.html.
     """
     from murk.report.demo import run_demo
 
@@ -38,7 +37,8 @@ def demo(
                 + ")",
                 f"  clean RGB-D scenes : {res.paths['scenes']}",
                 f"  synthetic dataset  : {res.paths['synth']}  (manifest.jsonl, train.txt, degraded/, snow_alpha/)",
-                f"  tiny Joint-ID      : {res.paths['checkpoint']}",
+                "  restoration        : jointid / jointid+post = the shipped model (docs/models.md)",
+                f"  train illustration : {res.paths['checkpoint']}",
                 f"  report             : {res.paths['report']}",
             ]
         ),
