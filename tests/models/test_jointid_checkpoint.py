@@ -11,7 +11,14 @@ import pytest
 import torch
 
 from murk.errors import InputFileError
-from murk.models.jointid import JointID, build_jointid, load_checkpoint, read_checkpoint, save_checkpoint
+from murk.models.jointid import (
+    JointID,
+    build_jointid,
+    load_checkpoint,
+    normalize_input,
+    read_checkpoint,
+    save_checkpoint,
+)
 
 
 @pytest.fixture(scope="module")
@@ -159,3 +166,23 @@ def test_full_size_official_format_file_loads(tmp_path, tests_data):
     assert all(
         float(own[k.removeprefix("structure.")].flatten()[0]) == float(i % 97) for i, (k, _, _) in enumerate(entries)
     )
+
+
+def test_slim_checkpoint_halves_and_reloads(tmp_path: Path) -> None:
+    """fp16 distribution copy: smaller, loads with weights_only, same outputs to fp16 precision, no optimiser."""
+    from murk.models.jointid import slim_checkpoint
+
+    torch.manual_seed(0)
+    model = build_jointid("small").eval()
+    opt = torch.optim.AdamW(model.parameters())
+    full = save_checkpoint(model, tmp_path / "full.pt", step=3, optimizer=opt.state_dict())
+    slim = slim_checkpoint(full, tmp_path / "slim.pt", trained_by="test", steps=3)
+    assert slim.stat().st_size < 0.6 * full.stat().st_size
+    obj = torch.load(slim, weights_only=True)
+    assert obj["meta"] == {"trained_by": "test", "steps": 3}
+    assert all(v.dtype == torch.float16 for v in obj["state_dict"].values() if v.is_floating_point())
+    back = load_checkpoint(slim)
+    assert next(back.parameters()).dtype == torch.float32
+    x = normalize_input(torch.rand(1, 3, 64, 64, generator=torch.Generator().manual_seed(1)))
+    with torch.no_grad():
+        torch.testing.assert_close(back(x).enhanced, model(x).enhanced, atol=5e-3, rtol=0)

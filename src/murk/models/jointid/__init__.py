@@ -1,7 +1,13 @@
 """Joint-ID (Yang et al., IEEE Sensors Journal 2023, doi:10.1109/JSEN.2023.3338730), exact and
 checkpoint-compatible."""
 
-from murk.models.jointid.checkpoint import CheckpointInfo, load_checkpoint, read_checkpoint, save_checkpoint
+from murk.models.jointid.checkpoint import (
+    CheckpointInfo,
+    load_checkpoint,
+    read_checkpoint,
+    save_checkpoint,
+    slim_checkpoint,
+)
 from murk.models.jointid.golden import fill_golden_, golden_input
 from murk.models.jointid.network import (
     INPUT_MEAN,
@@ -36,5 +42,6 @@ __all__ = [
     "normalize_input_np",
     "read_checkpoint",
     "save_checkpoint",
+    "slim_checkpoint",
     "unused_parameter_names",
 ]

@@ -297,3 +297,16 @@ def load_checkpoint(path: str | Path, *, trust: bool = False, device: str | torc
     state = {k: v.float() if v.is_floating_point() else v for k, v in state.items()}
     model.load_state_dict(state, strict=True, assign=True)
     return model.to(device).eval()
+
+
+def slim_checkpoint(src: str | Path, dst: str | Path, *, dtype: torch.dtype = torch.float16, **meta: Any) -> Path:
+    """A weights-only copy of a checkpoint for distribution: floating-point weights stored as ``dtype`` (half
+    the size in fp16; :func:`load_checkpoint` returns float32 again), the optimiser state and other training
+    metadata dropped, ``meta`` (plain data: provenance, metrics) recorded instead. Loads with
+    ``weights_only=True``.
+
+    Raises:
+        InputFileError: ``src`` cannot be read (see :func:`read_checkpoint`).
+    """
+    model = load_checkpoint(src)
+    return save_checkpoint(model.to(dtype), dst, **meta)
