@@ -1,0 +1,134 @@
+"""The shipped murk-trained Joint-ID (or any checkpoint): quality on held-out data and CPU speed.
+
+Run: PYTHONPATH=src python benchmarks/bench_model.py [--checkpoint FILE] [--scenes 64] [--json OUT.json]
+
+1. Held-out procedural scenes (never seen in training: their own seed): 64 scenes, 320x240, degraded with all
+   three stages and the synthesis settings of configs/train-small-cpu.yaml. PSNR/SSIM of the degraded input and
+   of the restored image against the clean render; depth AbsRel/RMSE against the exact distance (surfaces only).
+2. The 13 shipped REAL underwater images: the restoration measures of murk.metrics.fidelity, output vs input
+   (artefact energy ratios, structure GMS, luminance contrast ratio, colour cast, luminance ratio, bright and
+   dark particle residue), averaged over the images, and the targets of the "working model" issue checked.
+3. CPU speed at 640x480 with 2 threads: the restorer end to end (numpy frame in, enhanced + depth out) in fp32
+   and bf16 autocast, median of interleaved rounds; the ratio bf16/fp32 is the speed claim.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from murk._config import load_yaml, merge
+from murk.data import sample_underwater_images, shipped_jointid_weights
+from murk.enhance.restorer import create
+from murk.io import read_rgb
+from murk.metrics import restoration_measures
+from murk.report.heldout import heldout_table, make_heldout, score_heldout
+from murk.train.config import TrainConfig
+
+ROOT = Path(__file__).resolve().parent.parent
+HELDOUT_SEED = 20261201
+"""Seed of the held-out scenes (training uses seed 0: scenes derive_seed(0, i))."""
+
+
+def real_measures(restorer: object) -> dict[str, float]:
+    """Mean restoration measures over the shipped real images, output vs input."""
+    rows = []
+    for path in sample_underwater_images():
+        img = read_rgb(path)
+        out = np.clip(restorer.restore(img[None]).images[0], 0.0, 1.0)  # type: ignore[attr-defined]
+        rows.append(restoration_measures(img, out))
+    keys = rows[0].keys()
+    mean = {k: float(np.mean([r[k] for r in rows])) for k in keys}
+    mean["images"] = float(len(rows))
+    mean["worst_artefact_ratio"] = float(
+        max(max(r["artefact_periodic_ratio"], r["artefact_isolated_ratio"]) for r in rows)
+    )
+    return mean
+
+
+def speed(checkpoint: str, repeats: int) -> dict[str, float]:
+    torch.set_num_threads(2)
+    frame = np.random.default_rng(0).random((1, 480, 640, 3), dtype=np.float32)
+    fns = {p: create("jointid", checkpoint=checkpoint, precision=p) for p in ("fp32", "bf16")}
+    for r in fns.values():
+        r.restore(frame)  # warm-up
+    samples: dict[str, list[float]] = {k: [] for k in fns}
+    for _ in range(repeats):
+        for k, r in fns.items():
+            t0 = time.perf_counter()
+            r.restore(frame)
+            samples[k].append(time.perf_counter() - t0)
+    ms = {k: statistics.median(v) * 1e3 for k, v in samples.items()}
+    return {
+        "fp32_ms": ms["fp32"],
+        "bf16_ms": ms["bf16"],
+        "fp32_fps": 1e3 / ms["fp32"],
+        "bf16_fps": 1e3 / ms["bf16"],
+        "bf16_speedup": ms["fp32"] / ms["bf16"],
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--checkpoint", default=str(shipped_jointid_weights()))
+    ap.add_argument("--scenes", type=int, default=64)
+    ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    args = ap.parse_args()
+    torch.set_num_threads(2)
+    figures: dict[str, object] = {"checkpoint": args.checkpoint}
+
+    train_cfg = load_yaml(TrainConfig, ROOT / "configs" / "train-small-cpu.yaml")
+    synthesis = merge(train_cfg.data.synthesis, {"stages": ["basic", "forward_scatter", "marine_snow"]})
+    data = make_heldout(args.scenes, seed=HELDOUT_SEED, size_hw=(240, 320), synthesis=synthesis)
+    restorer = create("jointid", checkpoint=args.checkpoint)
+    scores = score_heldout(data, {"model": restorer})
+    figures["heldout"] = scores
+    print(f"== held-out: {args.scenes} procedural scenes, 320x240, three stages, seed {HELDOUT_SEED}")
+    print(heldout_table(scores))
+    gain = scores["model"]["psnr"] - scores["input"]["psnr"]
+    print(
+        f"PSNR gain {gain:+.2f} dB (target >= +4), SSIM {scores['input']['ssim']:.3f} -> "
+        f"{scores['model']['ssim']:.3f} (target: higher), "
+        f"depth AbsRel {scores['model'].get('abs_rel', float('nan')):.3f} (target <= 0.25)"
+    )
+
+    real = real_measures(restorer)
+    figures["real"] = real
+    print(f"\n== {int(real['images'])} shipped real images, output vs input (means)")
+    checks = [
+        ("artefact periodic ratio", real["artefact_periodic_ratio"], "<= 1.3"),
+        ("artefact isolated ratio", real["artefact_isolated_ratio"], "<= 1.3"),
+        ("worst single-image artefact ratio", real["worst_artefact_ratio"], "(info)"),
+        ("structure GMS", real["structure_gms"], "(info; flag below 0.7)"),
+        ("luminance contrast ratio", real["contrast_ratio"], ">= 0.5 (no grey collapse)"),
+        ("colour cast in -> out", real["cast_out"] - real["cast_in"], "< 0 (smaller cast)"),
+        ("mean luminance ratio", real["luminance_ratio"], ">= 0.9 (not darkened)"),
+        ("particle residue ratio (bright+dark)", real["particle_residue_ratio"], "< 1 (fewer particles)"),
+    ]
+    for name, value, target in checks:
+        print(f"  {name:<38} {value:8.3f}   target {target}")
+    print(
+        f"  (cast {real['cast_in']:.2f} -> {real['cast_out']:.2f}; particles/MP bright "
+        f"{real['particles_bright_in']:.0f} -> {real['particles_bright_out']:.0f}, "
+        f"dark {real['particles_dark_in']:.0f} -> {real['particles_dark_out']:.0f})"
+    )
+
+    sp = speed(args.checkpoint, args.repeats)
+    figures["speed_640x480_2threads"] = sp
+    print(
+        f"\n== CPU speed, 640x480, 2 threads: fp32 {sp['fp32_ms']:.0f} ms ({sp['fp32_fps']:.1f} frames/s), "
+        f"bf16 {sp['bf16_ms']:.0f} ms ({sp['bf16_fps']:.1f} frames/s), bf16/fp32 speed-up x{sp['bf16_speedup']:.2f}"
+    )
+    if args.json:
+        Path(args.json).write_text(json.dumps(figures, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
