@@ -85,3 +85,21 @@ def test_arm_finished_needs_all_steps(tmp_path: Path) -> None:
     assert not arm_finished(cfg)
     (tmp_path / "summary.json").write_text(json.dumps({"steps_done": 5, "total_steps": 5}))
     assert arm_finished(cfg)
+
+
+def test_shipped_study_configs() -> None:
+    """Both shipped studies load; the CPU study's last arm is exactly `murk train --config train-small-cpu.yaml`."""
+    from murk._config import load_yaml, merge
+
+    root = Path(__file__).resolve().parents[2] / "configs"
+    for name in ("study-paper-cpu.yaml", "study-paper-gpu.yaml"):
+        study, base = load_study(root / name)
+        assert [a.stages for a in study.arms] == [
+            ("basic",),
+            ("basic", "forward_scatter"),
+            ("basic", "forward_scatter", "marine_snow"),
+        ]
+    study, base = load_study(root / "study-paper-cpu.yaml")
+    assert base.model.variant == "small"
+    shipped = load_yaml(TrainConfig, root / "train-small-cpu.yaml")
+    assert arm_config(base, study.arms[-1], "X") == merge(shipped, {"out": str(Path("X") / "models" / "proposed")})

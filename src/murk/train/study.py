@@ -57,8 +57,6 @@ class StudyEvalConfig:
 
     real: str = "builtin:underwater"
     """Folder of REAL underwater images (the Fig. 8 table and Fig. 9 grids)."""
-    real_max_side: int = 640
-    """Real images larger than this (long side) are downscaled before restoration."""
     synthetic_scenes: int = 64
     """Held-out procedural scenes with references (PSNR/SSIM, depth errors); 0 = skip."""
     synthetic_seed: int = 20261201
