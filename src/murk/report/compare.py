@@ -159,7 +159,8 @@ def run_compare(
             {"name": path.name, "grid_u8": _shrink(grid), "rows": rows, "boxes": [b.__dict__ for b in chosen]}
         )
     result.summary = summarise(result.rows, labels)
-    _write_tables(out, result, methods, uiqm_preset, uciqe_preset)
+    weights = {m.label: _weights_of(r) for m, r in zip(methods, restorers, strict=True)}
+    _write_tables(out, result, methods, uiqm_preset, uciqe_preset, weights)
     notes = [
         f"UIQM preset '{uiqm_preset}', UCIQE preset '{uciqe_preset}' (docs/metrics.md says which published code "
         "each preset reproduces); metrics are computed on the full-resolution outputs.",
@@ -177,6 +178,7 @@ def run_compare(
         f"{fidelity.LUMINANCE_RATIO_MIN:g}), particles not removed (particle ratio > {fidelity.PARTICLE_RATIO_MAX:g})."
         " UIQM and UCIQE reward noise and artefacts: read them with the flags.",
     ]
+    notes += [f"Weights of {lab}: {w}" for lab, w in weights.items() if w]
     html_text = render_report(
         title=title,
         methods=[{"label": m.label, "spec": m.text} for m in methods],
@@ -204,8 +206,21 @@ def _shrink(grid: np.ndarray, max_width: int = 1600) -> np.ndarray:
     return cv2.resize(grid, None, fx=f, fy=f, interpolation=cv2.INTER_AREA)
 
 
+def _weights_of(restorer: Any) -> str | None:
+    """The weights file a (chained) restorer loaded, e.g. the shipped Joint-ID when no checkpoint was given."""
+    for stage in getattr(restorer, "stages", [restorer]):
+        if getattr(stage, "weights", None):
+            return str(stage.weights)
+    return None
+
+
 def _write_tables(
-    out: Path, result: CompareResult, methods: Sequence[MethodSpec], uiqm_preset: str, uciqe_preset: str
+    out: Path,
+    result: CompareResult,
+    methods: Sequence[MethodSpec],
+    uiqm_preset: str,
+    uciqe_preset: str,
+    weights: dict[str, str | None],
 ) -> None:
     cols = ["image", "method", "spec", *METRIC_KEYS, "ms", "flags", "warnings"]
     buf = io.StringIO()
@@ -218,7 +233,14 @@ def _write_tables(
         "murk_version": __version__,
         "presets": {"uiqm": uiqm_preset, "uciqe": uciqe_preset},
         "methods": [
-            {"label": m.label, "spec": m.text, "method": m.method, "checkpoint": m.checkpoint} for m in methods
+            {
+                "label": m.label,
+                "spec": m.text,
+                "method": m.method,
+                "checkpoint": m.checkpoint,
+                "weights": weights.get(m.label),
+            }
+            for m in methods
         ],
         "summary": result.summary,
         "rows": result.rows,
