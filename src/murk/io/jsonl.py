@@ -7,12 +7,24 @@ middle can leave only a partial last line, which :func:`read_jsonl` skips.
 from __future__ import annotations
 
 import json
+import math
 import os
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
 from murk.io.atomic import write_text_atomic
+
+
+def json_safe(obj: Any) -> Any:
+    """A copy of nested dicts/lists/tuples in which non-finite floats (NaN, inf) become None (JSON null)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    return obj
 
 
 def dumps(record: dict[str, Any]) -> str:

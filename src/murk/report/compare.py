@@ -30,7 +30,7 @@ import numpy as np
 from murk._version import __version__
 from murk.io.atomic import write_text_atomic
 from murk.io.images import read_rgb, write_rgb, write_uint
-from murk.io.jsonl import write_jsonl
+from murk.io.jsonl import json_safe, write_jsonl
 from murk.metrics import fidelity
 from murk.metrics.fidelity import MEASURE_KEYS, count_flags, flags, join_flags, restoration_measures
 from murk.report.figures import Box, auto_boxes, comparison_grid
@@ -247,15 +247,4 @@ def _write_tables(
         "errors": result.errors,
         "summary_columns": [k for k, _ in SUMMARY_METRICS],
     }
-    write_text_atomic(out / "metrics.json", json.dumps(_finite(doc), indent=2, allow_nan=False) + "\n")
-
-
-def _finite(obj: Any) -> Any:
-    """JSON-safe copy: non-finite numbers become null."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite(v) for v in obj]
-    return obj
+    write_text_atomic(out / "metrics.json", json.dumps(json_safe(doc), indent=2, allow_nan=False) + "\n")

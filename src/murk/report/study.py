@@ -25,6 +25,7 @@ from typing import Any
 from murk._config import merge
 from murk._version import __version__
 from murk.io.atomic import write_text_atomic
+from murk.io.jsonl import json_safe
 from murk.train.config import TrainConfig
 from murk.train.study import WALL_FILE, ArmRun, StudyConfig, arm_config, load_study, train_arms
 
@@ -99,7 +100,7 @@ def evaluate_study(
             "stages": list(synthesis.stages),
             "scores": score_heldout(data, restorers, on_method=lambda m: say(f"held-out: scoring {m}")),
         }
-        write_text_atomic(out / "heldout.json", json.dumps(_finite(heldout), indent=2) + "\n")
+        write_text_atomic(out / "heldout.json", json.dumps(json_safe(heldout), indent=2) + "\n")
     report["heldout"] = heldout
 
     real_dir = Path(resolve_builtin(ev.real))
@@ -120,7 +121,7 @@ def evaluate_study(
         "summary": res.summary,
         "errors": res.errors,
     }
-    write_text_atomic(out / "study.json", json.dumps(_finite(report), indent=2) + "\n")
+    write_text_atomic(out / "study.json", json.dumps(json_safe(report), indent=2) + "\n")
     write_text_atomic(out / "study.md", study_markdown(report))
     return report
 
@@ -195,13 +196,3 @@ def study_markdown(report: dict[str, Any]) -> str:
             f"| {name} | {', '.join(a['stages'])} | {a['steps']} | {wall} | {f'{vp:.2f}' if vp is not None else '-'} |"
         )
     return "\n".join(lines) + "\n"
-
-
-def _finite(obj: Any) -> Any:
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite(v) for v in obj]
-    return obj
