@@ -40,8 +40,14 @@ def merge(base: T, overrides: dict[str, Any], *, where: str = "overrides") -> T:
     return from_dict(type(base), data, where=where)
 
 
+PROVENANCE_KEYS = ("murk_version", "world_size")
+"""Top-level keys murk writes into the config.yaml of every output folder to record the run (not settings):
+:func:`load_yaml` ignores them, so an output folder's config.yaml reproduces its run."""
+
+
 def load_yaml(cls: type[T], path: str | Path) -> T:
-    """Load a YAML file (``yaml.safe_load``) into ``cls``; errors name the file and the key."""
+    """Load a YAML file (``yaml.safe_load``) into ``cls``; errors name the file and the key. The provenance keys
+    written by :func:`dump_yaml` (:data:`PROVENANCE_KEYS`) are ignored."""
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"{path}: config file not found")
@@ -49,6 +55,8 @@ def load_yaml(cls: type[T], path: str | Path) -> T:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
     except yaml.YAMLError as exc:
         raise ValueError(f"{path}: invalid YAML ({exc})") from None
+    if isinstance(data, dict):
+        data = {k: v for k, v in data.items() if k not in PROVENANCE_KEYS}
     return from_dict(cls, data or {}, where=str(path))
 
 

@@ -58,3 +58,14 @@ def test_validation_errors() -> None:
     assert parse_stages("forward_scatter,basic") == ("basic", "forward_scatter")
     with pytest.raises(ValueError, match="vertical_depth_m: expected min <= max"):
         merge(SynthConfig(), {"medium": {"vertical_depth_m": [5, 3]}})
+
+
+def test_config_written_by_murk_loads_back(tmp_path: Path) -> None:
+    """`murk synth --config OUT/config.yaml` reproduces a run: the provenance keys murk writes are ignored."""
+    cfg = SynthConfig(variants=3, seed=7)
+    path = tmp_path / "config.yaml"
+    path.write_text(dump_yaml(cfg, murk_version="0.1.0"))
+    assert load_yaml(SynthConfig, path) == cfg
+    path.write_text(dump_yaml(cfg, murk_version="0.1.0", surprise=1))
+    with pytest.raises(ValueError, match="unknown key"):
+        load_yaml(SynthConfig, path)
