@@ -123,11 +123,11 @@ def uiqm(image: np.ndarray, *, data_range: float, preset: UIQMPreset = "panetta2
     data_range = check_data_range(data_range)
     check_rgb_numpy("image", image, data_range)
     if preset == "panetta2016":
-        x = to_255_numpy(image, data_range, np.float64)
+        x = _snap_numpy(to_255_numpy(image, data_range, np.float64))
         uicm_v = _uicm_panetta(x)
         uism_v, uiconm_v = _uism_uiconm_panetta(x)
     else:
-        x = to_255_numpy(image, data_range, np.float32)
+        x = _snap_numpy(to_255_numpy(image, data_range, np.float64)).astype(np.float32)
         uicm_v = _uicm_funie(x)
         uism_v = _uism_funie(x, preset)
         uiconm_v = _uiconm_funie(x, preset)
@@ -137,6 +137,27 @@ def uiqm(image: np.ndarray, *, data_range: float, preset: UIQMPreset = "panetta2
 
 
 # ----------------------------------------------------------------------------------------------------------
+# the input grid
+
+
+SNAP_DECIMALS = 3
+"""Images are rounded to 1/1000 of a grey level on the [0, 255] scale before UIQM. An 8-bit image stored as
+float32 in [0, 1] (k/255 is not exactly representable) then scores exactly as the uint8 image: without it,
+float rounding leaves ~1e-4 gradients in flat 8x8 blocks, and UISM's log(Imax/Imin) (Imin = 0 blocks are
+skipped, tiny Imin are not) rose by up to 0.28 (UIQM +0.08) for the same picture. Real image content finer
+than 1/1000 grey level does not exist at 8-16 bits."""
+
+
+def _snap_numpy(x: np.ndarray) -> np.ndarray:
+    return np.round(x, SNAP_DECIMALS)
+
+
+def _snap_torch(x: torch.Tensor) -> torch.Tensor:
+    import torch
+
+    return torch.round(x, decimals=SNAP_DECIMALS)
+
+
 # panetta2016 (numpy, float64)
 
 
@@ -342,11 +363,11 @@ def uiqm_torch(images: torch.Tensor, *, data_range: float, preset: UIQMPreset = 
     data_range = check_data_range(data_range)
     check_rgb_torch("images", images, data_range)
     if preset == "panetta2016":
-        x = to_255_torch(images, data_range, torch.float64)
+        x = _snap_torch(to_255_torch(images, data_range, torch.float64))
         uicm_v = _uicm_torch(x, preset)
         uism_v, uiconm_v = _uism_uiconm_panetta_torch(x)
     else:
-        x = to_255_torch(images, data_range, torch.float32)
+        x = _snap_torch(to_255_torch(images, data_range, torch.float64)).float()
         uicm_v = _uicm_torch(x, preset)
         uism_v = _uism_funie_torch(x, preset)
         uiconm_v = _uiconm_funie_torch(x, preset)
