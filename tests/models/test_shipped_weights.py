@@ -1,0 +1,45 @@
+"""The Joint-ID weights shipped in the package: loadable safely, small, and a real restorer (not a stub).
+
+Figures of the full evaluation (64 held-out scenes, the real images, speed) are in docs/models.md and come from
+benchmarks/bench_model.py; this test pins a cheap part of them so that a broken or replaced file is caught.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from murk.data import sample_underwater_images, shipped_jointid_weights
+from murk.enhance.restorer import create
+from murk.io import read_rgb
+from murk.metrics import restoration_measures
+
+
+def test_shipped_file_is_small_safe_and_the_small_variant() -> None:
+    path = shipped_jointid_weights()
+    assert path.is_file() and path.stat().st_size <= 10 * 2**20
+    obj = torch.load(path, weights_only=True)  # no pickled code: plain tensors and data
+    assert obj["variant"] == "small" and obj["config"]["residual_output"] is True
+    assert all(v.dtype == torch.float16 for v in obj["state_dict"].values() if v.is_floating_point())
+    assert obj["meta"]["command"].startswith("murk train --config configs/train-small-cpu.yaml")
+
+
+def test_shipped_model_restores_heldout_scenes_and_keeps_real_images_sane() -> None:
+    from murk._config import merge
+    from murk.report.heldout import make_heldout, score_heldout
+    from murk.synth.config import SnowConfig, SynthConfig
+
+    torch.set_num_threads(2)
+    restorer = create("jointid")
+    assert restorer.weights == str(shipped_jointid_weights())
+    synthesis = merge(
+        SynthConfig(medium=SynthConfig().medium, marine_snow=SnowConfig(reference_area_px=307200)),
+        {"medium": {"vertical_depth_m": [2.0, 10.0]}},
+    )
+    data = make_heldout(6, seed=4242, size_hw=(96, 128), synthesis=synthesis)
+    scores = score_heldout(data, {"model": restorer})
+    assert scores["model"]["psnr"] > scores["input"]["psnr"] + 1.0, scores
+    img = read_rgb(sample_underwater_images()[0])
+    out = restorer.restore(img[None]).images[0]
+    m = restoration_measures(img, np.clip(out, 0, 1))
+    assert m["contrast_ratio"] > 0.5 and m["luminance_ratio"] > 0.9, m  # no grey collapse, not darkened
