@@ -250,3 +250,22 @@ def test_small_variant_size_and_residual_identity() -> None:
     x = torch.rand(2, 3, 64, 96, generator=torch.Generator().manual_seed(0))
     out = model(normalize_input(x)).enhanced
     torch.testing.assert_close(out, x.clamp(RESIDUAL_EPS, 1 - RESIDUAL_EPS), atol=2e-5, rtol=0)
+
+
+def test_icnr_init_gives_no_subpixel_grid() -> None:
+    """After icnr_init_, every conv feeding a pixel shuffle yields identical r x r sub-pixels (no grid)."""
+    import torch.nn.functional as F
+
+    from murk.models.jointid.network import icnr_init_
+
+    model = icnr_init_(build_jointid("small"))
+    dec = model.enhanced_structure.decoder
+    g = torch.Generator().manual_seed(0)
+    with torch.no_grad():
+        y = F.pixel_shuffle(dec.up_skip_conv(torch.randn(1, dec.up_skip_conv.in_channels, 4, 4, generator=g)), 4)
+        for i in range(4):
+            for j in range(4):
+                assert torch.equal(y[..., i::4, j::4], y[..., 0::4, 0::4])
+        y = F.pixel_shuffle(dec.up_channels_c4(torch.randn(1, dec.up_channels_c4.in_channels, 3, 3, generator=g)), 2)
+        assert torch.equal(y[..., 1::2, 1::2], y[..., 0::2, 0::2])
+        assert not torch.equal(y[:, 0], y[:, 1])  # channels still differ

@@ -20,6 +20,9 @@ class ModelConfig:
     variant: Literal["base", "small", "tiny"] = "base"
     init_checkpoint: str | None = None
     """Start from these weights (murk or official format) instead of the random initialisation."""
+    init: Literal["original", "icnr"] = "original"
+    """Random initialisation: the recipe's, or with ICNR for the convolutions before pixel shuffles
+    (:func:`murk.models.jointid.network.icnr_init_`; no sub-pixel grid at the start)."""
     trust_checkpoint: bool = False
 
 

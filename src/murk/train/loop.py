@@ -201,6 +201,7 @@ def train(
         save_checkpoint,
         unused_parameter_names,
     )
+    from murk.models.jointid.network import icnr_init_
 
     rank, world, local_rank = _dist_info()
     distributed = world > 1
@@ -242,6 +243,8 @@ def train(
 
     torch.manual_seed(config.seed)
     model = build_jointid(config.model.variant)
+    if config.model.init == "icnr":
+        icnr_init_(model)
     if config.model.init_checkpoint:
         state, _ = read_checkpoint(config.model.init_checkpoint, trust=config.model.trust_checkpoint)
         model.load_state_dict(state, strict=True)

@@ -230,6 +230,33 @@ def init_weights(model: JointID) -> JointID:
     return model
 
 
+def icnr_init_(model: JointID) -> JointID:
+    """ICNR initialisation (Aitken et al., "Checkerboard artifact free sub-pixel convolution", arXiv:1707.02937)
+    of every convolution that feeds a pixel shuffle: the ``r*r`` output channels that become one output
+    channel's ``r x r`` sub-pixels start as copies of one kernel (drawn as :func:`init_weights` draws it), so
+    the initial upsampling is a nearest-neighbour resize and no sub-pixel grid pattern is present at the start.
+    Applied after :func:`init_weights`; in place."""
+    from murk.models.jointid.decoder import _SKIP_SHUFFLE
+
+    with torch.no_grad():
+        for branch in (model.depth_structure, model.enhanced_structure):
+            dec = branch.decoder
+            convs = [(dec.up_skip_conv, 4)]
+            for s in (3, 2, 1, 0):
+                convs.append((getattr(dec, f"up_skip_conv_c{s + 1}"), _SKIP_SHUFFLE[s]))
+                if s > 0:
+                    convs.append((getattr(dec, f"up_channels_c{s + 1}"), 2))
+            for conv, r in convs:
+                if r == 1:
+                    continue
+                w = conv.weight
+                base = w[:: r * r].clone()  # one kernel per shuffled output channel
+                w.copy_(base.repeat_interleave(r * r, dim=0))
+                if conv.bias is not None:
+                    conv.bias.copy_(conv.bias[:: r * r].repeat_interleave(r * r))
+    return model
+
+
 def build_jointid(variant: Variant | JointIDConfig = "base", *, init: bool = True) -> JointID:
     """Build a Joint-ID network.
 
