@@ -25,9 +25,16 @@ def demo(
     console = make_console(quiet)
     res = run_demo(out, quick=quick, seed=seed, log=lambda m: console.print(m, highlight=False, soft_wrap=True))
     summary = make_console()
-    summary.print("\nmean UIQM on the real images (higher = more colourful, sharper, more contrast):", highlight=False)
+    summary.print(
+        "\nmean UIQM on the real images (higher = more colourful, sharper, more contrast; UIQM also rewards noise,"
+        " so read it with the restoration flags of docs/metrics.md):",
+        highlight=False,
+    )
     for label, value in res.summary["uiqm"].items():
-        summary.print(f"  {label:<20} {value:.3f}", highlight=False)
+        fl = res.summary["flags"].get(label) or {}
+        named = ", ".join(f"{k} {v}" for k, v in fl.items() if k not in ("flagged", "n") and v)
+        flagged = f"  flagged {fl.get('flagged', 0)}/{fl.get('n', 0)}" + (f" ({named})" if named else "")
+        summary.print(f"  {label:<20} {value:.3f}{flagged}", highlight=False)
     total = sum(res.seconds.values())
     summary.print(
         "\n".join(

@@ -201,6 +201,7 @@ def run_demo(
     )
     res.paths["report"] = out / "report" / "report.html"
     res.summary["uiqm"] = {m.label: cmp.summary[m.label]["uiqm"]["mean"] for m in methods}
+    res.summary["flags"] = {m.label: cmp.summary[m.label].get("flags", {}) for m in methods}
     res.summary["compare_errors"] = len(cmp.errors)
     done("compare")
     return res

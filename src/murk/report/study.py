@@ -115,7 +115,7 @@ def evaluate_study(
     say(f"real: {len(images)} images x {len(methods)} methods")
     res = run_compare(images, methods, out / "real", title="murk study: the paper's ablation")
     report["real"] = {
-        "folder": str(real_dir),
+        "folder": ev.real,
         "images": len(images),
         "methods": [m.label for m in methods],
         "summary": res.summary,
