@@ -40,8 +40,12 @@ def test_registered_and_created_from_a_checkpoint_ignoring_unknown_options(tiny_
     assert isinstance(r, JointIDRestorer) and r.name == "jointid" and r.model.config.depths == (1, 1, 2, 1)
 
 
-def test_factory_needs_weights_and_reports_bad_files(tmp_path):
-    with pytest.raises(ValueError, match="--checkpoint"):
+def test_factory_defaults_to_shipped_weights_and_reports_bad_files(tmp_path, monkeypatch):
+    from murk.data import shipped_jointid_weights
+
+    assert create("jointid").weights == str(shipped_jointid_weights())  # no checkpoint: the shipped model
+    monkeypatch.setattr("murk.data.shipped_jointid_weights", lambda: tmp_path / "absent.pt")
+    with pytest.raises(ValueError, match="shipped weights .* are missing.*--checkpoint"):
         create("jointid")
     with pytest.raises(InputFileError, match="checkpoint not found"):
         create("jointid", checkpoint=tmp_path / "missing.pt")
