@@ -45,7 +45,7 @@ def test_factory_defaults_to_shipped_weights_and_reports_bad_files(tmp_path, mon
 
     assert create("jointid").weights == str(shipped_jointid_weights())  # no checkpoint: the shipped model
     monkeypatch.setattr("murk.data.shipped_jointid_weights", lambda: tmp_path / "absent.pt")
-    with pytest.raises(ValueError, match="shipped weights .* are missing.*--checkpoint"):
+    with pytest.raises(ValueError, match=r"shipped weights .* are missing.*--checkpoint"):
         create("jointid")
     with pytest.raises(InputFileError, match="checkpoint not found"):
         create("jointid", checkpoint=tmp_path / "missing.pt")
