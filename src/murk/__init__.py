@@ -41,16 +41,19 @@ _LAZY = {
     "psnr": "murk.metrics",
     "ssim": "murk.metrics",
     "depth_errors": "murk.metrics",
+    "restoration_measures": "murk.metrics",
     # restoration
     "post_process": "murk.enhance.post",
     "create_restorer": "murk.enhance.restorer",
     "build_jointid": "murk.models.jointid",
     "load_checkpoint": "murk.models.jointid",
     "save_checkpoint": "murk.models.jointid",
+    "shipped_jointid_weights": "murk.data",
     # training and evaluation
     "TrainConfig": "murk.train.config",
     "train": "murk.train.loop",
     "run_compare": "murk.report.compare",
+    "run_study": "murk.report.study",
     # io
     "read_rgb": "murk.io",
     "write_rgb": "murk.io",
