@@ -281,3 +281,18 @@ def test_usage_errors_exit_2(folder: Path, args: list[str], message: str) -> Non
     res = _run(*(a.format(folder=folder) for a in args))
     assert res.exit_code == 2
     assert message in _err(res)
+
+
+def test_eval_and_compare_agree_on_the_same_file(folder: Path, tmp_path: Path) -> None:
+    """murk eval scores the file (uint8), murk compare its float32 copy ('raw'): the same UIQM/UCIQE (issue 13)."""
+    from murk.report.compare import run_compare
+    from murk.report.methods import parse_method
+
+    res = _run(str(folder), "--json", str(tmp_path / "e.json"))
+    assert res.exit_code == 0, res.output
+    ev = {r["file"]: r for r in json.loads((tmp_path / "e.json").read_text())["images"]}
+    cmp = run_compare(sorted(folder.iterdir()), [parse_method("raw")], tmp_path / "cmp")
+    assert len(cmp.rows) == len(ev) == 2
+    for row in cmp.rows:
+        assert row["uiqm"] == pytest.approx(ev[row["image"]]["uiqm"], abs=1e-6)
+        assert row["uciqe"] == pytest.approx(ev[row["image"]]["uciqe"], abs=1e-6)

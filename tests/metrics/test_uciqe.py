@@ -191,3 +191,16 @@ def test_torch_invalid_inputs_raise() -> None:
         uciqe_torch(torch.full((1, 3, 4, 4), 128.0), data_range=1.0)
     with pytest.raises(ValueError, match="preset"):
         uciqe_torch(torch.zeros(1, 3, 4, 4), data_range=1.0, preset="raw")  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("preset", ["uciqe_m", "cielab_raw"])
+def test_uciqe_does_not_depend_on_the_dtype(preset: str) -> None:
+    """The same 8-bit picture as uint8, uint16, float32 and float64 gives the same UCIQE to 1e-6 (issue 13)."""
+    from murk.data import sample_underwater_images
+    from murk.io import read_image
+
+    u8, _ = read_image(sample_underwater_images()[4])
+    ref = uciqe(u8, data_range=255, preset=preset).uciqe
+    assert uciqe(u8.astype(np.uint16) * 257, data_range=65535, preset=preset).uciqe == pytest.approx(ref, abs=1e-6)
+    for dtype in (np.float32, np.float64):
+        assert uciqe(u8.astype(dtype) / 255, data_range=1.0, preset=preset).uciqe == pytest.approx(ref, abs=1e-6)

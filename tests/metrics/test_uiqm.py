@@ -303,10 +303,10 @@ def test_torch_invalid_inputs_raise(images: object, error: type[Exception], matc
         uiqm_torch(images, data_range=1.0)  # type: ignore[arg-type]
 
 
-@pytest.mark.parametrize("preset", ["panetta2016", "funie"])
+@pytest.mark.parametrize("preset", ["panetta2016", "funie", "jointid"])
 def test_uiqm_does_not_depend_on_the_dtype(preset: str) -> None:
-    """The same 8-bit picture scores the same as uint8, float32 and float64 in [0, 1] (numpy and torch): float32
-    rounding of k/255 used to add UISM +0.28 / UIQM +0.08 (issue 13)."""
+    """The same 8-bit picture scores the same as uint8, uint16, float32 and float64 in [0, 1] (numpy and torch):
+    float32 rounding of k/255 used to add UISM +0.28 / UIQM +0.08 (issue 13)."""
     import torch
 
     from murk.data import sample_underwater_images
@@ -314,6 +314,7 @@ def test_uiqm_does_not_depend_on_the_dtype(preset: str) -> None:
 
     u8, _ = read_image(sample_underwater_images()[0])
     ref = uiqm(u8, data_range=255, preset=preset).uiqm
+    assert uiqm(u8.astype(np.uint16) * 257, data_range=65535, preset=preset).uiqm == pytest.approx(ref, abs=1e-9)
     for dtype in (np.float32, np.float64):
         assert uiqm(u8.astype(dtype) / 255, data_range=1.0, preset=preset).uiqm == pytest.approx(ref, abs=1e-9)
     t = torch.from_numpy(u8.astype(np.float32) / 255).permute(2, 0, 1)[None]
