@@ -149,3 +149,22 @@ def test_video_with_a_broken_frame_continues_and_exits_1(tmp_path: Path) -> None
     assert len(read_video(tmp_path / "out" / "enh.avi")) == 10  # the broken frame is replaced, timing kept
     (record,) = read_jsonl(tmp_path / "out" / "errors.jsonl")
     assert record["frame"] == 4 and record["stage"] == "read" and record["input"] == str(video)
+
+
+def test_bombs_are_recorded_and_the_batch_goes_on(folder: Path, tmp_path: Path) -> None:
+    """Decompression bombs next to good images: exit 1, each bomb named in errors.jsonl, the good ones written;
+    `murk --max-pixels` lowers the limit for any command."""
+    from tests.io._bombs import jpeg_bomb, png_bomb
+
+    png_bomb(folder / "bomb.png")
+    jpeg_bomb(folder / "bomb2.jpg")
+    res = runner.invoke(app, ["enhance", str(folder), "--out", str(tmp_path / "out"), "--format", "png"])
+    assert res.exit_code == 1, res.output
+    records = read_jsonl(tmp_path / "out" / "errors.jsonl")
+    assert sorted(Path(r["input"]).name for r in records) == ["bomb.png", "bomb2.jpg"]
+    assert all("over the limit" in r["error"] for r in records)
+    assert (tmp_path / "out" / "a.png").is_file()  # the good image next to the bombs
+    res = runner.invoke(app, ["--max-pixels", "100", "enhance", str(folder / "a.png"), "--out", str(tmp_path / "o2")])
+    assert res.exit_code == 1 and "1 failed" in _out(res)
+    (record,) = read_jsonl(tmp_path / "o2" / "errors.jsonl")
+    assert "declares 32x24 = 768 pixels, over the limit of 100" in record["error"]

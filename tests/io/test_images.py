@@ -103,3 +103,30 @@ def test_list_images_skips_hidden_and_non_images(tmp_path: Path) -> None:
     assert [p.name for p in list_images(tmp_path)] == ["a.JPG", "b.png"]
     with pytest.raises(InputFileError, match="not a folder"):
         list_images(tmp_path / "nope")
+
+
+def test_decompression_bombs_are_refused_from_the_header(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A header declaring 60000x60000 (PNG) or 65000x65000 (JPEG) is refused before decoding, naming the file."""
+    from murk.io import max_pixels, set_max_pixels
+
+    from ._bombs import jpeg_bomb, png_bomb
+
+    for bomb, size in ((png_bomb(tmp_path / "b.png"), "60000x60000"), (jpeg_bomb(tmp_path / "b.jpg"), "65000x65000")):
+        with pytest.raises(InputFileError, match=f"{bomb.name}: declares {size} .* over the limit of 100,000,000"):
+            read_image(bomb)
+    small = tmp_path / "small.png"
+    write_rgb(small, np.zeros((40, 50, 3), np.float32))
+    try:
+        set_max_pixels(1999)
+        with pytest.raises(InputFileError, match="declares 50x40 = 2,000 pixels, over the limit of 1,999"):
+            read_image(small)
+        set_max_pixels(None)
+        monkeypatch.setenv("MURK_MAX_PIXELS", "2000")
+        assert max_pixels() == 2000 and read_image(small)[0].shape == (40, 50, 3)
+        monkeypatch.setenv("MURK_MAX_PIXELS", "lots")
+        with pytest.raises(ValueError, match="MURK_MAX_PIXELS: expected a positive integer, got 'lots'"):
+            max_pixels()
+        with pytest.raises(ValueError, match="max_pixels: expected a positive integer"):
+            set_max_pixels(0)
+    finally:
+        set_max_pixels(None)

@@ -41,11 +41,21 @@ def _root(
     version: Annotated[
         bool, typer.Option("--version", callback=_show_version, is_eager=True, help="Print the version and exit.")
     ] = False,
+    max_pixels: Annotated[
+        int | None,
+        typer.Option(
+            "--max-pixels",
+            min=1,
+            help="Refuse images whose header declares more pixels (default 100,000,000 or MURK_MAX_PIXELS).",
+        ),
+    ] = None,
 ) -> None:
     """murk: realistic underwater data synthesis, restoration and metrics for underwater robots."""
     from murk._perf import tune_allocator
+    from murk.io.images import set_max_pixels
 
     tune_allocator()
+    set_max_pixels(max_pixels)
 
 
 app.command("synth")(_synth.synth)

@@ -8,6 +8,7 @@ converts grayscale or RGBA inputs to RGB, recording what it did in :class:`Image
 from __future__ import annotations
 
 import contextlib
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -23,6 +24,61 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".ppm", ".we
 """File suffixes treated as images when scanning folders."""
 
 BitDepth = Literal[8, 16]
+
+DEFAULT_MAX_PIXELS = 100_000_000
+"""Images declaring more pixels than this in their header are refused before decoding (decompression bombs;
+a 100-megapixel frame is 1.2 GB as float32 RGB, and metrics hold several float64 planes of it: sized so that
+one image stays well inside a 24 GiB machine). Change it with ``murk --max-pixels N`` (any command),
+the ``MURK_MAX_PIXELS`` environment variable, or :func:`set_max_pixels`."""
+
+_max_pixels: int | None = None
+
+
+def set_max_pixels(limit: int | None) -> None:
+    """Set the pixel limit of :func:`read_image` for this process (None = ``MURK_MAX_PIXELS`` or the default).
+
+    Raises:
+        ValueError: ``limit`` is not a positive integer.
+    """
+    global _max_pixels
+    if limit is not None and (isinstance(limit, bool) or not isinstance(limit, int) or limit < 1):
+        raise ValueError(f"max_pixels: expected a positive integer, got {limit!r}")
+    _max_pixels = limit
+
+
+def max_pixels() -> int:
+    """The pixel limit in force (see :data:`DEFAULT_MAX_PIXELS`)."""
+    if _max_pixels is not None:
+        return _max_pixels
+    env = os.environ.get("MURK_MAX_PIXELS")
+    if env:
+        try:
+            value = int(env)
+        except ValueError:
+            raise ValueError(f"MURK_MAX_PIXELS: expected a positive integer, got {env!r}") from None
+        if value < 1:
+            raise ValueError(f"MURK_MAX_PIXELS: expected a positive integer, got {env!r}")
+        return value
+    return DEFAULT_MAX_PIXELS
+
+
+def _header_size(path: Path) -> tuple[int, int] | None:
+    """(width, height) declared in the file header (Pillow reads the header only), or None if unknown."""
+    try:
+        import warnings
+
+        from PIL import Image
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # Pillow's own bomb warning: murk applies its limit, naming the file
+            saved, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None
+            try:
+                with Image.open(path) as im:
+                    return int(im.size[0]), int(im.size[1])
+            finally:
+                Image.MAX_IMAGE_PIXELS = saved
+    except Exception:  # not a format Pillow knows: OpenCV decides below
+        return None
 
 
 @dataclass(frozen=True)
@@ -52,15 +108,34 @@ def read_image(path: str | Path) -> tuple[np.ndarray, ImageInfo]:
     EXIF orientation is applied. Grayscale is replicated to three channels and an alpha channel is dropped;
     both are recorded in the returned info's ``notes``.
 
+    The header is checked first: an image declaring more than :func:`max_pixels` pixels is refused without
+    being decoded.
+
     Raises:
-        InputFileError: the file does not exist, cannot be decoded, or has an unsupported sample type.
+        InputFileError: the file does not exist, declares too many pixels, cannot be decoded (or not in the
+            memory available), or has an unsupported sample type.
     """
     path = Path(path)
     if not path.is_file():
         raise InputFileError(path, "file not found")
+    limit = max_pixels()
+    size = _header_size(path)
+    if size is not None and size[0] * size[1] > limit:
+        raise InputFileError(
+            path,
+            f"declares {size[0]}x{size[1]} = {size[0] * size[1]:,} pixels, over the limit of {limit:,} "
+            "(a decompression bomb or a huge frame; raise it with 'murk --max-pixels N' or MURK_MAX_PIXELS)",
+        )
     # Decode from bytes so that non-ASCII paths work on every platform.
     data = np.fromfile(str(path), dtype=np.uint8)
-    bgr = cv2.imdecode(data, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH) if data.size else None
+    try:
+        bgr = cv2.imdecode(data, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH) if data.size else None
+    except cv2.error as exc:
+        raise InputFileError(path, f"cannot decode image ({str(exc).strip().splitlines()[-1]})") from None
+    except MemoryError:
+        raise InputFileError(path, "not enough memory to decode this image") from None
+    if bgr is not None and bgr.shape[0] * bgr.shape[1] > limit:
+        raise InputFileError(path, f"{bgr.shape[1]}x{bgr.shape[0]} pixels, over the limit of {limit:,}")
     if bgr is None:
         raise InputFileError(path, "cannot decode image (unsupported format or corrupt file)")
     if bgr.dtype not in (np.uint8, np.uint16):
