@@ -41,6 +41,8 @@ def test_parse_method() -> None:
     assert (shipped.label, shipped.method, shipped.checkpoint) == ("jointid+post", "jointid+post", None)
     with pytest.raises(ValueError, match="expected KEY=VALUE options"):
         parse_method("post?he")
+    with pytest.raises(ValueError, match="trust_checkpoint cannot be set inside a method spec"):
+        parse_method("jointid:file.pt?trust_checkpoint=true")  # trust only from the explicit flag or API
 
 
 def test_compare_outputs_are_consistent(three_images: Path, tmp_path: Path) -> None:

@@ -95,6 +95,10 @@ def test_shard_parsing() -> None:
         Shard.parse("2-4")
     with pytest.raises(ValueError, match="shard: expected 0 <= i < N"):
         Shard.parse("4/4")
+    with pytest.raises(ValueError, match=r"SLURM_ARRAY_TASK_ID: expected an integer .* got 'abc'"):
+        Shard.parse(None, env={"SLURM_ARRAY_TASK_ID": "abc", "SLURM_ARRAY_TASK_COUNT": "4"})
+    with pytest.raises(ValueError, match="SLURM array variables: shard: expected 0 <= i < N"):
+        Shard.parse(None, env={"SLURM_ARRAY_TASK_ID": "9", "SLURM_ARRAY_TASK_COUNT": "4"})
 
 
 def test_bad_inputs_are_recorded_and_the_rest_continues(small_rgbd: Path, tmp_path: Path) -> None:

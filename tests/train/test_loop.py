@@ -85,6 +85,12 @@ def test_resume_equals_uninterrupted(synth_folder: Path, tmp_path: Path) -> None
     assert la == lb  # steps 1-3 from the first invocation, 4-6 from the resumed one: identical losses
     with pytest.raises(ValueError, match="nothing to resume"):
         train(_config(tmp_path / "empty", synth_folder, steps=2), resume=True)
+    from murk.models.jointid import slim_checkpoint  # weights only: no optimiser state, no step
+
+    (tmp_path / "slim").mkdir()
+    slim_checkpoint(tmp_path / "full" / "latest.pt", tmp_path / "slim" / "latest.pt")
+    with pytest.raises(ValueError, match=r"has no optimizer and no step .* weights only"):
+        train(_config(tmp_path / "slim", synth_folder, steps=2), resume=True)
 
 
 def test_checkpoint_loads_for_inference_and_eval_metrics(synth_folder: Path, tmp_path: Path) -> None:

@@ -45,6 +45,11 @@ def parse_method(text: str) -> MethodSpec:
     label, _, rest = body.partition("=") if "=" in body else ("", "", body)
     method, _, ckpt = rest.partition(":")
     options = tuple(_parse_option(o, text) for o in opt_text.split(",") if o.strip())
+    if any(k == "trust_checkpoint" for k, _ in options):
+        raise ValueError(
+            f"--method {text}: trust_checkpoint cannot be set inside a method spec (specs end up in scripts and "
+            "configs); pass --trust-checkpoint on the command line or trust_checkpoint=True in the API"
+        )
     method, ckpt, label = method.strip(), ckpt.strip(), label.strip()
     if not method:
         raise ValueError(f"--method: expected [LABEL=]METHOD[:CHECKPOINT], got {text!r}")

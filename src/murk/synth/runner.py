@@ -74,8 +74,19 @@ class Shard:
             return Shard(i, n)
         env = dict(os.environ) if env is None else env
         if "SLURM_ARRAY_TASK_ID" in env and "SLURM_ARRAY_TASK_COUNT" in env:
-            task = int(env["SLURM_ARRAY_TASK_ID"]) - int(env.get("SLURM_ARRAY_TASK_MIN", "0"))
-            return Shard(task, int(env["SLURM_ARRAY_TASK_COUNT"]))
+
+            def var(name: str, default: str | None = None) -> int:
+                value = env.get(name, default)
+                try:
+                    return int(value)  # type: ignore[arg-type]
+                except (TypeError, ValueError):
+                    raise ValueError(f"{name}: expected an integer (SLURM array variable), got {value!r}") from None
+
+            task = var("SLURM_ARRAY_TASK_ID") - var("SLURM_ARRAY_TASK_MIN", "0")
+            try:
+                return Shard(task, var("SLURM_ARRAY_TASK_COUNT"))
+            except ValueError as exc:
+                raise ValueError(f"SLURM array variables: {exc}") from None
         return Shard()
 
 

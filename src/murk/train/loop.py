@@ -269,6 +269,12 @@ def train(
         if not latest.is_file():
             raise ValueError(f"--resume: {latest} not found (nothing to resume)")
         state, info = read_checkpoint(latest)
+        missing = [k for k in ("optimizer", "step") if k not in info.meta]
+        if missing:
+            raise ValueError(
+                f"--resume: {latest} has no {' and no '.join(missing)} (not a 'murk train' latest.pt: it holds "
+                "weights only); start a new run, or use it as model.init_checkpoint"
+            )
         model.load_state_dict({k: v.to(device) for k, v in state.items()}, strict=True)
         optim.load_state_dict(info.meta["optimizer"])
         start = int(info.meta["step"])
