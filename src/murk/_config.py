@@ -55,6 +55,10 @@ def load_yaml(cls: type[T], path: str | Path) -> T:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
     except yaml.YAMLError as exc:
         raise ValueError(f"{path}: invalid YAML ({exc})") from None
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except RecursionError:
+        raise ValueError(f"{path}: YAML nested too deeply") from None
     if isinstance(data, dict):
         data = {k: v for k, v in data.items() if k not in PROVENANCE_KEYS}
     return from_dict(cls, data or {}, where=str(path))
@@ -65,6 +69,15 @@ def dump_yaml(obj: Any, **extra: Any) -> str:
     data = dict(extra)
     data.update(to_dict(obj))
     return yaml.safe_dump(data, sort_keys=False)
+
+
+def _short(value: Any, limit: int = 80) -> str:
+    """``repr(value)`` cut to ``limit`` characters: an error message must stay one line even for a huge or deeply
+    nested value (a YAML anchor bomb expands to gigabytes of repr)."""
+    if isinstance(value, (dict, list, tuple)):
+        return f"a {type(value).__name__} of {len(value)} item(s)"
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _deep_update(dst: dict[str, Any], src: dict[str, Any]) -> None:
@@ -95,7 +108,7 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
     if origin is typing.Literal:
         allowed = get_args(tp)
         if value not in allowed:
-            raise ValueError(f"{where}: expected one of {', '.join(map(repr, allowed))}, got {value!r}")
+            raise ValueError(f"{where}: expected one of {', '.join(map(repr, allowed))}, got {_short(value)}")
         return value
     if origin in (typing.Union, types.UnionType):
         args = get_args(tp)
@@ -109,11 +122,11 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
                 return _convert(arg, value, where)
             except ValueError as exc:
                 errors.append(str(exc))
-        raise ValueError(errors[0] if len(errors) == 1 else f"{where}: {value!r} matches none of {tp}")
+        raise ValueError(errors[0] if len(errors) == 1 else f"{where}: {_short(value)} matches none of {tp}")
     if origin is tuple:
         args = get_args(tp)
         if not isinstance(value, (list, tuple)):
-            raise ValueError(f"{where}: expected a list, got {value!r}")
+            raise ValueError(f"{where}: expected a list, got {_short(value)}")
         if len(args) == 2 and args[1] is Ellipsis:
             return tuple(_convert(args[0], v, f"{where}[{i}]") for i, v in enumerate(value))
         if len(value) != len(args):
@@ -121,18 +134,18 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
         return tuple(_convert(a, v, f"{where}[{i}]") for i, (a, v) in enumerate(zip(args, value, strict=True)))
     if tp is bool:
         if not isinstance(value, bool):
-            raise ValueError(f"{where}: expected true/false, got {value!r}")
+            raise ValueError(f"{where}: expected true/false, got {_short(value)}")
         return value
     if tp is int:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ValueError(f"{where}: expected an integer, got {value!r}")
+            raise ValueError(f"{where}: expected an integer, got {_short(value)}")
         return value
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ValueError(f"{where}: expected a number, got {value!r}")
+            raise ValueError(f"{where}: expected a number, got {_short(value)}")
         return float(value)
     if tp is str:
         if not isinstance(value, str):
-            raise ValueError(f"{where}: expected a string, got {value!r}")
+            raise ValueError(f"{where}: expected a string, got {_short(value)}")
         return value
     raise TypeError(f"{where}: unsupported config type {tp!r}")

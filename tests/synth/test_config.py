@@ -69,3 +69,27 @@ def test_config_written_by_murk_loads_back(tmp_path: Path) -> None:
     path.write_text(dump_yaml(cfg, murk_version="0.1.0", surprise=1))
     with pytest.raises(ValueError, match="unknown key"):
         load_yaml(SynthConfig, path)
+
+
+def test_hostile_yaml_gives_one_line_errors_naming_the_file(tmp_path: Path) -> None:
+    """Anchor bombs, deep nesting and non-UTF-8 files: a short ValueError naming the file, never a hang or a
+    traceback (issue 13)."""
+    bomb = ["a: &a [x, x, x, x, x, x, x, x, x]"]
+    for i in range(1, 9):  # 9^9 elements if expanded
+        prev = chr(ord("a") + i - 1)
+        cur = chr(ord("a") + i)
+        bomb.append(f"{cur}: &{cur} [" + ", ".join([f"*{prev}"] * 9) + "]")
+    bomb.append("variants: *i")
+    path = tmp_path / "bomb.yaml"
+    path.write_text("\n".join(bomb) + "\n")
+    with pytest.raises(ValueError) as err:
+        load_yaml(SynthConfig, path)
+    assert str(path) in str(err.value) and len(str(err.value)) < 400
+    deep = tmp_path / "deep.yaml"
+    deep.write_text("variants: " + "[" * 20000 + "]" * 20000 + "\n")
+    with pytest.raises(ValueError, match="deep.yaml"):
+        load_yaml(SynthConfig, deep)
+    latin = tmp_path / "latin.yaml"
+    latin.write_bytes("variants: 2 # caf\xe9\n".encode("latin-1"))
+    with pytest.raises(ValueError, match=r"latin\.yaml: not UTF-8"):
+        load_yaml(SynthConfig, latin)
