@@ -87,6 +87,8 @@ def test_synth_usage_errors_exit_2(tmp_path: Path) -> None:
     assert r.exit_code == 2 and "unknown type '12C'" in r.output
     r = runner.invoke(app, ["synth", str(sample_rgbd_dir()), str(tmp_path / "o"), "--size", "big"])
     assert r.exit_code == 2 and "--size: expected WxH" in r.output
+    r = runner.invoke(app, ["synth", str(sample_rgbd_dir()), str(tmp_path / "o"), "--size", "16384x16384"])
+    assert r.exit_code == 2 and "over the limit of 100,000,000" in " ".join(r.output.split())  # not an OOM later
     r = runner.invoke(app, ["synth", str(tmp_path)])
     assert r.exit_code == 2 and "expected RGBD_DIR OUT_DIR" in r.output
     r = runner.invoke(app, ["synth", str(sample_rgbd_dir()), str(tmp_path / "o"), "--invalid-depth", "fail"])
