@@ -179,36 +179,46 @@ def train_arms(
     if study.threads_per_job > 0:
         env["OMP_NUM_THREADS"] = env["MKL_NUM_THREADS"] = str(study.threads_per_job)
     active: list[tuple[ArmConfig, subprocess.Popen, float, Any]] = []
-    while pending or active:
-        while pending and len(active) < study.jobs:
-            arm, cfg, cfg_path = pending.pop(0)
-            out = Path(cfg.out)
-            out.mkdir(parents=True, exist_ok=True)
-            cmd = [python, "-m", "murk", "train", "--config", str(cfg_path), "--quiet"]
-            if (out / "latest.pt").is_file():
-                cmd.append("--resume")
-            log = open(out / "train.out", "a", encoding="utf-8")
-            log.write(f"$ {' '.join(cmd)}\n")
-            log.flush()
-            proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env)
-            active.append((arm, proc, time.perf_counter(), log))
-            say(f"{arm.name}: training ({'resumed' if '--resume' in cmd else 'started'}), log {out / 'train.out'}")
-        time.sleep(0.5)
-        still = []
-        for arm, proc, t0, log in active:
-            code = proc.poll()
-            if code is None:
-                still.append((arm, proc, t0, log))
-                continue
+    try:
+        while pending or active:
+            while pending and len(active) < study.jobs:
+                arm, cfg, cfg_path = pending.pop(0)
+                out = Path(cfg.out)
+                out.mkdir(parents=True, exist_ok=True)
+                cmd = [python, "-m", "murk", "train", "--config", str(cfg_path), "--quiet"]
+                if (out / "latest.pt").is_file():
+                    cmd.append("--resume")
+                log = open(out / "train.out", "a", encoding="utf-8")
+                log.write(f"$ {' '.join(cmd)}\n")
+                log.flush()
+                proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env)
+                active.append((arm, proc, time.perf_counter(), log))
+                say(f"{arm.name}: training ({'resumed' if '--resume' in cmd else 'started'}), log {out / 'train.out'}")
+            time.sleep(0.5)
+            still = []
+            for arm, proc, t0, log in active:
+                code = proc.poll()
+                if code is None:
+                    still.append((arm, proc, t0, log))
+                    continue
+                log.close()
+                dt = time.perf_counter() - t0
+                _add_wall_seconds(study_dir / "models" / arm.name, dt)
+                if code == 0:
+                    runs[arm.name] = ArmRun(arm.name, "trained", dt)
+                    say(f"{arm.name}: trained in {dt / 60:.1f} min")
+                else:
+                    err = f"murk train exited with {code}; see {study_dir / 'models' / arm.name / 'train.out'}"
+                    runs[arm.name] = ArmRun(arm.name, "failed", dt, err)
+                    say(f"{arm.name}: FAILED ({err})")
+            active = still
+    finally:  # interrupted (Ctrl+C, an exception): no arm keeps training behind the user's back
+        for _arm, proc, _t0, log in active:
+            if proc.poll() is None:
+                proc.terminate()
+                try:
+                    proc.wait(timeout=30)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
             log.close()
-            dt = time.perf_counter() - t0
-            _add_wall_seconds(study_dir / "models" / arm.name, dt)
-            if code == 0:
-                runs[arm.name] = ArmRun(arm.name, "trained", dt)
-                say(f"{arm.name}: trained in {dt / 60:.1f} min")
-            else:
-                err = f"murk train exited with {code}; see {study_dir / 'models' / arm.name / 'train.out'}"
-                runs[arm.name] = ArmRun(arm.name, "failed", dt, err)
-                say(f"{arm.name}: FAILED ({err})")
-        active = still
     return [runs[a.name] for a in study.arms]
