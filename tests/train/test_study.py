@@ -117,7 +117,12 @@ def test_a_killed_arm_resumes_to_the_same_weights(tmp_path: Path) -> None:
     study = StudyConfig(train=study.train, arms=study.arms[:1], jobs=1, threads_per_job=1)
     whole, part = tmp_path / "whole", tmp_path / "part"
     train_arms(study, base, whole)
-    train(arm_config(base, study.arms[0], part), stop_after=1)  # "killed" after 1 of 2 steps
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # as the arms' processes (threads_per_job 1): same float results
+    try:
+        train(arm_config(base, study.arms[0], part), stop_after=1)  # "killed" after 1 of 2 steps
+    finally:
+        torch.set_num_threads(threads)
     assert not arm_finished(arm_config(base, study.arms[0], part))
     (run,) = train_arms(study, base, part)
     assert run.status == "trained" and "--resume" in (part / "models" / "basic" / "train.out").read_text()
