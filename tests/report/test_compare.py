@@ -187,3 +187,22 @@ def test_compare_flags_a_destroyed_method(tmp_path: Path, monkeypatch: pytest.Mo
     with open(tmp_path / "rep" / "metrics.csv") as f:
         rows = list(csv.DictReader(f))
     assert [r["flags"] != "" for r in rows] == [r["method"] == "broken" for r in rows]
+
+
+def test_same_stem_in_two_folders_gives_two_grids(tmp_path: Path) -> None:
+    """a/x.jpg and b/x.jpg no longer overwrite each other's grid (issue 13)."""
+    from murk.report.compare import output_names
+
+    for sub, name in (("a", "suim/d_r_47_.jpg"), ("b", "funie_euvp/16.jpg")):
+        (tmp_path / "in" / sub).mkdir(parents=True)
+        shutil.copy(sample_underwater_dir() / name, tmp_path / "in" / sub / "x.jpg")
+    images = [tmp_path / "in" / "a" / "x.jpg", tmp_path / "in" / "b" / "x.jpg"]
+    res = run_compare(images, [parse_method("raw")], tmp_path / "out", save_outputs=True)
+    assert not res.errors and len(res.rows) == 2
+    assert sorted(p.name for p in (tmp_path / "out" / "grids").iterdir()) == ["a_x.jpg", "b_x.jpg"]
+    assert len(list((tmp_path / "out" / "restored" / "raw").iterdir())) == 2
+    assert output_names([Path("p/x.jpg"), Path("p/x.png"), Path("p/y.jpg")]) == {
+        Path("p/x.jpg"): "p_x_jpg",
+        Path("p/x.png"): "p_x_png",
+        Path("p/y.jpg"): "y",
+    }

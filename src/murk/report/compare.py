@@ -112,6 +112,7 @@ def run_compare(
     out.mkdir(parents=True, exist_ok=True)
     restorers = [build_restorer(m, **(restorer_options or {})) for m in methods]
     result = CompareResult(out)
+    out_names = output_names(images)
     sections = []
     for i, path in enumerate(images):
         if on_image:
@@ -144,7 +145,7 @@ def run_compare(
             rows.append(row)
             outputs.append((spec.label, restored))
             if save_outputs:
-                write_rgb(out / "restored" / _safe(spec.label) / f"{path.stem}.png", restored)
+                write_rgb(out / "restored" / _safe(spec.label) / f"{out_names[path]}.png", restored)
         if not outputs:
             continue
         result.rows.extend(rows)
@@ -154,7 +155,7 @@ def run_compare(
         by_label = {r["method"]: r for r in rows}
         names = [lab if lab not in by_label else f"{lab}  UIQM {by_label[lab]['uiqm']:.2f}" for lab, _ in panels]
         grid = comparison_grid([p for _, p in panels], names, chosen)
-        write_uint(out / "grids" / f"{path.stem}.jpg", grid, jpeg_quality=90)
+        write_uint(out / "grids" / f"{out_names[path]}.jpg", grid, jpeg_quality=90)
         sections.append(
             {"name": path.name, "grid_u8": _shrink(grid), "rows": rows, "boxes": [b.__dict__ for b in chosen]}
         )
@@ -193,6 +194,26 @@ def run_compare(
     elif (out / "errors.jsonl").exists():
         (out / "errors.jsonl").unlink()
     return result
+
+
+def output_names(images: Sequence[Path]) -> dict[Path, str]:
+    """A distinct output name per image: its stem, or where stems collide (``a/x.jpg``, ``b/x.png``) the parent
+    folder and the stem (``a_x``, ``b_x``), then the suffix, then a counter: no grid overwrites another."""
+    from collections import Counter
+
+    names = {p: p.stem for p in images}
+    for widen in (
+        lambda p, n: f"{_safe(p.parent.name)}_{n}",
+        lambda p, n: f"{n}_{p.suffix.lstrip('.')}",
+    ):
+        counts = Counter(names.values())
+        names = {p: widen(p, n) if counts[n] > 1 else n for p, n in names.items()}
+    counts, seen = Counter(names.values()), Counter()
+    for p in images:
+        if counts[names[p]] > 1:
+            seen[names[p]] += 1
+            names[p] = f"{names[p]}_{seen[names[p]]}"
+    return names
 
 
 def _safe(label: str) -> str:
