@@ -14,6 +14,17 @@ from ._video import make_frames, mjpeg_camera
 TESTS_DATA = Path(__file__).resolve().parent / "data"
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    """Under pytest-xdist each worker gets one torch thread: N workers x all-core OpenMP pools on N cores
+    oversubscribe, and two trainings side by side then ran 10x slower (measured: a 20 s test took 268 s)."""
+    import os
+
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        import torch
+
+        torch.set_num_threads(1)
+
+
 @pytest.fixture(scope="session")
 def tests_data() -> Path:
     return TESTS_DATA
