@@ -176,7 +176,7 @@ def enhance(
         plan_images,
         resolve_input,
     )
-    from murk.enhance.restorer import create
+    from murk.enhance.restorer import create, weights_of
     from murk.io.video import CaptureSource
 
     dev = resolve_device(device)
@@ -209,12 +209,12 @@ def enhance(
     )
     console = make_console(quiet)
     summary = make_console(False)
-    for stage in getattr(restorer, "stages", [restorer]):
-        if getattr(stage, "weights", None):
-            shipped = (
-                " (shipped with murk: the 'small' Joint-ID murk trained, docs/models.md)" if checkpoint is None else ""
-            )
-            console.print(f"jointid weights: {stage.weights}{shipped}", soft_wrap=True, highlight=False)
+    weights = weights_of(restorer)
+    if weights:
+        shipped = (
+            " (shipped with murk: the 'small' Joint-ID murk trained, docs/models.md)" if checkpoint is None else ""
+        )
+        console.print(f"jointid weights: {weights}{shipped}", soft_wrap=True, highlight=False)
     inp = resolve_input(input, recursive=recursive, exclude=out)
     with _stop_on_signals() as stop:
         if inp.kind == "images":

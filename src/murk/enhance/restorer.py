@@ -116,6 +116,15 @@ def available() -> list[str]:
     return sorted(_REGISTRY)
 
 
+def weights_of(restorer: Any) -> str | None:
+    """The weights file a restorer (or any stage of a chain) loaded, e.g. the shipped Joint-ID when no checkpoint
+    was given; None for methods without weights."""
+    for stage in getattr(restorer, "stages", [restorer]):
+        if getattr(stage, "weights", None):
+            return str(stage.weights)
+    return None
+
+
 def create(spec: str, **options: Any) -> Restorer:
     """Build the restorer for ``spec`` (``"post"``, ``"jointid"``, ``"jointid+post"``, ...).
 

@@ -160,7 +160,9 @@ def run_compare(
             {"name": path.name, "grid_u8": _shrink(grid), "rows": rows, "boxes": [b.__dict__ for b in chosen]}
         )
     result.summary = summarise(result.rows, labels)
-    weights = {m.label: _weights_of(r) for m, r in zip(methods, restorers, strict=True)}
+    from murk.enhance.restorer import weights_of
+
+    weights = {m.label: weights_of(r) for m, r in zip(methods, restorers, strict=True)}
     _write_tables(out, result, methods, uiqm_preset, uciqe_preset, weights)
     notes = [
         f"UIQM preset '{uiqm_preset}', UCIQE preset '{uciqe_preset}' (docs/metrics.md says which published code "
@@ -225,14 +227,6 @@ def _shrink(grid: np.ndarray, max_width: int = 1600) -> np.ndarray:
         return grid
     f = max_width / grid.shape[1]
     return cv2.resize(grid, None, fx=f, fy=f, interpolation=cv2.INTER_AREA)
-
-
-def _weights_of(restorer: Any) -> str | None:
-    """The weights file a (chained) restorer loaded, e.g. the shipped Joint-ID when no checkpoint was given."""
-    for stage in getattr(restorer, "stages", [restorer]):
-        if getattr(stage, "weights", None):
-            return str(stage.weights)
-    return None
 
 
 def _write_tables(

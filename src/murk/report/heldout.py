@@ -35,6 +35,7 @@ class HeldoutSet:
 def make_heldout(n: int, *, seed: int, size_hw: tuple[int, int], synthesis: Any) -> HeldoutSet:
     """Render and degrade ``n`` held-out scenes (deterministic in ``seed``)."""
     from murk.scenes import render_scene, sample_scene
+    from murk.train.augment import centre_crop
     from murk.train.data import OnlineDegrader
     from murk.train.scenes_source import render_size
 
@@ -44,11 +45,9 @@ def make_heldout(n: int, *, seed: int, size_hw: tuple[int, int], synthesis: Any)
     cleans, dists, fars = [], [], []
     for i in range(n):
         scene = sample_scene(derive_seed(seed, "heldout", i))
-        rw, rh = render_size((h, w))
-        rgb, dist = render_scene(scene, (rw, rh))
-        y0, x0 = (rh - h) // 2, (rw - w) // 2
-        cleans.append(rgb[y0 : y0 + h, x0 : x0 + w])
-        dists.append(dist[y0 : y0 + h, x0 : x0 + w])
+        rgb, dist = centre_crop(list(render_scene(scene, render_size((h, w)))), (h, w), source=f"scene {i}")
+        cleans.append(rgb)
+        dists.append(dist)
         fars.append(scene.far_m)
     clean = np.stack(cleans).astype(np.float32)
     dist = np.stack(dists).astype(np.float32)
