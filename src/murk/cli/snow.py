@@ -29,7 +29,11 @@ def _frames(inputs: list[Path], every: int, problems: list[tuple[str, str]]) -> 
 
     for inp in inputs:
         if inp.is_dir():
-            files = list_images(inp, recursive=True)
+            try:
+                files = list_images(inp, recursive=True)
+            except OSError as exc:
+                problems.append((str(inp), f"cannot list folder ({exc.strerror or exc})"))
+                continue
             if not files:
                 problems.append((str(inp), "folder holds no images"))
         elif inp.is_file():
@@ -46,7 +50,11 @@ def _frames(inputs: list[Path], every: int, problems: list[tuple[str, str]]) -> 
                 i = 0
                 try:
                     while True:
-                        ok, bgr = cap.read()
+                        try:
+                            ok, bgr = cap.read()
+                        except cv2.error as exc:
+                            problems.append((str(f), f"frame {i}: cannot decode ({str(exc).strip().splitlines()[-1]})"))
+                            break
                         if not ok:
                             break
                         if i % every == 0:
@@ -59,8 +67,9 @@ def _frames(inputs: list[Path], every: int, problems: list[tuple[str, str]]) -> 
                 continue
             try:
                 raw, _ = read_image(f)
-            except ValueError as exc:
-                problems.append((str(f), str(exc)))
+            except (ValueError, OSError, MemoryError) as exc:  # unreadable or corrupt: recorded, skipped
+                why = str(exc) if isinstance(exc, ValueError) else f"cannot read image ({exc})"
+                problems.append((str(f), why))
                 continue
             if raw.dtype != "uint8":
                 raw = (raw // 257).astype("uint8")
@@ -109,11 +118,13 @@ def extract(
 
     Grayscale -> binarise (--method) -> opening, closing -> connected components -> particles (original colours
     where the mask is 1). The preview shows, per source, the image beside its mask: white = kept particles,
-    grey = components dropped by the area or elongation filters.
+    grey = components dropped by the area or elongation filters. Unreadable or rejected inputs are skipped and
+    listed in BANK_errors.jsonl beside the bank (exit code 1).
     """
     import cv2
     import numpy as np
 
+    from murk.io import write_jsonl
     from murk.io.images import write_uint
     from murk.snow.bank import extract_bank, save_bank
     from murk.snow.extract import ExtractConfig
@@ -158,9 +169,17 @@ def extract(
         name = Path(desc["path"]).stem + (f"_f{desc['frame']:06d}" if "frame" in desc else "")
         write_uint(preview_dir / f"{name}.jpg", panel, jpeg_quality=90)
 
-    report = extract_bank(_frames(inputs, every, read_problems), config, scale=(lo, hi), on_frame=on_frame)
+    try:
+        report = extract_bank(_frames(inputs, every, read_problems), config, scale=(lo, hi), on_frame=on_frame)
+    except ValueError as exc:  # no particle at all: say which inputs could not even be read
+        raise ValueError(_nothing_extracted(inputs, read_problems, count["frames"], str(exc))) from None
     save_bank(report.bank, out)
     problems = read_problems + report.problems
+    errors_path = out.with_name(out.stem + "_errors.jsonl")
+    if problems:
+        write_jsonl(errors_path, [{"input": path, "error": _line(path, why)} for path, why in problems])
+    elif errors_path.exists():
+        errors_path.unlink()  # from an earlier run of the same command
     areas = report.bank.areas_px
     console = make_console()  # the summary prints even with --quiet
     console.print(
@@ -173,8 +192,26 @@ def extract(
         console.print(f"[yellow]warning:[/] {w}", soft_wrap=True)
     if problems:
         for path, why in problems[:10]:
-            console.print(f"  [red]skipped:[/] {why if why.startswith(path) else f'{path}: {why}'}", soft_wrap=True)
+            console.print(f"  [red]skipped:[/] {_line(path, why)}", soft_wrap=True)
+        console.print(f"  all {len(problems)} skipped input(s): {errors_path}", soft_wrap=True)
         raise typer.Exit(EXIT_PARTIAL)
+
+
+def _line(path: str, why: str) -> str:
+    """``path: why``, unless ``why`` already starts with the path."""
+    return why if why.startswith(path) else f"{path}: {why}"
+
+
+def _nothing_extracted(inputs: list[Path], problems: list[tuple[str, str]], frames: int, why: str) -> str:
+    """The one-line error when no particle was found: names the inputs, and the unreadable ones first."""
+    listed = "; ".join(_line(p, w) for p, w in problems[:3])
+    more = f" and {len(problems) - 3} more" if len(problems) > 3 else ""
+    if frames == 0:
+        if not listed:
+            names = ", ".join(map(str, inputs[:5])) + (f" and {len(inputs) - 5} more" if len(inputs) > 5 else "")
+            return f"{names}: no image or video frame to extract particles from"
+        return f"{listed}{more} (no image or video frame left to extract particles from)"
+    return why + (f"; {len(problems)} input(s) could not be read: {listed}{more}" if problems else "")
 
 
 @app.command("info")
