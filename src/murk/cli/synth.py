@@ -146,10 +146,6 @@ def synth(
     bank_path = None
     if "marine_snow" in config.stages:
         bank_path = config.marine_snow.bank or str(default_snow_bank())
-    if bank_path is not None or snow_bank is not None:
-        from murk.snow.bank import load_bank
-
-        load_bank(bank_path or snow_bank)  # a bad bank is a usage error (exit 2) before any output is written
     shard_obj = Shard.parse(shard)
     if not sources:
         why = "; ".join(f"{p.path}: {p.error}" for p in problems[:3])

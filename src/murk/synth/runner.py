@@ -341,9 +341,13 @@ def run_synthesis(
     """
     t0 = time.perf_counter()
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     if "marine_snow" in config.stages and not bank_path:
         raise ValueError("stages: marine_snow needs a particle bank (--snow-bank)")
+    if bank_path:
+        from murk.snow.bank import load_bank
+
+        load_bank(bank_path)  # a bad bank fails here (InputFileError naming it), before any output or worker
+    out.mkdir(parents=True, exist_ok=True)
     check_config_compatible(out, config)
     remove_stale_temporaries(out)
     write_text_atomic(out / "config.yaml", dump_yaml(config, murk_version=__version__))
