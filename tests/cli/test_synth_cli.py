@@ -11,6 +11,8 @@ from murk.cli.main import app
 from murk.data import sample_rgbd_dir
 from murk.io import read_jsonl
 
+from ..io._bombs import npy_bomb
+
 runner = CliRunner()
 
 
@@ -120,3 +122,40 @@ def test_synth_config_yaml_of_an_output_reproduces_it_byte_for_byte(tmp_path: Pa
     assert len(files) > 10 and files == sorted(p.relative_to(b) for p in b.rglob("*") if p.is_file())
     for rel in files:
         assert (a / rel).read_bytes() == (b / rel).read_bytes(), rel
+
+
+def test_synth_refused_inputs_fail_their_pair_only(small_rgbd: Path, tmp_path: Path) -> None:
+    """Issue 13: a .npy bomb, a truncated .npy and two RGB files sharing a stem are recorded in errors.jsonl
+    with the file and the problem; the good pairs are written, the exit code is 1, there is no traceback."""
+    rgb, depth = small_rgbd / "rgb", small_rgbd / "depth"
+    for stem in ("bomb", "short"):
+        cv2.imwrite(str(rgb / f"{stem}.png"), np.zeros((48, 64, 3), np.uint8))
+    npy_bomb(depth / "bomb.npy")
+    npy_bomb(depth / "short.npy", (48, 64), "<f4", data=b"\x00" * 100)
+    cv2.imwrite(str(rgb / "dup.png"), np.zeros((48, 64, 3), np.uint8))
+    cv2.imwrite(str(rgb / "dup.jpg"), np.zeros((48, 64, 3), np.uint8))
+    cv2.imwrite(str(depth / "dup.png"), np.ones((48, 64), np.uint16))
+    out = tmp_path / "o"
+    r = runner.invoke(app, ["synth", str(small_rgbd), str(out), "--variants", "1"])
+    assert r.exit_code == 1, r.output
+    assert "Traceback" not in r.output and isinstance(r.exception, SystemExit)
+    errors = {Path(e["path"]).name: e["error"] for e in read_jsonl(out / "errors.jsonl")}
+    assert set(errors) == {"bomb.png", "short.png", "dup.jpg"}
+    assert "bomb.npy: declares float64 (100000, 100000) = 10,000,000,000 elements, over" in errors["bomb.png"]
+    assert "short.npy: truncated: the header declares float32 (48, 64) = 12,288 bytes" in errors["short.png"]
+    assert f"ambiguous stem 'dup': {rgb / 'dup.jpg'}, {rgb / 'dup.png'} share it" in errors["dup.jpg"]
+    assert sorted(p.name for p in (out / "degraded").iterdir()) == ["a_v0.png", "b_v0.png"]
+    assert "3 failed" in r.output
+
+
+def test_synth_with_no_unambiguous_pair_is_a_usage_error(tmp_path: Path) -> None:
+    bad = tmp_path / "bad"
+    (bad / "rgb").mkdir(parents=True)
+    (bad / "depth").mkdir()
+    for name in ("x.png", "x.jpg"):
+        cv2.imwrite(str(bad / "rgb" / name), np.zeros((4, 4, 3), np.uint8))
+    cv2.imwrite(str(bad / "depth" / "x.png"), np.ones((4, 4), np.uint16))
+    r = runner.invoke(app, ["synth", str(bad), str(tmp_path / "o")])
+    text = " ".join(r.output.split())
+    assert r.exit_code == 2 and "no RGB-D pairs found" in text and "ambiguous stem 'x'" in text
+    assert "Traceback" not in r.output

@@ -32,3 +32,11 @@ def jpeg_bomb(path: Path, width: int = 65000, height: int = 65000) -> Path:
     data[i + 5 : i + 9] = struct.pack(">HH", height, width)
     path.write_bytes(bytes(data))
     return path
+
+
+def npy_bomb(path: Path, shape: tuple[int, ...] = (100_000, 100_000), descr: object = "<f8", data: bytes = b"") -> Path:
+    """A ``.npy`` file made of a valid header declaring ``shape`` and ``descr``, followed by ``data`` only."""
+    with open(path, "wb") as f:
+        np.lib.format.write_array_header_1_0(f, {"descr": descr, "fortran_order": False, "shape": shape})
+        f.write(data)
+    return path

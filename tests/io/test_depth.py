@@ -1,5 +1,8 @@
 from __future__ import annotations
 
+import contextlib
+import tracemalloc
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -9,6 +12,8 @@ import pytest
 from murk.errors import InputFileError
 from murk.io import read_depth, resolve_invalid, validity_mask, write_depth_png
 from murk.io.depth import RELATIVE_FAR_M, RELATIVE_NEAR_M, read_nyu_mat
+
+from ._bombs import npy_bomb, png_bomb
 
 
 def test_uint16_png_scales(tmp_path: Path) -> None:
@@ -111,3 +116,103 @@ def test_sun_and_kinect_encodings(tmp_path: Path) -> None:
     assert read_depth(tmp_path / "k.png", encoding="kinect-disparity")[0, 0] == pytest.approx(351.3 / 292.5, rel=1e-6)
     with pytest.raises(ValueError, match="depth_encoding: expected one of linear, sun, kinect-disparity"):
         read_depth(tmp_path / "k.png", encoding="kinect")  # type: ignore[arg-type]
+
+
+# --- .npy depth: the header is checked before any data is read (issue 13) -----------------------------------
+
+
+def _peak_bytes(fn: Callable[[], object]) -> int:
+    """Peak memory traced while ``fn`` runs (numpy reports its buffers to tracemalloc)."""
+    tracemalloc.start()
+    try:
+        with contextlib.suppress(InputFileError):
+            fn()
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+def test_npy_header_bomb_is_refused_without_allocating(tmp_path: Path) -> None:
+    bomb = npy_bomb(tmp_path / "bomb.npy")  # 10^10 float64 = 80 GB declared, 128 bytes on disk
+    with pytest.raises(InputFileError, match=r"bomb\.npy: declares float64 \(100000, 100000\) = 10,000,000,000 "):
+        read_depth(bomb)
+    assert _peak_bytes(lambda: read_depth(bomb)) < 1_000_000
+
+
+def test_npy_over_the_pixel_limit_follows_murk_max_pixels(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    np.save(tmp_path / "d.npy", np.full((10, 10), 2.0, np.float32))
+    monkeypatch.setenv("MURK_MAX_PIXELS", "99")
+    with pytest.raises(InputFileError, match=r"d\.npy: declares .* = 100 elements, over the pixel limit of 99"):
+        read_depth(tmp_path / "d.npy")
+    monkeypatch.setenv("MURK_MAX_PIXELS", "100")
+    assert read_depth(tmp_path / "d.npy").shape == (10, 10)
+
+
+def test_truncated_npy_is_refused_before_reading(tmp_path: Path) -> None:
+    # under the pixel limit (25 M elements) but only 12 bytes of its 100 MB of data are there
+    short = npy_bomb(tmp_path / "short.npy", (5000, 5000), "<f4", data=b"\x00" * 12)
+    with pytest.raises(InputFileError, match=r"short\.npy: truncated: the header declares .* 100,000,000 bytes, "):
+        read_depth(short)
+    assert _peak_bytes(lambda: read_depth(short)) < 1_000_000
+    np.save(tmp_path / "cut.npy", np.ones((40, 50), np.float32))
+    data = (tmp_path / "cut.npy").read_bytes()
+    (tmp_path / "cut.npy").write_bytes(data[:-1])
+    with pytest.raises(InputFileError, match=r"cut\.npy: truncated: .* 8,000 bytes, the file holds 7,999"):
+        read_depth(tmp_path / "cut.npy")
+
+
+@pytest.mark.parametrize(
+    ("shape", "descr", "expected"),
+    [
+        ((100_000, 100_000, 100_000), "<f4", r"expected a 2-D numeric array in metres, got float32 \(100000, "),
+        ((10**12,), "<f4", r"expected a 2-D numeric array in metres, got float32 \(1000000000000,\)"),
+        ((100_000, 100_000), "|O", r"expected a 2-D numeric array in metres \(integer or float\), got object"),
+        ((4, 4), "<c8", r"\(integer or float\), got complex64 \(4, 4\)"),
+        ((4, 4), [("d", "<f4")], r"\(integer or float\), got \[\('d', '<f4'\)\]"),
+        ((4, 4), "<U4", r"\(integer or float\), got <U4"),
+        ((0, 5), "<f4", r"empty depth array \(float32 \(0, 5\)\)"),
+    ],
+)
+def test_npy_wrong_shape_or_dtype_is_refused_from_the_header(
+    tmp_path: Path, shape: tuple[int, ...], descr: object, expected: str
+) -> None:
+    path = npy_bomb(tmp_path / "x.npy", shape, descr)
+    with pytest.raises(InputFileError, match=r"x\.npy: .*" + expected):
+        read_depth(path)
+    assert _peak_bytes(lambda: read_depth(path)) < 1_000_000
+
+
+def test_npy_that_is_not_npy(tmp_path: Path) -> None:
+    (tmp_path / "junk.npy").write_bytes(b"PK\x03\x04 not an array")
+    with pytest.raises(InputFileError, match=r"junk\.npy: not a valid \.npy file"):
+        read_depth(tmp_path / "junk.npy")
+    (tmp_path / "v9.npy").write_bytes(b"\x93NUMPY\x09\x00" + b"\x00" * 16)
+    with pytest.raises(InputFileError, match=r"v9\.npy: \.npy format version 9\.0 is not supported"):
+        read_depth(tmp_path / "v9.npy")
+
+
+def test_npy_layouts_and_dtypes_still_read_exactly(tmp_path: Path) -> None:
+    ref = np.arange(12, dtype=np.float64).reshape(3, 4) / 4 + 0.5
+    cases = {
+        "c.npy": ref,
+        "fortran.npy": np.asfortranarray(ref),
+        "bigendian.npy": ref.astype(">f8"),
+        "int16.npy": (ref * 4).astype(np.int16),
+        "channel.npy": ref[:, :, None].astype(np.float32),
+    }
+    for name, arr in cases.items():
+        np.save(tmp_path / name, arr)
+        got = read_depth(tmp_path / name)
+        assert got.dtype == np.float32 and got.shape == (3, 4), name
+        np.testing.assert_array_equal(got, np.asarray(arr, np.float64).reshape(3, 4).astype(np.float32), name)
+    big = tmp_path / "v2.npy"  # format 2.0 (np.save picks it only for huge headers): written by hand
+    with open(big, "wb") as f:
+        np.lib.format.write_array(f, ref, version=(2, 0))
+    np.testing.assert_array_equal(read_depth(big), ref.astype(np.float32))
+
+
+def test_depth_image_bomb_is_refused_before_decoding(tmp_path: Path) -> None:
+    bomb = png_bomb(tmp_path / "d.png", 60000, 60000)
+    with pytest.raises(InputFileError, match=r"d\.png: declares 60000x60000 = 3,600,000,000 pixels, over the limit"):
+        read_depth(bomb)
+    assert _peak_bytes(lambda: read_depth(bomb)) < 1_000_000

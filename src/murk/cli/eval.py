@@ -235,16 +235,16 @@ def _read_same_size(path: Path, other: Path, shape: tuple[int, ...], what: str) 
 
 def _depth_files(path: Path, recursive: bool) -> dict[str, Path]:
     from murk.errors import InputFileError
+    from murk.io.listing import walk_files
     from murk.io.pairs import DEPTH_SUFFIXES
 
     if path.is_file():
         return {path.stem: path}
     if not path.is_dir():
         raise InputFileError(path, "no such file or folder")
-    it = path.rglob("*") if recursive else path.iterdir()
     out: dict[str, Path] = {}
-    for f in sorted(it):
-        if f.is_file() and f.suffix.lower() in DEPTH_SUFFIXES and not f.name.startswith("."):
+    for f in walk_files(path, recursive=recursive):
+        if f.suffix.lower() in DEPTH_SUFFIXES and not f.name.startswith("."):
             out.setdefault(f.stem, f)
     if not out:
         raise InputFileError(path, "no depth files in this folder")

@@ -19,7 +19,6 @@ seconds, reported as milliseconds per frame, and frames per second over the wall
 
 from __future__ import annotations
 
-import glob as globlib
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -36,6 +35,7 @@ from murk.io.atomic import TMP_PREFIX, remove_stale_temporaries
 from murk.io.depth import write_depth_png
 from murk.io.images import IMAGE_SUFFIXES, list_images, read_image, to_float, to_uint, write_rgb, write_uint
 from murk.io.jsonl import append_jsonl
+from murk.io.listing import glob_files
 from murk.io.video import (
     DEFAULT_FPS,
     VIDEO_SUFFIXES,
@@ -136,8 +136,7 @@ def resolve_input(spec: str, *, recursive: bool = False, exclude: Path | None = 
     if is_stream_url(spec):
         return EnhanceInput("stream", redact_url(spec), target=spec.strip())
     if _GLOB_CHARS & set(spec):
-        matches = [Path(p) for p in globlib.glob(spec, recursive=True)]
-        images = sorted(p for p in matches if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+        images = [p for p in glob_files(spec) if p.suffix.lower() in IMAGE_SUFFIXES]  # survives symlink loops
         root = _glob_root(spec)
         images = _exclude([p for p in images if not p.name.startswith(".")], exclude, root)
         if not images:

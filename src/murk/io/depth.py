@@ -25,6 +25,8 @@ Encodings of integer depth images (``encoding``):
 
 from __future__ import annotations
 
+import math
+import os
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Literal
@@ -34,6 +36,7 @@ import numpy as np
 
 from murk.errors import InputFileError
 from murk.io.atomic import atomic_path
+from murk.io.images import check_declared_size, max_pixels
 
 InvalidDepthMode = Literal["fill", "far", "fail"]
 DepthEncoding = Literal["linear", "sun", "kinect-disparity"]
@@ -54,8 +57,9 @@ def read_depth(
         encoding: how integer samples map to metres (see the module docstring).
 
     Raises:
-        InputFileError: missing/undecodable file, wrong number of channels, or 8-bit depth without
-            ``relative=True``.
+        InputFileError: missing/undecodable file, more pixels than :func:`murk.io.images.max_pixels`
+            (checked in the header, before decoding), wrong number of channels, 8-bit depth without
+            ``relative=True``, or a ``.npy`` file refused by :func:`read_npy_depth`.
     """
     path = Path(path)
     if not path.is_file():
@@ -65,15 +69,8 @@ def read_depth(
     if encoding not in DEPTH_ENCODINGS:
         raise ValueError(f"depth_encoding: expected one of {', '.join(DEPTH_ENCODINGS)}, got {encoding!r}")
     if path.suffix.lower() == ".npy":
-        try:
-            raw = np.load(path, allow_pickle=False)
-        except (ValueError, OSError) as exc:
-            raise InputFileError(path, f"cannot read .npy depth ({exc})") from None
-        if raw.ndim == 3 and raw.shape[2] == 1:
-            raw = raw[:, :, 0]
-        if raw.ndim != 2 or not (np.issubdtype(raw.dtype, np.floating) or np.issubdtype(raw.dtype, np.integer)):
-            raise InputFileError(path, f"expected a 2-D numeric array in metres, got {raw.dtype} {raw.shape}")
-        return raw.astype(np.float32)
+        return read_npy_depth(path)
+    check_declared_size(path)
     data = np.fromfile(str(path), dtype=np.uint8)
     raw = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
     if raw is None:
@@ -106,6 +103,58 @@ def read_depth(
             m = np.where(r < 2047, 351.3 / (1092.5 - r), 0.0)
         return np.where(m > 0, m, 0.0).astype(np.float32)
     return (raw.astype(np.float64) / depth_scale).astype(np.float32)
+
+
+def read_npy_depth(path: str | Path) -> np.ndarray:
+    """Read a ``.npy`` depth map (metres) as float32 (H, W), checking its header before reading any data.
+
+    Accepted: integer or float samples, shape (H, W) or (H, W, 1), at most :func:`murk.io.images.max_pixels`
+    elements. The data is read with a bounded read of exactly the declared size, so a header declaring a
+    gigantic array is refused without allocating it.
+
+    Raises:
+        InputFileError: not a ``.npy`` file, an unsupported format version, too many elements, a shape other
+            than (H, W) / (H, W, 1), an empty array, a dtype other than integer/float (object, complex,
+            structured, strings, ...), or a file too short for the data its header declares.
+    """
+    path = Path(path)
+    with open(path, "rb") as f:
+        readers = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}
+        try:
+            version = np.lib.format.read_magic(f)
+            header = readers[version](f) if version in readers else None
+        except ValueError as exc:  # bad magic or an unparsable header
+            raise InputFileError(path, f"not a valid .npy file ({exc})") from None
+        if header is None:
+            raise InputFileError(path, f".npy format version {version[0]}.{version[1]} is not supported")
+        shape, fortran, dtype = header
+        what = f"{dtype} {shape}"
+        if dtype.fields is not None or dtype.kind not in "iuf":
+            raise InputFileError(path, f"expected a 2-D numeric array in metres (integer or float), got {what}")
+        if not (len(shape) == 2 or (len(shape) == 3 and shape[2] == 1)):
+            raise InputFileError(path, f"expected a 2-D numeric array in metres, got {what}")
+        count = math.prod(shape)
+        limit = max_pixels()
+        if count > limit:
+            raise InputFileError(
+                path,
+                f"declares {what} = {count:,} elements, over the pixel limit of {limit:,} "
+                "(raise it with 'murk --max-pixels N' or MURK_MAX_PIXELS)",
+            )
+        if count == 0:
+            raise InputFileError(path, f"empty depth array ({what})")
+        n_bytes = count * dtype.itemsize
+        have = os.fstat(f.fileno()).st_size - f.tell()
+        if have < n_bytes:
+            raise InputFileError(
+                path, f"truncated: the header declares {what} = {n_bytes:,} bytes, the file holds {have:,}"
+            )
+        try:
+            raw = np.fromfile(f, dtype=dtype, count=count)
+        except MemoryError:
+            raise InputFileError(path, f"not enough memory to read {what}") from None
+    raw = raw.reshape(shape[:2], order="F" if fortran else "C")
+    return raw.astype(np.float32)
 
 
 def validity_mask(depth_m: np.ndarray) -> np.ndarray:

@@ -19,6 +19,7 @@ import numpy as np
 from murk._checks import check_rgb
 from murk.errors import InputFileError
 from murk.io.atomic import atomic_path
+from murk.io.listing import walk_files
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".ppm", ".webp")
 """File suffixes treated as images when scanning folders."""
@@ -81,6 +82,22 @@ def _header_size(path: Path) -> tuple[int, int] | None:
         return None
 
 
+def check_declared_size(path: str | Path) -> None:
+    """Refuse an image file whose header declares more than :func:`max_pixels` pixels (read without decoding).
+
+    Raises:
+        InputFileError: the declared size is over the limit.
+    """
+    limit = max_pixels()
+    size = _header_size(Path(path))
+    if size is not None and size[0] * size[1] > limit:
+        raise InputFileError(
+            path,
+            f"declares {size[0]}x{size[1]} = {size[0] * size[1]:,} pixels, over the limit of {limit:,} "
+            "(a decompression bomb or a huge frame; raise it with 'murk --max-pixels N' or MURK_MAX_PIXELS)",
+        )
+
+
 @dataclass(frozen=True)
 class ImageInfo:
     """What :func:`read_image` found in a file."""
@@ -118,14 +135,8 @@ def read_image(path: str | Path) -> tuple[np.ndarray, ImageInfo]:
     path = Path(path)
     if not path.is_file():
         raise InputFileError(path, "file not found")
+    check_declared_size(path)
     limit = max_pixels()
-    size = _header_size(path)
-    if size is not None and size[0] * size[1] > limit:
-        raise InputFileError(
-            path,
-            f"declares {size[0]}x{size[1]} = {size[0] * size[1]:,} pixels, over the limit of {limit:,} "
-            "(a decompression bomb or a huge frame; raise it with 'murk --max-pixels N' or MURK_MAX_PIXELS)",
-        )
     # Decode from bytes so that non-ASCII paths work on every platform.
     data = np.fromfile(str(path), dtype=np.uint8)
     try:
@@ -213,9 +224,13 @@ def write_uint(path: str | Path, image: np.ndarray, *, jpeg_quality: int = 95, p
 
 
 def list_images(folder: str | Path, *, recursive: bool = False) -> list[Path]:
-    """Image files in ``folder`` (sorted), by suffix; hidden files and murk temporaries are skipped."""
+    """Image files in ``folder`` (sorted), by suffix; hidden files and murk temporaries are skipped.
+
+    ``recursive=True`` follows directory symlinks but enters each real folder once and lists each real file
+    once (see :func:`murk.io.listing.walk_files`), so a symlink loop neither hangs nor repeats files.
+    """
     folder = Path(folder)
     if not folder.is_dir():
         raise InputFileError(folder, "not a folder")
-    it = folder.rglob("*") if recursive else folder.iterdir()
-    return sorted(p for p in it if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith("."))
+    files = walk_files(folder, recursive=recursive)
+    return [p for p in files if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".")]

@@ -14,6 +14,7 @@ import numpy as np
 from murk.errors import InputFileError
 from murk.io.depth import DepthEncoding, InvalidDepthMode, nyu_mat_count, read_depth, read_nyu_mat, resolve_invalid
 from murk.io.images import IMAGE_SUFFIXES, read_image, to_float
+from murk.io.listing import walk_files
 
 DEPTH_SUFFIXES = (*IMAGE_SUFFIXES, ".pgm", ".npy")
 
@@ -49,7 +50,9 @@ class Problem:
 
 def discover(path: str | Path) -> tuple[list[RGBDSource], list[Problem]]:
     """Find pairs in a folder with ``rgb/`` (or ``color/``) and ``depth/`` matched by file stem, or in a
-    NYU-v2 ``.mat`` file. Unmatched files are returned as problems, not raised.
+    NYU-v2 ``.mat`` file. Unmatched files are returned as problems, not raised, and so is a stem shared by
+    several files of one folder (``rgb/x.png`` + ``rgb/x.jpg``, ``depth/x.npy`` + ``depth/x.png``): that pair
+    is left out and the problem names every file, the other pairs go on.
 
     Raises:
         InputFileError: the path does not exist or has neither layout.
@@ -65,18 +68,25 @@ def discover(path: str | Path) -> tuple[list[RGBDSource], list[Problem]]:
     depth_dir = path / "depth"
     if rgb_dir is None or not depth_dir.is_dir():
         raise InputFileError(path, "expected subfolders rgb/ (or color/) and depth/ with files matched by stem")
-    rgbs = _by_stem(rgb_dir, IMAGE_SUFFIXES)
-    depths = _by_stem(depth_dir, DEPTH_SUFFIXES)
-    if not rgbs:
+    rgbs, rgb_clash = _by_stem(rgb_dir, IMAGE_SUFFIXES)
+    depths, depth_clash = _by_stem(depth_dir, DEPTH_SUFFIXES)
+    if not rgbs and not rgb_clash:
         raise InputFileError(rgb_dir, f"no images found (recognised suffixes: {', '.join(IMAGE_SUFFIXES)})")
     sources, problems = [], []
-    for stem in sorted(rgbs):
-        if stem in depths:
+    for stem in sorted(set(rgbs) | set(rgb_clash)):
+        clash = [*rgb_clash.get(stem, []), *depth_clash.get(stem, [])]
+        if clash:  # several files claim this pair: using one silently could pair the wrong data
+            names = ", ".join(str(p) for p in clash)
+            problems.append(
+                Problem(str(clash[0]), f"ambiguous stem '{stem}': {names} share it; rename or remove all but one")
+            )
+        elif stem in depths:
             sources.append(RGBDSource(stem, str(rgbs[stem]), str(depths[stem])))
         else:
             problems.append(Problem(str(rgbs[stem]), f"no depth file with stem '{stem}' in {depth_dir}"))
-    for stem in sorted(set(depths) - set(rgbs)):
-        problems.append(Problem(str(depths[stem]), f"no RGB image with stem '{stem}' in {rgb_dir}"))
+    for stem in sorted((set(depths) | set(depth_clash)) - set(rgbs) - set(rgb_clash)):
+        path = depths[stem] if stem in depths else depth_clash[stem][0]
+        problems.append(Problem(str(path), f"no RGB image with stem '{stem}' in {rgb_dir}"))
     return sources, problems
 
 
@@ -145,9 +155,11 @@ def load_pair(source: RGBDSource, options: DepthOptions) -> tuple[np.ndarray, np
     return to_float(np.ascontiguousarray(rgb_u)), np.ascontiguousarray(depth), np.ascontiguousarray(valid)
 
 
-def _by_stem(folder: Path, suffixes: tuple[str, ...]) -> dict[str, Path]:
-    out: dict[str, Path] = {}
-    for p in sorted(folder.iterdir()):
-        if p.is_file() and p.suffix.lower() in suffixes and not p.name.startswith("."):
-            out.setdefault(p.stem, p)
-    return out
+def _by_stem(folder: Path, suffixes: tuple[str, ...]) -> tuple[dict[str, Path], dict[str, list[Path]]]:
+    """Files of ``folder`` by stem: (stems with one file, stems shared by several files such as x.png + x.jpg)."""
+    groups: dict[str, list[Path]] = {}
+    for p in walk_files(folder):
+        if p.suffix.lower() in suffixes and not p.name.startswith("."):
+            groups.setdefault(p.stem, []).append(p)
+    unique = {stem: files[0] for stem, files in groups.items() if len(files) == 1}
+    return unique, {stem: files for stem, files in groups.items() if len(files) > 1}
