@@ -21,3 +21,16 @@ class InputFileError(ValueError):
         self.path = str(path)
         self.problem = problem
         super().__init__(f"{path}: {problem}")
+
+
+class OutputError(OSError):
+    """An output file could not be written: no space left on device (ENOSPC), disk quota exceeded (EDQUOT), or
+    a writer that produced an incomplete file. Fatal for a run: commands stop with exit code 2 and leave nothing
+    partial under a final name (a rerun after freeing space resumes).
+
+    Built like ``OSError``: ``OutputError(errno, problem, path)`` (so that it pickles back from a worker process);
+    ``str()`` is ``"PATH: problem"``.
+    """
+
+    def __str__(self) -> str:
+        return f"{self.filename}: {self.strerror}"

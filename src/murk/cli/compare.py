@@ -43,6 +43,7 @@ def compare(
     mean +- std table (Fig. 8), side-by-side grids with zoomed boxes (Figs. 7, 9), CSV, JSON and report.html."""
     from murk.cli._common import resolve_device
     from murk.io.images import list_images
+    from murk.io.paths import check_output_location
     from murk.report.compare import run_compare
     from murk.report.figures import parse_box
     from murk.report.methods import parse_method
@@ -53,6 +54,7 @@ def compare(
     if real_dir.is_file():
         images = [real_dir]
     else:
+        check_output_location(out, [real_dir], inside="allow")  # an --out inside REAL_DIR is left out below
         images = list_images(real_dir, recursive=recursive)
         images = [p for p in images if out.resolve() not in p.resolve().parents]
     if not images:

@@ -2,8 +2,8 @@
 and flags (``--input``), depth errors; table, CSV and JSON.
 
 Exit codes: 0 = every file was scored; 1 = some files failed (listed on stderr, and in ``errors.jsonl`` beside
-the ``--json``/``--csv`` output when one is given); 2 = bad usage (unknown preset, missing path, nothing to
-evaluate).
+the ``--json``/``--csv`` output when one is given; each run rewrites it, or removes it when nothing failed); 2 =
+bad usage (unknown preset, missing path, nothing to evaluate).
 """
 
 from __future__ import annotations
@@ -131,10 +131,12 @@ def evaluate(
         _write_json(json_out, out, meta)
     if csv_out is not None:
         _write_csv(csv_out, out)
+    folder = (json_out or csv_out).parent if (json_out or csv_out) is not None else None
+    if folder is not None and not out.errors:
+        (folder / "errors.jsonl").unlink(missing_ok=True)  # the failures of an earlier run, not of this one
     if out.errors:
         for e in out.errors:
             print_error(f"{e['file']}: {e['error']}")
-        folder = (json_out or csv_out).parent if (json_out or csv_out) is not None else None
         if folder is not None:
             from murk.io import write_jsonl
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated, Any
@@ -21,59 +22,79 @@ app = typer.Typer(
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".m4v", ".webm", ".mpg", ".mpeg", ".ts")
 
 
-def _frames(inputs: list[Path], every: int, problems: list[tuple[str, str]]) -> Iterator[tuple[dict[str, Any], Any]]:
-    """Yield (description, uint8 RGB) for image files, folders (their images) and videos (every N-th frame)."""
-    import cv2
+def _list_inputs(inputs: list[Path]) -> list[Path | tuple[str, str]]:
+    """In input order: the files to read (image files and videos as given, the images of folders, recursively;
+    each file once) and, where an input cannot be used, its (path, problem)."""
+    from murk.io.images import list_images
 
-    from murk.io.images import list_images, read_image
-
+    entries: list[Path | tuple[str, str]] = []
+    seen: set[str] = set()
     for inp in inputs:
         if inp.is_dir():
             try:
-                files = list_images(inp, recursive=True)
+                inside = list_images(inp, recursive=True)
             except OSError as exc:
-                problems.append((str(inp), f"cannot list folder ({exc.strerror or exc})"))
+                entries.append((str(inp), f"cannot list folder ({exc.strerror or exc})"))
                 continue
-            if not files:
-                problems.append((str(inp), "folder holds no images"))
+            if not inside:
+                entries.append((str(inp), "folder holds no images"))
         elif inp.is_file():
-            files = [inp]
+            inside = [inp]
         else:
-            problems.append((str(inp), "not found"))
+            entries.append((str(inp), "not found"))
             continue
-        for f in files:
-            if f.suffix.lower() in VIDEO_SUFFIXES:
-                cap = cv2.VideoCapture(str(f))
-                if not cap.isOpened():
-                    problems.append((str(f), "cannot open video"))
-                    continue
-                i = 0
-                try:
-                    while True:
-                        try:
-                            ok, bgr = cap.read()
-                        except cv2.error as exc:
-                            problems.append((str(f), f"frame {i}: cannot decode ({str(exc).strip().splitlines()[-1]})"))
-                            break
-                        if not ok:
-                            break
-                        if i % every == 0:
-                            yield {"path": str(f), "frame": i}, bgr[:, :, ::-1].copy()
-                        i += 1
-                finally:
-                    cap.release()
-                if i == 0:
-                    problems.append((str(f), "video has no readable frame"))
+        for f in inside:
+            real = os.path.realpath(f)
+            if real not in seen:
+                seen.add(real)
+                entries.append(f)
+    return entries
+
+
+def _frames(
+    entries: list[Path | tuple[str, str]], every: int, problems: list[tuple[str, str]]
+) -> Iterator[tuple[dict[str, Any], Any]]:
+    """Yield (description, uint8 RGB) for image files and videos (every N-th frame); problems in input order."""
+    import cv2
+
+    from murk.io.images import read_image
+
+    for f in entries:
+        if isinstance(f, tuple):
+            problems.append(f)
+            continue
+        if f.suffix.lower() in VIDEO_SUFFIXES:
+            cap = cv2.VideoCapture(str(f))
+            if not cap.isOpened():
+                problems.append((str(f), "cannot open video"))
                 continue
+            i = 0
             try:
-                raw, _ = read_image(f)
-            except (ValueError, OSError, MemoryError) as exc:  # unreadable or corrupt: recorded, skipped
-                why = str(exc) if isinstance(exc, ValueError) else f"cannot read image ({exc})"
-                problems.append((str(f), why))
-                continue
-            if raw.dtype != "uint8":
-                raw = (raw // 257).astype("uint8")
-            yield {"path": str(f)}, raw
+                while True:
+                    try:
+                        ok, bgr = cap.read()
+                    except cv2.error as exc:
+                        problems.append((str(f), f"frame {i}: cannot decode ({str(exc).strip().splitlines()[-1]})"))
+                        break
+                    if not ok:
+                        break
+                    if i % every == 0:
+                        yield {"path": str(f), "frame": i}, bgr[:, :, ::-1].copy()
+                    i += 1
+            finally:
+                cap.release()
+            if i == 0:
+                problems.append((str(f), "video has no readable frame"))
+            continue
+        try:
+            raw, _ = read_image(f)
+        except (ValueError, OSError, MemoryError) as exc:  # unreadable or corrupt: recorded, skipped
+            why = str(exc) if isinstance(exc, ValueError) else f"cannot read image ({exc})"
+            problems.append((str(f), why))
+            continue
+        if raw.dtype != "uint8":
+            raw = (raw // 257).astype("uint8")
+        yield {"path": str(f)}, raw
 
 
 @app.command("extract")
@@ -119,13 +140,15 @@ def extract(
     Grayscale -> binarise (--method) -> opening, closing -> connected components -> particles (original colours
     where the mask is 1). The preview shows, per source, the image beside its mask: white = kept particles,
     grey = components dropped by the area or elongation filters. Unreadable or rejected inputs are skipped and
-    listed in BANK_errors.jsonl beside the bank (exit code 1).
+    listed in BANK_errors.jsonl beside the bank (exit code 1; rewritten by every run). BANK_preview/ may not lie
+    inside an input folder (it would be read back on a rerun).
     """
     import cv2
     import numpy as np
 
     from murk.io import write_jsonl
     from murk.io.images import write_uint
+    from murk.io.paths import check_output_location, output_names
     from murk.snow.bank import extract_bank, save_bank
     from murk.snow.extract import ExtractConfig
 
@@ -149,7 +172,17 @@ def extract(
         max_coverage=max_coverage,
     )
     preview_dir = out.with_name(out.stem + "_preview")
+    if preview:  # folders are listed recursively: previews inside one would be read back as footage on a rerun
+        check_output_location(
+            preview_dir,
+            [p for p in inputs if p.is_dir()],
+            option=f"--out {out}: the preview folder",
+            why="its previews would be read back as footage on a rerun (or use --no-preview)",
+        )
     read_problems: list[tuple[str, str]] = []
+    entries = _list_inputs(inputs)
+    files = [e for e in entries if isinstance(e, Path)]
+    names = {str(p): n for p, n in output_names(files).items()}  # a/x.jpg and b/x.jpg: two previews
     count = {"frames": 0}
 
     def on_frame(desc: dict[str, Any], rgb: Any, ex: Any) -> None:
@@ -166,11 +199,11 @@ def extract(
         if panel.shape[1] > 1600:
             f = 1600 / panel.shape[1]
             panel = cv2.resize(panel, None, fx=f, fy=f, interpolation=cv2.INTER_AREA)
-        name = Path(desc["path"]).stem + (f"_f{desc['frame']:06d}" if "frame" in desc else "")
+        name = names[desc["path"]] + (f"_f{desc['frame']:06d}" if "frame" in desc else "")
         write_uint(preview_dir / f"{name}.jpg", panel, jpeg_quality=90)
 
     try:
-        report = extract_bank(_frames(inputs, every, read_problems), config, scale=(lo, hi), on_frame=on_frame)
+        report = extract_bank(_frames(entries, every, read_problems), config, scale=(lo, hi), on_frame=on_frame)
     except ValueError as exc:  # no particle at all: say which inputs could not even be read
         raise ValueError(_nothing_extracted(inputs, read_problems, count["frames"], str(exc))) from None
     save_bank(report.bank, out)

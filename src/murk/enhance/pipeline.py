@@ -8,10 +8,14 @@ also gets ``depth/<stem>.png`` (uint16 millimetres) and ``depth_preview/<stem>.j
 range), and videos optionally a coloured depth video.
 
 Reliability: unreadable or undecodable inputs are recorded in ``errors.jsonl`` in the output folder and
-skipped (the run continues; callers exit non-zero); a broken video frame is recorded and replaced by the
-previous output frame so the video keeps its length and timing; outputs inside the input folder are never read
-back as inputs; rerunning skips images whose output exists (``overwrite=True`` redoes them); video files are
-written atomically (complete or absent), live recordings directly and flushed (see :mod:`murk.io.video`).
+skipped (the run continues; callers exit non-zero); ``errors.jsonl`` is rewritten by every run (it lists the
+failures of the latest run only); a broken video frame is recorded and replaced by the previous output frame
+so the video keeps its length and timing; outputs inside the input folder are never read back as inputs, and
+the input folder itself is refused as output (:func:`murk.io.paths.check_output_location`); inputs whose
+outputs would share a name get distinct names (:func:`murk.io.paths.output_names`); rerunning skips images
+whose output exists (``overwrite=True`` redoes them); video files are written atomically (complete or absent),
+live recordings directly and flushed (see :mod:`murk.io.video`). A full disk stops the run with
+:class:`murk.errors.OutputError` (``PATH: no space left on device``), never a truncated file under a final name.
 
 Timing: :class:`EnhanceReport` accumulates read (decode + conversion), restore and write (encode + files)
 seconds, reported as milliseconds per frame, and frames per second over the wall time.
@@ -30,12 +34,13 @@ import torch
 
 from murk.enhance.preview import DEPTH_PREVIEW_RANGE_M, colorize_depth, side_by_side
 from murk.enhance.restorer import Restored, Restorer
-from murk.errors import InputFileError, ShapeError
+from murk.errors import InputFileError, OutputError, ShapeError
 from murk.io.atomic import TMP_PREFIX, remove_stale_temporaries
 from murk.io.depth import write_depth_png
 from murk.io.images import IMAGE_SUFFIXES, list_images, read_image, to_float, to_uint, write_rgb, write_uint
 from murk.io.jsonl import append_jsonl
 from murk.io.listing import glob_files
+from murk.io.paths import check_output_location, output_names
 from murk.io.video import (
     DEFAULT_FPS,
     VIDEO_SUFFIXES,
@@ -150,7 +155,7 @@ def resolve_input(spec: str, *, recursive: bool = False, exclude: Path | None = 
 
 def _exclude(images: list[Path], folder: Path | None, root: Path) -> list[Path]:
     """Drop images below ``folder`` (the output) when it lies inside the input ``root``; an output folder
-    equal to or above the input is refused later by :func:`plan_images` instead."""
+    equal to the input, or above it with outputs landing inside it, is refused by :func:`plan_images`."""
     if folder is None:
         return images
     out = folder.resolve()
@@ -184,6 +189,9 @@ def plan_images(inp: EnhanceInput, out: Path, fmt: ImageFormat | None = None) ->
     ``out`` is a folder (outputs mirror the inputs' paths relative to the input folder or glob root), or, for
     a single image, a file path with an image suffix.
 
+    Two inputs whose outputs would share a name (``x.jpg`` and ``x.png`` with ``fmt="png"``, or their depth
+    maps ``depth/x.png``) get distinct names (``x_jpg``, ``x_png``; see :func:`murk.io.paths.output_names`).
+
     Raises:
         ValueError: the output folder is the input folder, an output would overwrite its input, or ``fmt``
             contradicts an output file's suffix.
@@ -198,20 +206,29 @@ def plan_images(inp: EnhanceInput, out: Path, fmt: ImageFormat | None = None) ->
         jobs = [ImageJob(inp.images[0], out, out.stem)]
         out_dir = out.parent
     else:
-        if out.resolve() == inp.root.resolve():
-            raise ValueError(
-                f"--out {out}: this is the input folder; choose another folder (outputs would be read back as "
-                "inputs or overwrite them)"
-            )
+        # an --out inside the input folder is fine: resolve_input leaves it out of the inputs
+        check_output_location(out, [inp.root], inside="allow")
+        names = output_names(list(inp.images), root=inp.root)
         jobs = []
         for src in inp.images:
             rel = src.relative_to(inp.root) if src.is_relative_to(inp.root) else Path(src.name)
-            dst = out / (rel.with_suffix(f".{fmt}") if fmt else rel)
-            jobs.append(ImageJob(src, dst, rel.with_suffix("").as_posix()))
+            dst = out / (f"{names[src]}.{fmt}" if fmt else rel)  # without fmt the suffix keeps rel distinct
+            jobs.append(ImageJob(src, dst, names[src]))
         out_dir = out
+        root, out_real = inp.root.resolve(), out.resolve()
+        if not out_real.is_relative_to(root):  # (an --out inside the input folder is left out of the listing)
+            for job in jobs:  # an --out above the input folder: outputs must not land inside the input folder
+                if job.dst.resolve().is_relative_to(root):
+                    raise ValueError(
+                        f"--out {out}: the output {job.dst} would land inside the input folder {inp.root} (and be "
+                        "read back as an input on a rerun); choose another folder"
+                    )
+    sources = {job.src.resolve(): job.src for job in jobs}
     for job in jobs:
-        if job.dst.resolve() == job.src.resolve():
-            raise ValueError(f"--out {out}: the output {job.dst} would overwrite its input")
+        hit = sources.get(job.dst.resolve())
+        if hit is not None:
+            what = "its input" if hit == job.src else f"the input {hit}"
+            raise ValueError(f"--out {out}: the output {job.dst} would overwrite {what}")
     return jobs, out_dir
 
 
@@ -261,11 +278,15 @@ class EnhanceReport:
 
 
 class _ErrorLog:
-    """Appends one ``errors.jsonl`` record per failure (created only when something fails)."""
+    """Appends one ``errors.jsonl`` record per failure (created only when something fails); :meth:`start`
+    removes the records of an earlier run, so the file lists the failures of the latest run only."""
 
     def __init__(self, folder: Path, report: EnhanceReport) -> None:
         self.path = folder / ERRORS_FILE
         self.report = report
+
+    def start(self) -> None:
+        self.path.unlink(missing_ok=True)
 
     def add(self, source: str, stage: str, error: str, frame: int | None = None) -> None:
         record: dict[str, object] = {"input": source, "stage": stage, "error": error}
@@ -330,7 +351,11 @@ def enhance_images(
     """Restore image files (see :func:`plan_images`) in batches of equal-size images.
 
     Existing outputs are skipped unless ``options.overwrite``; failures are recorded in
-    ``out_dir/errors.jsonl`` and the run continues. ``should_stop`` is polled between images.
+    ``out_dir/errors.jsonl`` (rewritten by each run) and the run continues. ``should_stop`` is polled between
+    images.
+
+    Raises:
+        OutputError: no space left on the device; the run stops (finished outputs are kept, none is partial).
     """
     options = options or OutputOptions()
     if batch < 1:
@@ -339,6 +364,7 @@ def enhance_images(
     errors = _ErrorLog(out_dir, report)
     out_dir.mkdir(parents=True, exist_ok=True)
     remove_stale_temporaries(out_dir)
+    errors.start()
     pending: list[_Loaded] = []
     claimed: dict[Path, Path] = {}
 
@@ -408,6 +434,8 @@ def _restore_and_write_images(
                 image = side_by_side(it.image, image)
             write_uint(it.job.dst, to_uint(image, it.bits), jpeg_quality=options.jpeg_quality)  # last: marks done
             report.processed += 1
+        except OutputError:  # a full disk ends the run (every later write would fail too)
+            raise
         except _INPUT_ERRORS as exc:
             errors.add(str(it.job.src), "write", _message(exc, it.job.dst))
     report.write_s += time.perf_counter() - t0
@@ -499,16 +527,24 @@ class _FrameWriter:
         return cv2.resize(frame, (w, h), interpolation=cv2.INTER_AREA)
 
     def finish(self, complete: bool) -> None:
-        """Close the videos; an incomplete atomic video (interrupted file input) is discarded."""
-        for sink in (self.sink, self.depth_sink):
-            if sink is None:
-                continue
-            if complete or not sink.atomic:
-                sink.close()
-            else:
-                sink.abort()
-                if sink.path in self.report.outputs:
-                    self.report.outputs.remove(sink.path)
+        """Close the videos; an incomplete atomic video (interrupted file input) is discarded. When closing one
+        fails (a full disk), the others are discarded too and the error is raised."""
+        sinks = [s for s in (self.sink, self.depth_sink) if s is not None]
+        try:
+            for sink in sinks:
+                if complete or not sink.atomic:
+                    sink.close()
+                else:
+                    self._discard(sink)
+        except BaseException:
+            for sink in sinks:
+                self._discard(sink)
+            raise
+
+    def _discard(self, sink: VideoSink) -> None:
+        sink.abort()
+        if sink.atomic and sink.path in self.report.outputs:
+            self.report.outputs.remove(sink.path)
 
 
 def enhance_frames(
@@ -532,6 +568,8 @@ def enhance_frames(
 
     Raises:
         ValueError: a live recording would replace an existing output without ``options.overwrite``.
+        OutputError: no space left on the device, or a finished video lacks frames; an atomic video is
+            discarded (nothing under ``out``).
     """
     options = options or OutputOptions()
     if batch < 1:
@@ -567,6 +605,7 @@ def enhance_frames(
     writer.out_dir.mkdir(parents=True, exist_ok=True)
     for stale in writer.out_dir.glob(f"{TMP_PREFIX}*-{out.name}"):
         stale.unlink(missing_ok=True)
+    errors.start()
 
     items: list[_FrameItem] = []
     saw_depth = False
@@ -598,6 +637,8 @@ def enhance_frames(
             try:
                 writer.write(it.index, to_uint(panel, 8), depth)
                 report.processed += 1
+            except OutputError:  # a full disk ends the run; finish() discards the partial video
+                raise
             except _INPUT_ERRORS as exc:
                 errors.add(label, "write", str(exc), it.index)
         report.write_s += time.perf_counter() - t0

@@ -1,42 +1,87 @@
 """Atomic file writes: write to a temporary file in the same folder, then rename over the target.
 
 A killed process leaves either the old file, or no file, never a half-written one. Temporary files keep
-the target's extension (OpenCV picks the encoder from it) and start with ``.murk-tmp-`` so that a resumed
-run can recognise and delete leftovers.
+the target's extension and start with ``.murk-tmp-`` so that a resumed run can recognise and delete leftovers.
+
+A full disk is one error everywhere: every write helper of murk (:func:`atomic_path` and what builds on it,
+:func:`murk.io.jsonl.append_jsonl`, :class:`murk.io.video.VideoSink`) runs under :func:`no_space_as_error`,
+which turns ``OSError`` ENOSPC/EDQUOT into :class:`murk.errors.OutputError` ``"PATH: no space left on
+device"`` naming the final file (not the temporary one). Image encoders write to memory and Python writes the
+bytes (:func:`write_bytes_atomic`): OpenCV's ``imwrite`` does not check ``fclose``, so on a full disk it can
+report success for a truncated file.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
+from murk.errors import OutputError
+
 TMP_PREFIX = ".murk-tmp-"
+NO_SPACE_ERRNOS = frozenset(e for e in (errno.ENOSPC, getattr(errno, "EDQUOT", None)) if e is not None)
+"""errno values that mean the device (or the user's quota) is full."""
+
+
+def no_space_error(path: str | Path, code: int = errno.ENOSPC) -> OutputError:
+    """The error murk raises when ``path`` cannot be written for lack of space."""
+    quota = " (disk quota exceeded)" if code != errno.ENOSPC else ""
+    return OutputError(code, f"no space left on device{quota}", str(path))
+
+
+@contextlib.contextmanager
+def no_space_as_error(path: str | Path) -> Iterator[None]:
+    """Turn ``OSError`` ENOSPC/EDQUOT raised inside the block into :class:`OutputError` naming ``path``."""
+    try:
+        yield
+    except OutputError:
+        raise
+    except OSError as exc:
+        if exc.errno in NO_SPACE_ERRNOS:
+            raise no_space_error(path, exc.errno) from exc
+        raise
 
 
 @contextlib.contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
-    """Yield a temporary path next to ``path``; on a clean exit rename it onto ``path``, else delete it."""
+    """Yield a temporary path next to ``path``; on a clean exit rename it onto ``path``, else delete it.
+
+    Raises:
+        OutputError: no space left on the device (or quota) while the block wrote the temporary file.
+    """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f"{TMP_PREFIX}{uuid.uuid4().hex[:12]}-{path.name}")
     try:
-        yield tmp
-        os.replace(tmp, path)
+        with no_space_as_error(path):
+            path.parent.mkdir(parents=True, exist_ok=True)
+            yield tmp
+            os.replace(tmp, path)
     finally:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
 
 
-def write_bytes_atomic(path: str | Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically (fsynced before the rename)."""
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as f:
-            f.write(data)
+def _write_file(path: Path, data: bytes, fsync: bool) -> None:
+    """Write ``data`` to a new file ``path``; errors of ``write`` and ``close`` (a full disk) are raised."""
+    with open(path, "wb") as f:
+        f.write(data)
+        if fsync:
             f.flush()
             os.fsync(f.fileno())
+
+
+def write_bytes_atomic(path: str | Path, data: bytes, *, fsync: bool = True) -> None:
+    """Write ``data`` to ``path`` atomically (fsynced before the rename unless ``fsync=False``).
+
+    Raises:
+        OutputError: no space left on the device; nothing is left under ``path`` (an older file stays).
+    """
+    with atomic_path(path) as tmp:
+        _write_file(tmp, data, fsync)
 
 
 def write_text_atomic(path: str | Path, text: str) -> None:

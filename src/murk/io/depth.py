@@ -35,8 +35,8 @@ import cv2
 import numpy as np
 
 from murk.errors import InputFileError
-from murk.io.atomic import atomic_path
-from murk.io.images import check_declared_size, max_pixels
+from murk.io.atomic import write_bytes_atomic
+from murk.io.images import check_declared_size, encode_image, max_pixels
 
 InvalidDepthMode = Literal["fill", "far", "fail"]
 DepthEncoding = Literal["linear", "sun", "kinect-disparity"]
@@ -203,9 +203,7 @@ def write_depth_png(path: str | Path, depth_m: np.ndarray, *, depth_scale: float
     path = Path(path)
     d = np.where(validity_mask(depth_m), depth_m, 0.0).astype(np.float64) * depth_scale
     raw = np.clip(np.rint(d), 0, 65535).astype(np.uint16)
-    with atomic_path(path) as tmp:
-        if not cv2.imwrite(str(tmp), raw):
-            raise ValueError(f"{path}: could not write depth PNG")
+    write_bytes_atomic(path, encode_image(path, raw), fsync=False)
     return path
 
 

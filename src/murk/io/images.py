@@ -7,8 +7,8 @@ converts grayscale or RGBA inputs to RGB, recording what it did in :class:`Image
 
 from __future__ import annotations
 
-import contextlib
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -18,7 +18,7 @@ import numpy as np
 
 from murk._checks import check_rgb
 from murk.errors import InputFileError
-from murk.io.atomic import atomic_path
+from murk.io.atomic import write_bytes_atomic
 from murk.io.listing import walk_files
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".ppm", ".webp")
@@ -129,8 +129,8 @@ def read_image(path: str | Path) -> tuple[np.ndarray, ImageInfo]:
     being decoded.
 
     Raises:
-        InputFileError: the file does not exist, declares too many pixels, cannot be decoded (or not in the
-            memory available), or has an unsupported sample type.
+        InputFileError: the file does not exist, cannot be read (permission denied, I/O error), declares too
+            many pixels, cannot be decoded (or not in the memory available), or has an unsupported sample type.
     """
     path = Path(path)
     if not path.is_file():
@@ -138,7 +138,10 @@ def read_image(path: str | Path) -> tuple[np.ndarray, ImageInfo]:
     check_declared_size(path)
     limit = max_pixels()
     # Decode from bytes so that non-ASCII paths work on every platform.
-    data = np.fromfile(str(path), dtype=np.uint8)
+    try:
+        data = np.fromfile(str(path), dtype=np.uint8)
+    except OSError as exc:  # permission denied, I/O error: this file fails, a batch goes on
+        raise InputFileError(path, f"cannot read file ({exc.strerror or exc})") from None
     try:
         bgr = cv2.imdecode(data, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH) if data.size else None
     except cv2.error as exc:
@@ -205,6 +208,10 @@ def write_uint(path: str | Path, image: np.ndarray, *, jpeg_quality: int = 95, p
     """Write a uint8/uint16 RGB (H, W, 3) or single-channel (H, W) array atomically.
 
     ``jpeg_quality`` (0-100) applies to JPEG, ``png_compression`` (zlib level 0-9) to PNG.
+
+    Raises:
+        ValueError: the format cannot hold this array.
+        OutputError: no space left on the device (nothing is left under ``path``).
     """
     path = Path(path)
     if image.ndim == 3:
@@ -214,13 +221,23 @@ def write_uint(path: str | Path, image: np.ndarray, *, jpeg_quality: int = 95, p
         params = [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)]
     elif path.suffix.lower() == ".png":
         params = [cv2.IMWRITE_PNG_COMPRESSION, int(png_compression)]
-    with atomic_path(path) as tmp:
-        ok = cv2.imwrite(str(tmp), image, params)
-        if not ok:
-            with contextlib.suppress(FileNotFoundError):
-                tmp.unlink()
-            raise ValueError(f"{path}: OpenCV could not write this format/dtype ({image.dtype}, {image.shape})")
+    write_bytes_atomic(path, encode_image(path, image, params), fsync=False)
     return path
+
+
+def encode_image(path: str | Path, image: np.ndarray, params: Sequence[int] = ()) -> bytes:
+    """Encode a BGR(A)/grey array in the format of ``path``'s suffix, in memory (see :mod:`murk.io.atomic`).
+
+    Raises:
+        ValueError: OpenCV cannot encode this format/dtype/shape (the message names ``path``).
+    """
+    try:
+        ok, buf = cv2.imencode(Path(path).suffix.lower(), image, list(params))
+    except cv2.error:
+        ok, buf = False, None
+    if not ok or buf is None:
+        raise ValueError(f"{path}: OpenCV could not write this format/dtype ({image.dtype}, {image.shape})")
+    return buf.tobytes()
 
 
 def list_images(folder: str | Path, *, recursive: bool = False) -> list[Path]:

@@ -13,7 +13,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from murk.io.atomic import write_text_atomic
+from murk.io.atomic import no_space_as_error, write_text_atomic
 
 
 def json_safe(obj: Any) -> Any:
@@ -33,16 +33,17 @@ def dumps(record: dict[str, Any]) -> str:
 
 
 def append_jsonl(path: str | Path, records: Iterable[dict[str, Any]]) -> None:
-    """Append ``records`` to ``path`` in one write, flushed and fsynced."""
+    """Append ``records`` to ``path`` in one write, flushed and fsynced (a full disk raises ``OutputError``)."""
     text = "".join(dumps(r) + "\n" for r in records)
     if not text:
         return
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "a", encoding="utf-8") as f:
-        f.write(text)
-        f.flush()
-        os.fsync(f.fileno())
+    with no_space_as_error(path):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(path, "a", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
 
 
 def read_jsonl(path: str | Path) -> list[dict[str, Any]]:

@@ -17,14 +17,22 @@ H.264 in fragmented MP4, written and flushed packet by packet). Two write modes:
   buffers and writes the MP4 index only on close, so a killed OpenCV MP4 recording is not playable.
 
 Codecs need even frame sizes: odd widths/heights are padded by one replicated pixel row/column.
+
+Write errors: a full disk raises :class:`murk.errors.OutputError` ``"PATH: no space left on device"`` (the
+mechanism of :mod:`murk.io.atomic`). PyAV reports it from ``write``/``close``; OpenCV's writer reports nothing
+(its ``write`` returns nothing and ``release`` ignores the muxer's errors), so :meth:`VideoSink.close` counts
+the frames of the finished file and refuses a file that does not hold every frame written. An atomic sink then
+deletes its temporary file: no truncated video is ever left under the final name.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import math
 import os
 import re
+import shutil
 import uuid
 from abc import ABC, abstractmethod
 from collections import deque
@@ -38,8 +46,8 @@ from urllib.parse import urlsplit, urlunsplit
 import cv2
 import numpy as np
 
-from murk.errors import InputFileError, ShapeError
-from murk.io.atomic import TMP_PREFIX
+from murk.errors import InputFileError, OutputError, ShapeError
+from murk.io.atomic import TMP_PREFIX, no_space_as_error, no_space_error
 
 VIDEO_SUFFIXES = (".mp4", ".m4v", ".mov", ".mkv", ".avi", ".mpg", ".mpeg", ".wmv", ".webm", ".ts", ".mts", ".flv")
 """File suffixes read as video."""
@@ -49,6 +57,8 @@ STREAM_SCHEMES = ("rtsp", "rtsps", "rtmp", "http", "https", "udp", "tcp", "srt")
 """URL schemes read as live streams."""
 DEFAULT_FPS = 25.0
 """Frame rate used when a source does not report a plausible one."""
+LOW_SPACE_BYTES = 16 * 2**20
+"""A finished video that lacks frames on a device with less free space than this failed for lack of space."""
 
 VideoBackend = Literal["opencv", "av"]
 
@@ -334,24 +344,70 @@ class VideoSink:
             raise ShapeError(f"image: expected shape {(h, w, 3)} (the sink's size), got {image.shape}")
         if self._even != self.size:
             image = np.pad(image, ((0, self._even[1] - h), (0, self._even[0] - w), (0, 0)), mode="edge")
-        if self.backend == "opencv":
-            self._writer.write(np.ascontiguousarray(image[:, :, ::-1]))
-        else:
-            import av
+        with no_space_as_error(self.path):
+            if self.backend == "opencv":
+                self._writer.write(np.ascontiguousarray(image[:, :, ::-1]))
+            else:
+                import av
 
-            frame = av.VideoFrame.from_ndarray(np.ascontiguousarray(image), format="rgb24")
-            for packet in self._stream.encode(frame):
-                self._container.mux(packet)
+                frame = av.VideoFrame.from_ndarray(np.ascontiguousarray(image), format="rgb24")
+                for packet in self._stream.encode(frame):
+                    self._container.mux(packet)
         self.frames_written += 1
 
     def close(self) -> Path:
-        """Finish the file (flush the encoder, write the index) and, when atomic, rename it onto ``path``."""
+        """Finish the file (flush the encoder, write the index), check that it holds every frame written and,
+        when atomic, rename it onto ``path``.
+
+        Raises:
+            OutputError: no space left on the device, or the finished file lacks frames. An atomic sink then
+                deletes its temporary file (nothing under ``path``); a direct one keeps what it wrote.
+        """
         if self._closed:
             return self.path
-        self._release()
-        if self.atomic:
-            os.replace(self._target, self.path)
+        try:
+            with no_space_as_error(self.path):
+                self._release()
+                self._check_finished()
+                if self.atomic:
+                    _fsync(self._target)  # deferred write errors (network file systems) surface here
+                    os.replace(self._target, self.path)
+        except BaseException:
+            if self.atomic:
+                with contextlib.suppress(FileNotFoundError):
+                    self._target.unlink()
+            raise
         return self.path
+
+    def _check_finished(self) -> None:
+        """Refuse a finished file that does not hold the frames written (OpenCV's writer fails silently).
+
+        The count comes from the container's index (no decoding). Measured exact for every suffix and backend
+        of this module at 7.5, 23.976 and 29.97 fps; one frame of slack covers containers whose count is
+        estimated from the duration. A full disk leaves a file without an index, which does not open at all.
+        """
+        if self.frames_written == 0:
+            return
+        with _quiet_opencv():
+            cap = cv2.VideoCapture(str(self._target))
+        try:
+            found = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if cap.isOpened() else -1
+        finally:
+            cap.release()
+        if abs(found - self.frames_written) <= 1:
+            return
+        try:
+            free = shutil.disk_usage(self._target.parent).free
+        except OSError:
+            free = None
+        if free is not None and free < LOW_SPACE_BYTES:
+            raise no_space_error(self.path)
+        what = "cannot be read back" if found < 0 else f"holds {found}"
+        raise OutputError(
+            errno.EIO,
+            f"the video writer failed: {self.frames_written} frames were written, the finished file {what}",
+            str(self.path),
+        )
 
     def abort(self) -> None:
         """Stop writing; an atomic sink deletes its temporary file (a direct one keeps what was written)."""
@@ -393,6 +449,14 @@ def av_available() -> bool:
     except ImportError:
         return False
     return True
+
+
+def _fsync(path: Path) -> None:
+    fd = os.open(path, os.O_RDWR)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
 
 def _rate(fps: float):

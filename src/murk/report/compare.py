@@ -31,6 +31,7 @@ from murk._version import __version__
 from murk.io.atomic import write_text_atomic
 from murk.io.images import read_rgb, write_rgb, write_uint
 from murk.io.jsonl import json_safe, write_jsonl
+from murk.io.paths import output_names as unique_names
 from murk.metrics import fidelity
 from murk.metrics.fidelity import MEASURE_KEYS, count_flags, flags, join_flags, restoration_measures
 from murk.report.figures import Box, auto_boxes, comparison_grid
@@ -119,7 +120,7 @@ def run_compare(
             on_image(i, len(images), path.name)
         try:
             img = read_rgb(path)
-        except ValueError as exc:
+        except (ValueError, OSError) as exc:  # unreadable, corrupt, a bomb: recorded, the others go on
             result.errors.append({"path": str(path), "error": str(exc)})
             continue
         outputs, rows = [], []
@@ -200,22 +201,9 @@ def run_compare(
 
 def output_names(images: Sequence[Path]) -> dict[Path, str]:
     """A distinct output name per image: its stem, or where stems collide (``a/x.jpg``, ``b/x.png``) the parent
-    folder and the stem (``a_x``, ``b_x``), then the suffix, then a counter: no grid overwrites another."""
-    from collections import Counter
-
-    names = {p: p.stem for p in images}
-    for widen in (
-        lambda p, n: f"{_safe(p.parent.name)}_{n}",
-        lambda p, n: f"{n}_{p.suffix.lstrip('.')}",
-    ):
-        counts = Counter(names.values())
-        names = {p: widen(p, n) if counts[n] > 1 else n for p, n in names.items()}
-    counts, seen = Counter(names.values()), Counter()
-    for p in images:
-        if counts[names[p]] > 1:
-            seen[names[p]] += 1
-            names[p] = f"{names[p]}_{seen[names[p]]}"
-    return names
+    folder and the stem (``a_x``, ``b_x``), then the suffix, then a counter: no grid overwrites another
+    (:func:`murk.io.paths.output_names`, shared with the other commands)."""
+    return unique_names(images, safe=_safe)
 
 
 def _safe(label: str) -> str:

@@ -8,7 +8,9 @@ Output folder::
     OUT_DIR/scenes_config.yaml        the settings of the run (seed, size, sampler config, murk version)
 
 Scene ``i`` is sampled from ``murk.rng.derive_seed(seed, i)``, so the output never depends on ``workers``.
-Rerunning skips scenes whose RGB and depth files both exist and rewrites scenes.jsonl.
+Rerunning skips scenes whose RGB and depth files both exist and rewrites scenes.jsonl; ``errors.jsonl`` lists the
+scenes that failed in the latest run (rewritten by every run, absent when none). Workers die with the parent
+(:mod:`murk._workers`); a full disk stops the run with ``OutputError`` naming the file.
 """
 
 from __future__ import annotations
@@ -54,6 +56,13 @@ def _init_worker(textures: dict[str, Any]) -> None:
     _TEXTURES.update(textures)
 
 
+def _init_pool_worker(textures: dict[str, Any]) -> None:
+    from murk._workers import die_with_parent
+
+    die_with_parent()
+    _init_worker(textures)
+
+
 def scene_record(index: int, seed: int, size: tuple[int, int], cfg: Any, rgb_suffix: str) -> tuple[Any, dict]:
     """(params, scenes.jsonl record) of scene ``index`` (sampling only, no rendering)."""
     from murk.rng import derive_seed
@@ -80,9 +89,12 @@ def scene_record(index: int, seed: int, size: tuple[int, int], cfg: Any, rgb_suf
 
 def render_job(job: tuple[int, str, int, tuple[int, int], Any, str]) -> tuple[dict, str, str | None]:
     """Render and write one scene unless both its files exist; returns (record, status, error)."""
+    from murk._workers import stop_if_orphaned
+    from murk.errors import OutputError
     from murk.io import write_depth_png, write_rgb
     from murk.scenes import render_scene
 
+    stop_if_orphaned()
     index, out_dir, seed, size, cfg, rgb_suffix = job
     params, record = scene_record(index, seed, size, cfg, rgb_suffix)
     out = Path(out_dir)
@@ -94,6 +106,8 @@ def render_job(job: tuple[int, str, int, tuple[int, int], Any, str]) -> tuple[di
         rgb, dist_m = render_scene(params, size, textures=_TEXTURES or None)
         write_rgb(rgb_path, rgb)
         write_depth_png(depth_path, dist_m)
+    except OutputError:  # a full disk ends the run
+        raise
     except (ValueError, OSError) as exc:
         return record, "failed", str(exc)
     return record, "rendered", None
@@ -161,7 +175,7 @@ def write_scenes(
     """
     import yaml
 
-    from murk.io import append_jsonl
+    from murk.io import write_jsonl
     from murk.io.atomic import atomic_path, remove_stale_temporaries, write_text_atomic
     from murk.io.jsonl import dumps
     from murk.scenes import SceneConfig
@@ -193,7 +207,7 @@ def write_scenes(
         else:
             from concurrent.futures import ProcessPoolExecutor
 
-            pool = ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(tex,))
+            pool = ProcessPoolExecutor(max_workers=workers, initializer=_init_pool_worker, initargs=(tex,))
             results = pool.map(render_job, jobs, chunksize=max(1, min(16, count // (4 * workers))))
         try:
             for record, status, error in results:
@@ -208,5 +222,7 @@ def write_scenes(
             if pool is not None:
                 pool.shutdown(cancel_futures=True)
     if summary.errors:
-        append_jsonl(out_dir / ERRORS_NAME, summary.errors)
+        write_jsonl(out_dir / ERRORS_NAME, summary.errors)
+    else:
+        (out_dir / ERRORS_NAME).unlink(missing_ok=True)  # records of an earlier run
     return summary

@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from murk._version import __version__
-from murk.errors import InputFileError
+from murk.errors import InputFileError, OutputError
 from murk.io.atomic import write_bytes_atomic
 from murk.snow.extract import Particle
 
@@ -148,6 +148,8 @@ def save_bank(bank: ParticleBank, path: str | Path) -> Path:
     path = Path(path)
     try:
         write_bytes_atomic(path, bank_to_bytes(bank))
+    except OutputError:  # no space left on device: already one line naming the file
+        raise
     except OSError as exc:
         raise InputFileError(path, f"cannot write the particle bank ({exc})") from None
     return path

@@ -11,12 +11,18 @@ Output layout (``OUT_DIR``)::
     train.txt                    Joint-ID list: "<input> <enhanced_gt> <depth_gt> <depth_scale>"
     metadata.jsonl               Hugging Face imagefolder metadata ("file_name" = the degraded image)
     config.yaml                  the resolved configuration, with the seed and murk version
-    errors.jsonl                 inputs that failed in the last run (absent when none)
+    errors.jsonl                 inputs that failed in the latest run (rewritten by every run; absent when none)
     .murk/progress-*.jsonl       append-only logs that make resuming possible
 
 Reproducibility: variant ``k`` of image ``stem`` is drawn from ``derive_seed(seed, stem, k)``, so the bytes
 of every file depend neither on ``workers`` nor on interruptions; a rerun skips variants whose log record and
 files exist; index files are rebuilt sorted at the end of every run (and of every shard).
+
+Faults: the output folder may not be or lie inside a folder of input files, and its subfolders may not hold
+input files (they would be overwritten or mixed with outputs; :func:`murk.io.paths.check_output_location`):
+``murk synth RGBD_DIR RGBD_DIR`` is refused, ``RGBD_DIR/synth`` is fine; workers die with the parent
+(:mod:`murk._workers`); a full disk stops the run with ``OutputError`` naming the file (queued work is
+cancelled; what was finished is kept and a rerun resumes).
 """
 
 from __future__ import annotations
@@ -34,11 +40,13 @@ import numpy as np
 
 from murk._config import dump_yaml, to_dict
 from murk._version import __version__
+from murk._workers import stop_if_orphaned
 from murk.io.atomic import remove_stale_temporaries, write_text_atomic
 from murk.io.depth import write_depth_png
 from murk.io.images import to_uint, write_rgb, write_uint
 from murk.io.jsonl import append_jsonl, read_jsonl, write_jsonl
 from murk.io.pairs import DepthOptions, Problem, RGBDSource, load_pair
+from murk.io.paths import check_output_location
 from murk.rng import derive_seed
 from murk.synth.config import SynthConfig
 from murk.synth.params import VariantParams, sample_variant, snow_sampler_for, variant_to_dict
@@ -200,6 +208,13 @@ def _init_worker(bank_path: str | None) -> None:
         _WORKER_BANK = load_bank(bank_path)
 
 
+def _init_pool_worker(bank_path: str | None) -> None:
+    from murk._workers import die_with_parent
+
+    die_with_parent()
+    _init_worker(bank_path)
+
+
 def process_source(
     source: RGBDSource, variants: Sequence[int], config: SynthConfig, out_dir: str, bank: Any = None
 ) -> tuple[list[dict[str, Any]], list[Problem]]:
@@ -224,6 +239,7 @@ def process_source(
     records = []
     h, w = depth.shape
     for k in variants:
+        stop_if_orphaned()  # a worker whose parent died stops here (see murk._workers)
         seed = derive_seed(config.seed, source.stem, k)
         params = sample_variant(np.random.default_rng(seed), config, snow_sampler=snow_sampler)
         res = render(rgb, depth, params, bank=bank, keep_intermediate=config.output.save_intermediate)
@@ -297,6 +313,22 @@ def write_index(out_dir: Path, records: dict[tuple[str, int], dict[str, Any]]) -
     )
 
 
+OUTPUT_FOLDERS = ("degraded", "clean", "depth", "snow_alpha", "basic", "transmission", ".murk")
+"""The subfolders a run writes into: no input file may lie in one."""
+_OVERLAP_WHY = "the outputs would overwrite or mix with the input files"
+
+
+def input_locations(sources: Sequence[RGBDSource]) -> list[Path]:
+    """The folders of the input files, each once: what the output folder may not be or lie inside, and what its
+    output subfolders may not hold. (A NYU ``.mat`` file is left out: no output can replace it.)"""
+    seen: dict[str, Path] = {}
+    for s in sources:
+        if s.mat_index is None:
+            for folder in (os.path.dirname(s.rgb_path), os.path.dirname(s.depth_path)):
+                seen.setdefault(folder, Path(folder or "."))
+    return list(seen.values())
+
+
 def check_config_compatible(out_dir: Path, config: SynthConfig) -> None:
     """Refuse to add to a folder made with a different configuration (the results would not be one dataset)."""
     import yaml
@@ -338,9 +370,14 @@ def run_synthesis(
         bank_path: particle bank file, required when the marine_snow stage is on.
         problems: input problems found before the run (unpaired files); reported in errors.jsonl.
         on_progress: called as ``on_progress(variants_done, variants_total)`` after each image.
+
+    Raises:
+        ValueError: ``out_dir`` overlaps the folders of the input files (see above); a bad bank or configuration.
+        OutputError: no space left on the device (the message names the file; a rerun resumes).
     """
     t0 = time.perf_counter()
     out = Path(out_dir)
+    check_output_location(out, input_locations(sources), option="OUT_DIR", writes=OUTPUT_FOLDERS, why=_OVERLAP_WHY)
     if "marine_snow" in config.stages and not bank_path:
         raise ValueError("stages: marine_snow needs a particle bank (--snow-bank)")
     if bank_path:
@@ -383,10 +420,13 @@ def run_synthesis(
         import multiprocessing as mp
 
         ctx = mp.get_context("spawn")
-        with ProcessPoolExecutor(config.workers, mp_context=ctx, initializer=_init_worker, initargs=(bank_path,)) as ex:
+        ex = ProcessPoolExecutor(config.workers, mp_context=ctx, initializer=_init_pool_worker, initargs=(bank_path,))
+        try:
             futures = {ex.submit(process_source, s, ks, config, str(out)): len(ks) for s, ks in todo}
             for fut in as_completed(futures):
                 collect(*fut.result(), futures[fut])
+        finally:  # on an error (a full disk) the queued images are cancelled, not run to fail one by one
+            ex.shutdown(wait=True, cancel_futures=True)
     final = load_records(out)
     write_index(out, final)
     summary.notes = sorted({r["depth_warning"] for r in final.values() if r.get("depth_warning")})

@@ -1,0 +1,59 @@
+"""Worker processes that die with their parent (``murk synth --workers N``, ``murk scenes --workers N``).
+
+A pool worker outlives a parent killed with SIGKILL (or by the OOM killer): nothing tells it, so it finishes
+the item it holds, then the items already queued to it, writing files for seconds into a folder whose run is
+over. Two mechanisms, both started from the pool initializer:
+
+- Linux: ``prctl(PR_SET_PDEATHSIG, SIGKILL)``. The kernel kills the worker the moment its parent dies, in the
+  middle of an item; that is safe because every output is written atomically (a killed worker leaves only a
+  ``.murk-tmp-`` file, which the next run deletes) and only the parent appends to the resume logs. It needs no
+  polling and cannot be blocked by a long item. The death signal is tied to the thread that created the worker:
+  pools must be created and submitted to from the main thread (as murk does).
+- Everywhere (and for the race where the parent dies before ``prctl`` ran): :func:`stop_if_orphaned`, a check
+  that workers make between units of work (one variant in ``murk synth``, one scene in ``murk scenes``), so on
+  macOS and Windows a worker stops within one unit. It polls multiprocessing's parent sentinel (a pipe or
+  handle that the parent's death closes), which works for fork and spawn and on Windows, where ``os.getppid()``
+  keeps the dead parent's pid.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import signal
+import sys
+
+PR_SET_PDEATHSIG = 1
+"""From <linux/prctl.h>."""
+
+
+def die_with_parent() -> None:
+    """Call first thing in a pool worker: arrange to be killed when the pool's owner dies.
+
+    Exits at once when the parent is already gone (it died before this worker got here). Does nothing in a
+    process that multiprocessing did not start (the single-process path of a command calls the same
+    initializer: the main process must not die with the shell that started it).
+    """
+    if multiprocessing.parent_process() is None:
+        return
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+        except (OSError, AttributeError):  # no libc prctl (unusual builds): the parent check still works
+            pass
+    stop_if_orphaned()
+
+
+def parent_alive() -> bool:
+    """False in a child process whose parent has died; True in the main process."""
+    parent = multiprocessing.parent_process()
+    return parent is None or parent.is_alive()
+
+
+def stop_if_orphaned() -> None:
+    """Exit the worker process at once when its parent has died (the portable check between units of work)."""
+    if not parent_alive():
+        os._exit(1)

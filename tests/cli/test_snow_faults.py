@@ -1,0 +1,78 @@
+"""``murk snow extract`` under faults (issue 13): an output inside its input folder, previews of inputs sharing
+a stem, a full disk, error records of earlier runs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from murk.cli.main import app
+from murk.io import read_jsonl
+from murk.snow.bank import load_bank
+
+from .._faults import assert_nothing_partial, fill_disk, one_line_error
+
+runner = CliRunner()
+
+
+def _frame(path: Path, shift: int = 0) -> Path:
+    """A dark frame with three bright 4x4 particles."""
+    f = np.full((64, 96, 3), 20, np.uint8)
+    for y, x in ((10, 20), (40, 60), (30, 80)):
+        f[y + shift : y + shift + 4, x : x + 4] = 230
+    path.parent.mkdir(parents=True, exist_ok=True)
+    assert cv2.imwrite(str(path), f)
+    return path
+
+
+def _extract(*args: str):
+    return runner.invoke(app, ["snow", "extract", *args, "--open-px", "0", "--close-px", "0"])
+
+
+def test_previews_inside_the_input_folder_are_refused(tmp_path: Path) -> None:
+    foot = tmp_path / "footage"
+    _frame(foot / "f1.png")
+    bank = foot / "bank.npz"
+    line = one_line_error(_extract(str(foot), "--out", str(bank)))
+    assert f"--out {bank}: the preview folder {foot / 'bank_preview'}: inside the input folder {foot}" in line
+    assert "read back as footage on a rerun" in line
+    assert sorted(p.name for p in foot.iterdir()) == ["f1.png"]  # nothing written
+    r = _extract(str(foot), "--out", str(bank), "--no-preview")  # no preview: nothing to read back
+    assert r.exit_code == 0, r.output
+    r = _extract(str(foot), "--out", str(bank), "--no-preview")  # the rerun reads the same single frame
+    assert r.exit_code == 0 and len(load_bank(bank).meta["sources"]) == 1
+
+
+def test_inputs_sharing_a_stem_get_one_preview_each(tmp_path: Path) -> None:
+    _frame(tmp_path / "in" / "a" / "x.png")
+    _frame(tmp_path / "in" / "b" / "x.png", shift=2)
+    r = _extract(str(tmp_path / "in"), "--out", str(tmp_path / "bank.npz"))
+    assert r.exit_code == 0, r.output
+    assert sorted(p.name for p in (tmp_path / "bank_preview").iterdir()) == ["a_x.jpg", "b_x.jpg"]
+
+
+@pytest.mark.parametrize("full", ["bank.npz", "x.jpg"])
+def test_full_disk_stops_with_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, full: str) -> None:
+    _frame(tmp_path / "in" / "x.png")
+    fill_disk(monkeypatch, only=full)
+    line = one_line_error(_extract(str(tmp_path / "in"), "--out", str(tmp_path / "out" / "bank.npz")))
+    where = tmp_path / "out" / ("bank.npz" if full == "bank.npz" else "bank_preview/x.jpg")
+    assert line == f"error: {where}: no space left on device"
+    assert not (tmp_path / "out" / "bank.npz").exists()
+    assert_nothing_partial(tmp_path / "out")
+
+
+def test_errors_jsonl_lists_the_latest_run_only(tmp_path: Path) -> None:
+    _frame(tmp_path / "in" / "x.png")
+    (tmp_path / "in" / "bad.png").write_bytes(b"not a png")
+    errors = tmp_path / "bank_errors.jsonl"
+    assert _extract(str(tmp_path / "in"), "--out", str(tmp_path / "bank.npz")).exit_code == 1
+    assert [Path(e["input"]).name for e in read_jsonl(errors)] == ["bad.png"]
+    (tmp_path / "in" / "bad.png").unlink()
+    r = _extract(str(tmp_path / "in"), "--out", str(tmp_path / "bank.npz"))
+    assert r.exit_code == 0, r.output
+    assert not errors.exists()
