@@ -269,3 +269,46 @@ def test_icnr_init_gives_no_subpixel_grid() -> None:
         y = F.pixel_shuffle(dec.up_channels_c4(torch.randn(1, dec.up_channels_c4.in_channels, 3, 3, generator=g)), 2)
         torch.testing.assert_close(y[..., 1::2, 1::2], y[..., 0::2, 0::2], rtol=0, atol=1e-6)
         assert not torch.equal(y[:, 0], y[:, 1])  # channels still differ
+
+
+@pytest.mark.parametrize("r", [2, 4, 8])
+def test_smooth_shuffled_removes_every_subpixel_pattern(r: int) -> None:
+    """A shuffle of r*r DIFFERENT constant channels is a period-r grid; the triangle filter makes it flat
+    (interior), keeps a constant map constant, and does not shift a ramp (symmetric kernel)."""
+    import torch.nn.functional as F
+
+    from murk.models.jointid.decoder import smooth_shuffled, triangle_kernel
+
+    assert triangle_kernel(r).sum().item() == pytest.approx(1.0)
+    levels = torch.randn(1, r * r, 1, 1, generator=torch.Generator().manual_seed(r))
+    grid = F.pixel_shuffle(levels.expand(1, r * r, 6, 6).contiguous(), r)
+    assert grid.std() > 0.1
+    flat = smooth_shuffled(grid, r)
+    assert flat.shape == grid.shape
+    inner = flat[..., r:-r, r:-r]
+    torch.testing.assert_close(inner, torch.full_like(inner, levels.mean().item()), rtol=0, atol=1e-5)
+    ramp = torch.arange(6 * r, dtype=torch.float32).view(1, 1, 1, -1).expand(1, 1, 6 * r, 6 * r)
+    torch.testing.assert_close(smooth_shuffled(ramp, r)[..., r:-r, r:-r], ramp[..., r:-r, r:-r], rtol=0, atol=1e-4)
+
+
+def test_shuffle_smoothing_keeps_the_state_dict_and_flattens_a_flat_input() -> None:
+    """shuffle_smoothing adds no parameter; on a flat grey input a random small model draws sub-pixel grids
+    without it and a (nearly) flat picture with it (interior, away from the padded borders)."""
+    from dataclasses import replace
+
+    from murk.metrics.fidelity import artefact_energy
+    from murk.models.jointid.network import VARIANTS, JointID
+
+    torch.manual_seed(0)
+    plain = build_jointid(replace(VARIANTS["small"], residual_output=False))
+    smooth = JointID(replace(plain.config, shuffle_smoothing=True))
+    assert set(smooth.state_dict()) == set(plain.state_dict())
+    smooth.load_state_dict(plain.state_dict())
+    x = normalize_input(torch.full((1, 3, 128, 128), 0.4))
+    with torch.no_grad():
+        a = plain(x).enhanced[0, :, 32:-32, 32:-32]
+        b = smooth(x).enhanced[0, :, 32:-32, 32:-32]
+    assert a.std() > 5 * b.std(), (a.std().item(), b.std().item())
+    ea = artefact_energy(a.permute(1, 2, 0).numpy().astype(np.float32)).periodic
+    eb = artefact_energy(b.permute(1, 2, 0).numpy().astype(np.float32)).periodic
+    assert ea > 10 * eb, (ea, eb)

@@ -2,7 +2,9 @@
 
 Scene ``i`` is ``sample_scene(derive_seed(seed, i))``, the same scene as number ``i`` of
 ``murk scenes OUT --seed seed``; it is rendered (numpy, in DataLoader workers) at a 4:3 size that covers the
-training crop, then centre-cropped. Its water comes from the online degradation, fresh every epoch.
+training crop, then centre-cropped. With a scale range (``data.scene_scale``) it is rendered ``s`` times larger
+and a crop-sized window is cut at a position fixed per scene (:func:`scene_window`). Its water comes from the
+online degradation, fresh every epoch.
 """
 
 from __future__ import annotations
@@ -16,7 +18,6 @@ import torch
 from torch.utils.data import Dataset
 
 from murk.rng import derive_seed
-from murk.train.augment import centre_crop
 
 
 def render_size(crop_hw: tuple[int, int]) -> tuple[int, int]:
@@ -27,14 +28,39 @@ def render_size(crop_hw: tuple[int, int]) -> tuple[int, int]:
     return w, math.ceil(w * 3 / 4)
 
 
+def scene_window(
+    seed: int, index: int, crop_hw: tuple[int, int], scale: tuple[float, float]
+) -> tuple[tuple[int, int], tuple[int, int]]:
+    """Render size ``(width, height)`` and window origin ``(y0, x0)`` of scene ``index``: ``s`` uniform in
+    ``scale`` from ``derive_seed(seed, index, "scale")`` times :func:`render_size`, origin uniform over the valid
+    positions from the same generator. ``scale == (1, 1)`` gives the centre crop of the covering render."""
+    w, h = render_size(crop_hw)
+    th, tw = crop_hw
+    lo, hi = scale
+    if lo == hi == 1.0:
+        return (w, h), ((h - th) // 2, (w - tw) // 2)
+    rng = np.random.default_rng(derive_seed(seed, index, "scale"))
+    s = float(rng.uniform(lo, hi))
+    w_s, h_s = max(w, round(w * s)), max(h, round(h * s))
+    return (w_s, h_s), (int(rng.integers(0, h_s - th + 1)), int(rng.integers(0, w_s - tw + 1)))
+
+
 class SceneDataset(Dataset):
     """Clean RGB + exact distance of procedural scenes: ``clean``, ``depth_filled``, ``depth`` and ``index``."""
 
     def __init__(
-        self, indices: Sequence[int], crop_hw: tuple[int, int], *, seed: int, config: Any = None, cache: bool = False
+        self,
+        indices: Sequence[int],
+        crop_hw: tuple[int, int],
+        *,
+        seed: int,
+        config: Any = None,
+        cache: bool = False,
+        scale: tuple[float, float] = (1.0, 1.0),
     ) -> None:
         self.indices = list(indices)
         self.crop_hw = crop_hw
+        self.scale = scale
         self.seed = seed
         self.config = config
         self._cache: dict[int, dict[str, Any]] | None = {} if cache else None
@@ -52,9 +78,13 @@ class SceneDataset(Dataset):
     def _render(self, i: int) -> dict[str, Any]:
         from murk.scenes import render_scene, sample_scene
 
-        scene = sample_scene(derive_seed(self.seed, self.indices[i]), self.config)
-        rgb, dist = render_scene(scene, render_size(self.crop_hw))
-        rgb, dist = centre_crop([rgb, dist[:, :, None]], self.crop_hw, source=f"scene {self.indices[i]}")
+        index = self.indices[i]
+        scene = sample_scene(derive_seed(self.seed, index), self.config)
+        size_wh, (y0, x0) = scene_window(self.seed, index, self.crop_hw, self.scale)
+        rgb, dist = render_scene(scene, size_wh)
+        th, tw = self.crop_hw
+        rgb = rgb[y0 : y0 + th, x0 : x0 + tw]
+        dist = dist[y0 : y0 + th, x0 : x0 + tw, None]
         d = torch.from_numpy(np.ascontiguousarray(dist.transpose(2, 0, 1)))
         return {
             "clean": torch.from_numpy(np.ascontiguousarray(rgb.transpose(2, 0, 1))),

@@ -77,6 +77,30 @@ class MixDecoderBlock(nn.Module):
 _SKIP_SHUFFLE = (1, 2, 4, 8)  # c1..c4: every skip ends at 1/4 of the input
 
 
+def triangle_kernel(r: int) -> Tensor:
+    """The normalised 1-D triangle of ``2r - 1`` taps, ``(1, 2, .., r, .., 2, 1) / r**2``: the box of ``r`` taps
+    convolved with itself. Its frequency response is zero at ``k / r`` cycles per pixel (k = 1 .. r-1), so
+    filtering a pixel-shuffled map with it (separably) removes every pattern of period ``r`` that the shuffle
+    can create, without a shift (it is symmetric). After a shuffle whose ``r*r`` sub-pixel channels are equal it
+    makes the upsampling linear interpolation."""
+    t = torch.arange(1, r + 1, dtype=torch.float32)
+    return torch.cat([t, t.flip(0)[1:]]) / (r * r)
+
+
+def smooth_shuffled(x: Tensor, r: int) -> Tensor:
+    """Separable :func:`triangle_kernel` filter of a map pixel-shuffled by ``r`` (depthwise, replicate-padded
+    so the size is kept). Identity for ``r == 1``. Reference: the zero-order-hold condition for sub-pixel
+    convolutions without checkerboard artefacts (Sugawara, Shiota, Kiya, ICIP 2018), here with the hold kernel
+    applied twice (triangle) so that it is symmetric."""
+    if r == 1:
+        return x
+    c = x.shape[1]
+    k = triangle_kernel(r).to(dtype=x.dtype, device=x.device)
+    x = F.pad(x, (r - 1, r - 1, r - 1, r - 1), mode="replicate")
+    x = F.conv2d(x, k.view(1, 1, 1, -1).expand(c, 1, 1, -1), groups=c)
+    return F.conv2d(x, k.view(1, 1, -1, 1).expand(c, 1, -1, 1), groups=c)
+
+
 class Decoder(nn.Module):
     """One branch's decoder. Attribute names follow the official state dict (``init_depth`` or
     ``init_enhanced``, ``c{s}_layer``, ``up_channels_c{s}``, ``up_skip_conv_c{s}``, ``up_skip_conv``,
@@ -89,8 +113,10 @@ class Decoder(nn.Module):
         embed_dim: int,
         out_channels: int,
         task: Task,
+        shuffle_smoothing: bool = False,
     ) -> None:
         super().__init__()
+        self.shuffle_smoothing = shuffle_smoothing
         if embed_dim % 16:
             raise ValueError(f"embed_dim: expected a multiple of 16 (pixel shuffle by 4), got {embed_dim}")
         self.task = task
@@ -122,17 +148,22 @@ class Decoder(nn.Module):
         return x
 
     def skip(self, scale: int, j: Tensor) -> Tensor:
-        """Skip path: conv3x3(C -> 2C) -> PixelShuffle to 1/4 resolution."""
-        return F.pixel_shuffle(getattr(self, f"up_skip_conv_c{scale + 1}")(j), _SKIP_SHUFFLE[scale])
+        """Skip path: conv3x3(C -> 2C) -> PixelShuffle to 1/4 resolution (-> triangle filter if smoothing)."""
+        return self._shuffle(getattr(self, f"up_skip_conv_c{scale + 1}")(j), _SKIP_SHUFFLE[scale])
 
     def up(self, scale: int, j: Tensor) -> Tensor:
-        """Main path to the next finer scale: conv1x1(C -> 4 C_next) -> PixelShuffle(2)."""
-        return F.pixel_shuffle(getattr(self, f"up_channels_c{scale + 1}")(j), 2)
+        """Main path to the next finer scale: conv1x1(C -> 4 C_next) -> PixelShuffle(2) (-> triangle filter)."""
+        return self._shuffle(getattr(self, f"up_channels_c{scale + 1}")(j), 2)
 
     def head(self, skips: list[Tensor]) -> Tensor:
-        """concat skips (c4, c3, c2, c1) -> conv3x3 -> PixelShuffle(4) -> conv3x3 (logits at full resolution)."""
-        x = F.pixel_shuffle(self.up_skip_conv(torch.cat(skips, dim=1)), 4)
+        """concat skips (c4, c3, c2, c1) -> conv3x3 -> PixelShuffle(4) (-> triangle filter) -> conv3x3 (logits at
+        full resolution)."""
+        x = self._shuffle(self.up_skip_conv(torch.cat(skips, dim=1)), 4)
         return self.linear_pred1(x)
+
+    def _shuffle(self, x: Tensor, r: int) -> Tensor:
+        x = F.pixel_shuffle(x, r)
+        return smooth_shuffled(x, r) if self.shuffle_smoothing else x
 
 
 class JointBlock(nn.Module):

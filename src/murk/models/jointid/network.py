@@ -52,6 +52,11 @@ class JointIDConfig:
     i.e. the head predicts a correction of the input in logit space, so full-resolution detail does not have
     to pass through the decoder's 1/4-resolution skips. murk's ``small`` CPU variant uses it (docs/models.md
     gives the measurements); the official ``base`` model does not."""
+    shuffle_smoothing: bool = False
+    """False (the original): every pixel shuffle's output is used as is. True: each map pixel-shuffled by ``r`` is
+    filtered with a fixed ``2r - 1``-tap triangle (:func:`murk.models.jointid.decoder.smooth_shuffled`; no
+    parameters, the state dict is unchanged), which removes every period-``r`` pattern the shuffle can make:
+    the 4-32 px grids and bands that learned sub-pixel kernels otherwise draw in flat water."""
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict (lists and numbers only), safe for ``torch.load(weights_only=True)`` and JSON."""
@@ -73,7 +78,8 @@ class JointIDConfig:
 VARIANTS: dict[str, JointIDConfig] = {
     "base": JointIDConfig(),
     # The model murk trains on 2 CPU cores and ships (docs/models.md): tiny's widths with two blocks per
-    # encoder stage (more context), one mix block per decoder scale, and the residual output.
+    # encoder stage (more context), one mix block per decoder scale, the residual output and the smoothed
+    # pixel shuffles.
     "small": JointIDConfig(
         embed_dims=(16, 32, 64, 128),
         depths=(2, 2, 2, 2),
@@ -81,6 +87,7 @@ VARIANTS: dict[str, JointIDConfig] = {
         decoder_blocks=1,
         decoder_dim=32,
         residual_output=True,
+        shuffle_smoothing=True,
     ),
     # Same structure with small widths and depths: CPU tests, demos and quick experiments.
     "tiny": JointIDConfig(
@@ -107,7 +114,9 @@ class Branch(nn.Module):
         super().__init__()
         self.encoder = Encoder(cfg.embed_dims, cfg.depths, cfg.num_heads, cfg.sr_ratios, cfg.mlp_ratio)
         out_channels = 1 if task == "depth" else 3
-        self.decoder = Decoder(cfg.embed_dims, cfg.decoder_blocks, cfg.decoder_dim, out_channels, task)
+        self.decoder = Decoder(
+            cfg.embed_dims, cfg.decoder_blocks, cfg.decoder_dim, out_channels, task, cfg.shuffle_smoothing
+        )
 
 
 class JointID(nn.Module):
