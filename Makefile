@@ -11,7 +11,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.murk-installed
 PYTEST_ARGS ?= -n auto
 
-.PHONY: demo test test-slow browser-test lint bench install clean
+.PHONY: demo test test-slow browser-test lint bench install clean gpu-suite gpu-suite-dry-run gpu-deps
 
 install: $(STAMP)
 
@@ -40,6 +40,22 @@ lint: $(STAMP)
 
 bench: $(STAMP)
 	for b in benchmarks/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
+
+# On the GPU machine (no venv, no package registry): every GPU figure in at most 8 minutes (BENCHMARKS.md,
+# "Measuring on a GPU"). Runs murk from the source tree with the system python3; gpu-deps/ (make gpu-deps) adds pytest.
+GPU_SUITE_OUT ?= gpu-suite
+gpu-suite:
+	PYTHONPATH=$(CURDIR)/src$(if $(wildcard gpu-deps),:$(CURDIR)/gpu-deps)$${PYTHONPATH:+:$$PYTHONPATH} \
+		$(PYTHON) benchmarks/gpu_suite.py --out $(GPU_SUITE_OUT) $(GPU_SUITE_ARGS)
+
+# The same parts on the CPU at tiny sizes (CI runs it too: tests/benchmarks/test_gpu_suite.py).
+gpu-suite-dry-run: $(STAMP)
+	$(PY) benchmarks/gpu_suite.py --cpu-dry-run --out gpu-suite-dry-run
+
+# pytest for the GPU machine (pure Python, carried there with the run tool's carry: ["gpu-deps"]).
+gpu-deps: $(STAMP)
+	$(PY) -m pip install -q --target gpu-deps --no-deps --only-binary=:all: --implementation py --abi none \
+		--platform any pytest pluggy iniconfig packaging pygments exceptiongroup tomli
 
 clean:
 	rm -rf $(VENV) build dist src/*.egg-info .pytest_cache .ruff_cache

@@ -15,14 +15,17 @@ from __future__ import annotations
 import argparse
 import platform
 import statistics
+import sys
 import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 import cv2
 import numpy as np
 import torch
+from _common import Figure, Recorder
 
 from murk.data import sample_underwater_images
 from murk.enhance.pipeline import OutputOptions, _restore, enhance_frames
@@ -83,25 +86,50 @@ def bench_cpu(seconds: float) -> None:
         )
 
 
+def gpu_figures(
+    rec: Recorder,
+    device: str | torch.device,
+    *,
+    sizes: dict[str, tuple[int, int]] = SIZES,
+    batches: tuple[int, ...] = (1, 8, 32),
+    seconds: float = 1.0,
+) -> None:
+    """Frames/s of ``post_process_torch`` on ``device`` (tensor already there, and end to end from numpy through
+    pinned memory), against ``post_process`` on one CPU core in the same run."""
+    dev = torch.device(device)
+    sync = torch.cuda.synchronize if dev.type == "cuda" else (lambda: None)
+    cv2.setNumThreads(1)
+    restorer = PostRestorer(device=dev)
+    for label, (h, w) in sizes.items():
+        img = sample_frame(h, w)
+        cpu = per_call_s(lambda img=img: post_process(img), min(seconds, 1.0))
+        base = f"post_process numpy/OpenCV, 1 core, {label}"
+        rec.add(Figure(f"cpu_{label}_fps", base, 1 / cpu, "frames/s"))
+        for batch in batches:
+            x_np = np.ascontiguousarray(np.broadcast_to(img, (batch, h, w, 3)))
+            x = torch.from_numpy(x_np).permute(0, 3, 1, 2).contiguous().to(dev)
+            on_dev = rec.attempt(
+                f"post_process_torch {label} batch {batch}",
+                lambda x=x: per_call_s(lambda: post_process_torch(x), seconds, sync),
+            )
+            if on_dev is not None:
+                name = f"post_process_torch {dev.type}, {label}, batch {batch}, on device"
+                rec.add(Figure(f"torch_{label}_b{batch}_fps", name, batch / on_dev, "frames/s", base, 1 / cpu))
+            e2e = rec.attempt(
+                f"post restorer {label} batch {batch} from numpy",
+                lambda x_np=x_np: per_call_s(lambda: _restore(restorer, x_np), seconds, sync),
+            )
+            if e2e is not None:
+                name = f"post restorer {dev.type}, {label}, batch {batch}, numpy in and out"
+                rec.add(Figure(f"e2e_{label}_b{batch}_fps", name, batch / e2e, "frames/s", base, 1 / cpu))
+
+
 def bench_gpu(seconds: float) -> None:
     if not torch.cuda.is_available():
         print("== GPU: not measured (torch.cuda.is_available() is False on this machine)")
         return
-    dev = torch.device("cuda")
-    sync = torch.cuda.synchronize
-    print(f"== GPU ({torch.cuda.get_device_name(dev)}): frames/s of post_process_torch, batched, float32")
-    print(f"{'size':>10} {'batch':>5} {'on device':>10} {'from numpy':>11} {'vs 1 CPU core':>14}")
-    cv2.setNumThreads(1)
-    restorer = PostRestorer(device=dev)
-    for label, (h, w) in SIZES.items():
-        img = sample_frame(h, w)
-        cpu = per_call_s(lambda img=img: post_process(img), min(seconds, 1.0))
-        for batch in (1, 8, 32):
-            x_np = np.ascontiguousarray(np.broadcast_to(img, (batch, h, w, 3)))
-            x = torch.from_numpy(x_np).permute(0, 3, 1, 2).contiguous().to(dev)
-            on_dev = per_call_s(lambda x=x: post_process_torch(x), seconds, sync) / batch
-            e2e = per_call_s(lambda x_np=x_np: _restore(restorer, x_np), seconds, sync) / batch
-            print(f"{label:>10} {batch:5d} {1 / on_dev:10.1f} {1 / e2e:11.1f} {cpu / e2e:13.1f}x")
+    print(f"== GPU ({torch.cuda.get_device_name()}): frames/s of post_process_torch, batched, float32")
+    gpu_figures(Recorder(echo=True), "cuda", seconds=seconds)
 
 
 def bench_pipeline(seconds: float) -> None:

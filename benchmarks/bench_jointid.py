@@ -20,13 +20,17 @@ import math
 import os
 import platform
 import statistics
+import sys
 import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Literal
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 import numpy as np
 import torch
+from _common import Figure, Recorder, device_sync, median_s
 
 from murk.data import sample_underwater_images
 from murk.enhance.jointid_restorer import JointIDRestorer
@@ -36,37 +40,22 @@ from murk.models.jointid import build_jointid, normalize_input
 H, W = 288, 512
 
 
-def timeit(fn: Callable[[], object], repeats: int, warmup: int = 1, sync: Callable[[], None] | None = None) -> float:
-    """Median seconds per call."""
-    for _ in range(warmup):
-        fn()
-    if sync:
-        sync()
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        if sync:
-            sync()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
-
-
 def psnr(a: np.ndarray, b: np.ndarray) -> float:
     mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
     return math.inf if mse == 0 else 10 * math.log10(1.0 / mse)
 
 
-def sample_frame() -> np.ndarray:
-    """A 288x512 crop of a real underwater sample, resized up if needed (float32 RGB in [0, 1])."""
+def sample_frame(hw: tuple[int, int] = (H, W)) -> np.ndarray:
+    """A crop (288x512 by default) of a real underwater sample, resized up if needed (float32 RGB in [0, 1])."""
     import cv2
 
+    h, w = hw
     path = next(p for p in sample_underwater_images() if p.name == "d_r_47_.jpg")
     img = read_rgb(path)
-    if img.shape[0] < H or img.shape[1] < W:
-        scale = max(H / img.shape[0], W / img.shape[1])
+    if img.shape[0] < h or img.shape[1] < w:
+        scale = max(h / img.shape[0], w / img.shape[1])
         img = cv2.resize(img, (math.ceil(img.shape[1] * scale), math.ceil(img.shape[0] * scale)))
-    return np.ascontiguousarray(img[:H, :W], dtype=np.float32)
+    return np.ascontiguousarray(img[:h, :w], dtype=np.float32)
 
 
 def load() -> str:
@@ -144,98 +133,165 @@ def bench_cpu(repeats: int) -> None:
         )
 
 
-def bench_gpu(repeats: int) -> None:
-    dev = torch.device("cuda")
-    torch.backends.cudnn.benchmark = True
-    torch.backends.cuda.matmul.allow_tf32 = False  # the official fp32 figures are without TF32
-    torch.backends.cudnn.allow_tf32 = False
-    print(f"== GPU: {torch.cuda.get_device_name(dev)}, torch {torch.__version__}, CUDA {torch.version.cuda}")
-    sync = torch.cuda.synchronize
-    torch.manual_seed(0)
-    model = build_jointid("base").eval().to(dev)
+def gpu_figures(
+    rec: Recorder,
+    model: torch.nn.Module,
+    device: str | torch.device,
+    *,
+    mode: Literal["eager", "compile"] = "eager",
+    hw: tuple[int, int] = (H, W),
+    large_hw: tuple[int, int] = (1088, 1920),
+    batches: tuple[int, ...] = (8, 16, 32, 64),
+    compile_batches: tuple[int, ...] | None = None,
+    compile_large: bool = True,
+    repeats: int = 20,
+    cuda_graph: bool = True,
+    compile_need_s: float = 0.0,
+    targets: bool = True,
+) -> None:
+    """Inference figures of ``model`` on ``device``, each against the official configuration (fp32 eager, NCHW)
+    measured first in the same process (``model`` is moved to ``device`` and switched to channels-last in place).
 
-    def frames(batch: int, h: int = H, w: int = W) -> torch.Tensor:
-        return torch.rand(batch, 3, h, w, device=dev, generator=torch.Generator(dev).manual_seed(batch))
+    ``mode="eager"``: bf16 + channels-last at batch 1 (eager, CUDA graph), ``batches[0]`` and the larger batches
+    (the best throughput), ``large_hw`` frames, and the bf16-vs-fp32 PSNR on a real frame. ``mode="compile"``:
+    ``torch.compile`` (+ CUDA graph when ``cuda_graph``; without it after a failure on the first shape) at
+    ``compile_batches`` (default, in this order: ``batches[0]``, ``batches[-1]``, 1) and at ``large_hw``
+    (``compile_large``); each new shape compiles again, so each is skipped when less than ``compile_need_s`` of the
+    recorder's budget is left.
+    ``targets``: attach the issue's targets (meant for the base model at 288x512 on an H200).
+    """
+    dev = torch.device(device)
+    cuda = dev.type == "cuda"
+    if cuda:
+        torch.backends.cudnn.benchmark = True
+        torch.backends.cuda.matmul.allow_tf32 = False  # the official fp32 figures are without TF32
+        torch.backends.cudnn.allow_tf32 = False
+    elif cuda_graph:
+        rec.note("CUDA graphs need a CUDA device: the graph figures are not measured")
+        cuda_graph = False
+    sync = device_sync(dev)
+    model = model.eval()
+    (h, w), (lh, lw) = hw, large_hw
+    size, large = f"{h}x{w}", f"{lh}x{lw}"
+    b8 = batches[0]
 
-    def run(restorer: JointIDRestorer, x: torch.Tensor) -> Callable[[], object]:
-        return lambda: restorer.restore_tensor(x)
+    def frames(batch: int, fh: int = h, fw: int = w) -> torch.Tensor:
+        return torch.rand(batch, 3, fh, fw, device=dev, generator=torch.Generator(dev).manual_seed(batch))
 
-    def report(label: str, t: float, batch: int, base: float | None = None) -> None:
-        ratio = f"  x{base / t:5.2f} vs official config" if base else ""
-        print(f"{label:60s}: {t * 1e3:8.2f} ms/batch  {batch / t:8.1f} img/s{ratio}")
+    def t_of(restorer: JointIDRestorer, x: torch.Tensor, reps: int = repeats) -> float:
+        return median_s(lambda: restorer.restore_tensor(x), repeats=reps, warmup=3, sync=sync)
 
-    # Baseline: the official configuration (fp32 eager, NCHW memory).
+    def tgt(text: str) -> str | None:
+        return text if targets else None
+
+    # Baselines first: the restorers below switch the model's weights to channels-last in place.
     official = JointIDRestorer(model, device=dev, precision="fp32", channels_last=False)
-    x1, x8 = frames(1), frames(8)
-    t1_base = timeit(run(official, x1), repeats, warmup=3, sync=sync)
-    report("official config fp32 eager NCHW, 288x512 batch 1", t1_base, 1)
-    t8_base = timeit(run(official, x8), repeats, warmup=3, sync=sync)
-    report("official config fp32 eager NCHW, 288x512 batch 8", t8_base, 8)
-    xl = frames(1, 1088, 1920)
-    tl_base = timeit(run(official, xl), max(3, repeats // 3), warmup=2, sync=sync)
-    report("official config fp32 eager NCHW, 1088x1920 batch 1", tl_base, 1)
+    base = "official config (fp32 eager NCHW)"
+    x1, xb, xl = frames(1), frames(b8), frames(1, lh, lw)
+    t1 = rec.attempt(f"{base}, {size} batch 1", lambda: t_of(official, x1))
+    t8 = rec.attempt(f"{base}, {size} batch {b8}", lambda: t_of(official, xb))
+    tl = rec.attempt(f"{base}, {large} batch 1", lambda: t_of(official, xl, max(3, repeats // 3)))
+    if t1 is not None:
+        rec.add(Figure("official_b1_ms", f"{base}, {size} batch 1", t1 * 1e3, "ms"))
+    if t8 is not None:
+        rec.add(Figure(f"official_b{b8}_img_s", f"{base}, {size} batch {b8}", b8 / t8, "img/s"))
+    if tl is not None:
+        rec.add(Figure("official_large_fps", f"{base}, {large} batch 1", 1 / tl, "frames/s"))
 
-    def attempt(label: str, make: Callable[[], float], batch: int, base: float) -> float | None:
-        try:
-            t = make()
-        except Exception as exc:  # report and go on: one failing configuration must not hide the others
-            print(f"{label:60s}: FAILED ({type(exc).__name__}: {str(exc).splitlines()[0][:120]})")
+    def latency(key: str, label: str, restorer: JointIDRestorer, target: str | None = None, need: float = 0) -> None:
+        t = rec.attempt(label, lambda: t_of(restorer, x1), need_s=need)
+        if t is not None:
+            ref = None if t1 is None else t1 * 1e3
+            rec.add(Figure(key, label, t * 1e3, "ms", f"{base}, {size} batch 1", ref, target))
+
+    def throughput(
+        key: str, label: str, restorer: JointIDRestorer, batch: int, target: str | None = None, need: float = 0
+    ) -> float | None:
+        x = xb if batch == b8 else frames(batch)
+        t = rec.attempt(label, lambda: t_of(restorer, x), need_s=need)
+        if t is None:
             return None
-        report(label, t, batch, base)
-        return t
+        ref = None if t8 is None else b8 / t8
+        rec.add(Figure(key, label, batch / t, "img/s", f"{base}, {size} batch {b8}", ref, target))
+        return batch / t
 
-    bf16 = JointIDRestorer(model, device=dev, precision="bf16", channels_last=True)
-    attempt("bf16 + channels-last eager, batch 1", lambda: timeit(run(bf16, x1), repeats, 3, sync), 1, t1_base)
-    graph = JointIDRestorer(model, device=dev, precision="bf16", channels_last=True, cuda_graph=True)
-    attempt("bf16 + channels-last + CUDA graph, batch 1", lambda: timeit(run(graph, x1), repeats, 3, sync), 1, t1_base)
-    cgraph = JointIDRestorer(model, device=dev, precision="bf16", channels_last=True, compile=True, cuda_graph=True)
-    attempt(
-        "bf16 + channels-last + compile + CUDA graph, batch 1",
-        lambda: timeit(run(cgraph, x1), repeats, 3, sync),
-        1,
-        t1_base,
-    )
-    attempt("bf16 + channels-last eager, batch 8", lambda: timeit(run(bf16, x8), repeats, 3, sync), 8, t8_base)
-    comp = JointIDRestorer(model, device=dev, precision="bf16", channels_last=True, compile=True)
-    attempt("bf16 + channels-last + compile, batch 8", lambda: timeit(run(comp, x8), repeats, 3, sync), 8, t8_base)
-    attempt(
-        "bf16 + channels-last + compile + CUDA graph, batch 8",
-        lambda: timeit(run(cgraph, x8), repeats, 3, sync),
-        8,
-        t8_base,
-    )
-    best = (0.0, 0)
-    for batch in (16, 32, 64):
-        xb = frames(batch)
-        t = attempt(
-            f"bf16 + channels-last + compile + CUDA graph, batch {batch}",
-            lambda xb=xb: timeit(run(cgraph, xb), repeats, 3, sync),
-            batch,
-            t8_base / 8 * batch,
-        )
-        if t is not None and batch / t > best[0]:
-            best = (batch / t, batch)
-    if best[1]:
-        print(f"best throughput: {best[0]:.1f} img/s at batch {best[1]}")
-    attempt(
-        "1088x1920 bf16 + channels-last eager, batch 1",
-        lambda: timeit(run(bf16, xl), max(3, repeats // 3), 2, sync),
-        1,
-        tl_base,
-    )
-    attempt(
-        "1088x1920 bf16 + channels-last + compile + CUDA graph, batch 1",
-        lambda: timeit(run(cgraph, xl), max(3, repeats // 3), 2, sync),
-        1,
-        tl_base,
-    )
+    def large_fps(key: str, label: str, restorer: JointIDRestorer, target: str | None = None, need: float = 0) -> None:
+        t = rec.attempt(label, lambda: t_of(restorer, xl, max(3, repeats // 3)), need_s=need)
+        if t is not None:
+            ref = None if tl is None else 1 / tl
+            rec.add(Figure(key, label, 1 / t, "frames/s", f"{base}, {large} batch 1", ref, target))
 
-    frame = torch.from_numpy(sample_frame()).permute(2, 0, 1)[None].to(dev)
-    ref = official.restore_tensor(frame)
-    low = bf16.restore_tensor(frame)
-    p = psnr(low.images.cpu().numpy(), ref.images.cpu().numpy())
-    d = float((low.depth_m - ref.depth_m).abs().max())
-    print(f"bf16 vs fp32 (GPU): enhanced PSNR {p:.1f} dB, depth max |diff| {d:.4f} m")
+    def best_of(key: str, label: str, rates: dict[int, float | None]) -> None:
+        got = {b: r for b, r in rates.items() if r is not None}
+        if got:
+            b = max(got, key=lambda k: got[k])
+            ref = None if t8 is None else b8 / t8
+            target = tgt(">= 800 img/s")
+            rec.add(Figure(key, f"{label} (batch {b})", got[b], "img/s", f"{base}, {size} batch {b8}", ref, target))
+
+    cl = "bf16 + channels-last"
+    if mode == "eager":
+        bf16 = JointIDRestorer(model, device=dev, precision="bf16", channels_last=True)
+        latency("bf16_b1_ms", f"{cl} eager, {size} batch 1", bf16)
+        if cuda_graph:
+            graph = JointIDRestorer(model, device=dev, precision="bf16", channels_last=True, cuda_graph=True)
+            latency("bf16_graph_b1_ms", f"{cl} + CUDA graph, {size} batch 1", graph, tgt("<= 10 ms"))
+        rates = {
+            b: throughput(
+                f"bf16_b{b}_img_s", f"{cl} eager, {size} batch {b}", bf16, b, tgt(">= 500 img/s") if b == b8 else None
+            )
+            for b in batches
+        }
+        best_of("bf16_best_img_s", f"{cl} eager, {size}, best batch up to {max(batches)}", rates)
+        large_fps("bf16_large_fps", f"{cl} eager, {large} batch 1", bf16, tgt(">= 30 frames/s"))
+        if cuda_graph:
+            large_fps("bf16_graph_large_fps", f"{cl} + CUDA graph, {large} batch 1", graph, tgt(">= 30 frames/s"))
+
+        def fidelity() -> tuple[float, float]:
+            frame = torch.from_numpy(sample_frame(hw)).permute(2, 0, 1)[None].to(dev)
+            ref, low = official.restore_tensor(frame), bf16.restore_tensor(frame)
+            p = psnr(low.images.cpu().numpy(), ref.images.cpu().numpy())
+            return p, float((low.depth_m - ref.depth_m).abs().max())
+
+        fid = rec.attempt("bf16 vs fp32 on a real frame", fidelity)
+        if fid is not None:
+            psnr_label = f"bf16 vs fp32 enhanced PSNR, real {size} frame"
+            rec.add(Figure("bf16_psnr_db", psnr_label, fid[0], "dB", target=tgt(">= 40 dB")))
+            rec.add(Figure("bf16_depth_max_diff_m", f"bf16 vs fp32 depth max |diff|, real {size} frame", fid[1], "m"))
+        return
+
+    def compiled_restorer(graph: bool) -> tuple[JointIDRestorer, str]:
+        r = JointIDRestorer(model, device=dev, precision="bf16", channels_last=True, compile=True, cuda_graph=graph)
+        return r, f"{cl} + compile" + (" + CUDA graph" if graph else "")
+
+    comp, label = compiled_restorer(cuda_graph)
+    shapes = compile_batches if compile_batches is not None else tuple(dict.fromkeys((b8, batches[-1], 1)))
+    compiled: dict[int, float | None] = {}
+    for i, b in enumerate(shapes):
+        n_failed = sum(p["kind"] == "failed" for p in rec.problems)
+        if b == 1:
+            latency("compile_b1_ms", f"{label}, {size} batch 1", comp, tgt("<= 10 ms"), compile_need_s)
+        else:
+            target = tgt(">= 500 img/s") if b == b8 else None
+            compiled[b] = throughput(
+                f"compile_b{b}_img_s", f"{label}, {size} batch {b}", comp, b, target, compile_need_s
+            )
+        if i == 0 and cuda_graph and sum(p["kind"] == "failed" for p in rec.problems) > n_failed:
+            rec.note("compile + CUDA graph failed on the first shape: the other shapes are compiled without a graph")
+            comp, label = compiled_restorer(False)
+    if compiled:
+        best_of("compile_best_img_s", f"{label}, {size}, best batch up to {max(compiled)}", compiled)
+    if compile_large:
+        large_fps("compile_large_fps", f"{label}, {large} batch 1", comp, tgt(">= 30 frames/s"), compile_need_s)
+
+
+def bench_gpu(repeats: int) -> None:
+    torch.manual_seed(0)
+    print(f"== GPU: {torch.cuda.get_device_name()}, torch {torch.__version__}, CUDA {torch.version.cuda}")
+    rec = Recorder(echo=True)
+    model = build_jointid("base")
+    gpu_figures(rec, model, "cuda", mode="eager", repeats=repeats)
+    gpu_figures(rec, model, "cuda", mode="compile", repeats=repeats)
 
 
 def main() -> None:

@@ -21,12 +21,16 @@ import argparse  # noqa: E402
 import math  # noqa: E402
 import platform  # noqa: E402
 import statistics  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Callable  # noqa: E402
+from pathlib import Path  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
+from _common import Figure, Recorder, device_sync, median_s  # noqa: E402
 
 from murk.data import sample_underwater_dir  # noqa: E402
 from murk.io import read_image  # noqa: E402
@@ -121,19 +125,37 @@ def median_ms(fn: Callable[[], object], repeats: int) -> float:
     return 1e3 * statistics.median(times)
 
 
-def median_ms_cuda(fn: Callable[[], object], repeats: int) -> float:
-    for _ in range(3):
-        fn()
-    torch.cuda.synchronize()
-    times = []
-    for _ in range(repeats):
-        start, end = torch.cuda.Event(enable_timing=True), torch.cuda.Event(enable_timing=True)
-        start.record()
-        fn()
-        end.record()
-        torch.cuda.synchronize()
-        times.append(start.elapsed_time(end))
-    return statistics.median(times)
+def gpu_figures(
+    rec: Recorder,
+    device: str | torch.device,
+    rgb: np.ndarray,
+    *,
+    batch: int = 64,
+    repeats: int = 15,
+    targets: bool = True,
+) -> None:
+    """ms per image of the batched torch UIQM/UCIQE on ``device`` (batch ``batch``), against murk's numpy
+    ``uiqm``/``uciqe`` on one core in the same run (``rgb``: uint8 (H, W, 3))."""
+    dev = torch.device(device)
+    sync = device_sync(dev)
+    h, w = rgb.shape[:2]
+    x = torch.from_numpy(rgb).permute(2, 0, 1)[None].repeat(batch, 1, 1, 1).contiguous().to(dev)
+    uciqe_torch(x[:1], data_range=255)  # builds the Lab lookup table once
+    for key, name, numpy_fn, torch_fn, target in (
+        ("uiqm", "UIQM panetta2016", uiqm, uiqm_torch, "<= 0.3 ms/image"),
+        ("uciqe", "UCIQE uciqe_m", uciqe, uciqe_torch, None),
+    ):
+        cpu_ms = 1e3 * median_s(lambda f=numpy_fn: f(rgb, data_range=255), repeats=max(5, repeats // 3))
+        base = f"{name} numpy, 1 core, {w}x{h}"
+        rec.add(Figure(f"{key}_cpu_ms", base, cpu_ms, "ms/image"))
+        t = rec.attempt(
+            f"{name} torch batch {batch}",
+            lambda f=torch_fn: median_s(lambda: f(x, data_range=255), repeats=repeats, warmup=3, sync=sync),
+        )
+        if t is not None:
+            label = f"{name} torch {dev.type}, {w}x{h}, batch {batch}"
+            tgt = target if targets else None
+            rec.add(Figure(f"{key}_torch_ms", label, 1e3 * t / batch, "ms/image", base, cpu_ms, tgt))
 
 
 def main() -> None:
@@ -179,17 +201,8 @@ def main() -> None:
     print(f"\ntorch CPU (1 thread, batch 4): UIQM {t_uiqm_cpu:.1f} ms/image, UCIQE {t_uciqe_cpu:.1f} ms/image")
 
     if torch.cuda.is_available():
-        dev = torch.device("cuda")
-        batch = torch.from_numpy(rgb).permute(2, 0, 1)[None].repeat(args.batch, 1, 1, 1).contiguous().to(dev)
-        uciqe_torch(batch[:1], data_range=255)
-        t_u = median_ms_cuda(lambda: uiqm_torch(batch, data_range=255), args.repeats) / args.batch
-        t_c = median_ms_cuda(lambda: uciqe_torch(batch, data_range=255), args.repeats) / args.batch
-        t_cpu_ref = median_ms(lambda: uiqm(rgb, data_range=255), args.repeats)
-        name = torch.cuda.get_device_name(dev)
-        print(
-            f"\nGPU {name}, batch {args.batch}: UIQM {t_u:.3f} ms/image (target <= 0.3; "
-            f"{t_cpu_ref / t_u:.0f}x the numpy path), UCIQE {t_c:.3f} ms/image"
-        )
+        print(f"\nGPU {torch.cuda.get_device_name()}, batch {args.batch}:")
+        gpu_figures(Recorder(echo=True), "cuda", rgb, batch=args.batch, repeats=args.repeats)
     else:
         print("\nGPU: CUDA not available, GPU figures not measured")
 

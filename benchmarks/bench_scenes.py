@@ -24,10 +24,14 @@ for _var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
 import argparse  # noqa: E402
 import platform  # noqa: E402
 import statistics  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
+from pathlib import Path  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
+from _common import Figure, Recorder, device_sync, median_s  # noqa: E402
 
 from murk.rng import derive_seed  # noqa: E402
 from murk.scenes import geometry as geo  # noqa: E402
@@ -73,6 +77,44 @@ def naive_render(packed) -> tuple[np.ndarray, np.ndarray]:
         np, t_buf, d, tuple(attrs[:3]), tuple(attrs[3:]), cos_axis, mat, light, lambda x, y: lookup_numpy(tile, x, y)
     )
     return np.stack(rgb, axis=-1), np.clip(t_buf, packed.near_m, packed.far_m)
+
+
+def gpu_figures(
+    rec: Recorder,
+    device: object,
+    *,
+    count: int = 16,
+    size: tuple[int, int] = (640, 480),
+    batches: tuple[int, ...] = (16, 64),
+    reps: int = 5,
+    seed: int = 0,
+) -> None:
+    """Scenes/s of ``render_scenes_torch`` on ``device`` at ``size`` (width, height), against murk's numpy
+    renderer on one core in the same run (the first ``count`` scenes of ``seed``; the caller pins one core)."""
+    import torch
+
+    dev = torch.device(device)  # type: ignore[arg-type]
+    sync = device_sync(dev)
+    w, h = size
+    noise_tile()
+    scenes = [sample_scene(derive_seed(seed, i)) for i in range(count)]
+    render_packed_numpy(pack_scene(scenes[0], size))  # warm-up
+    cpu = statistics.median(
+        median_s(lambda p=p: render_packed_numpy(pack_scene(p, size)), repeats=1, warmup=0) for p in scenes
+    )
+    base = f"murk numpy render_scene, 1 core, {w}x{h}"
+    rec.add(Figure("cpu_scenes_s", base, 1 / cpu, "scenes/s"))
+    for batch in batches:
+        chunk = (scenes * ((batch + len(scenes) - 1) // len(scenes)))[:batch]
+        t = rec.attempt(
+            f"render_scenes_torch batch {batch}",
+            lambda chunk=chunk: median_s(
+                lambda: render_scenes_torch(chunk, size, dev), repeats=reps, warmup=1, sync=sync
+            ),
+        )
+        if t is not None:
+            label = f"render_scenes_torch {dev.type}, {w}x{h}, batch {batch}"
+            rec.add(Figure(f"torch_b{batch}_scenes_s", label, batch / t, "scenes/s", base, 1 / cpu))
 
 
 def main() -> None:
@@ -123,20 +165,8 @@ def main() -> None:
     print(f"speed-up vs baseline: {med_slow / med_fast:.2f}x (median), {sum(slow) / sum(fast):.2f}x (total)")
 
     if torch is not None and torch.cuda.is_available():
-        for batch in (16, 64):
-            chunk = (scenes * ((batch + len(scenes) - 1) // len(scenes)))[:batch]
-            render_scenes_torch(chunk, (w, h), "cuda")
-            torch.cuda.synchronize()
-            reps = 5
-            a = time.perf_counter()
-            for _ in range(reps):
-                render_scenes_torch(chunk, (w, h), "cuda")
-            torch.cuda.synchronize()
-            per = (time.perf_counter() - a) / (reps * batch)
-            print(
-                f"torch CUDA ({torch.cuda.get_device_name()}), batch {batch}: {per * 1e3:.2f} ms/scene "
-                f"-> {1.0 / per:.0f} scenes/s, {med_fast / per:.1f}x one CPU core"
-            )
+        print(f"torch CUDA ({torch.cuda.get_device_name()}):")
+        gpu_figures(Recorder(echo=True), "cuda", count=args.count, size=(w, h), seed=args.seed)
     else:
         print("torch CUDA: not measured (no GPU on this machine)")
 

@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import cycler, interleaved, machine, pin_one_core
+from _common import Figure, Recorder, cycler, device_sync, interleaved, machine, median_s, pin_one_core
 
 pin_one_core()
 
@@ -138,20 +138,43 @@ def run(image: np.ndarray, bank: ParticleBank) -> None:
         print(f"baseline {k:17s} {ms[k]:7.2f} ms/image   murk speed-up x{ms[k] / ms['murk']:.1f}")
 
 
+def gpu_figures(
+    rec: Recorder,
+    device: str | torch.device,
+    image: np.ndarray,
+    bank: ParticleBank,
+    *,
+    n_particles: int = N,
+    batches: tuple[int, ...] = (64, 256),
+    repeats: int = 5,
+) -> None:
+    """Images/s of ``composite_snow_torch`` on ``device`` (``n_particles`` per image), against murk's numpy
+    ``composite_snow`` on one core in the same run (the caller pins one core)."""
+    dev = torch.device(device)
+    sync = device_sync(dev)
+    h, w = image.shape[:2]
+    params = [sample_snow(s, bank, n_particles=(n_particles, n_particles)) for s in range(max(batches))]
+    nxt = cycler(params[:8])
+    cpu_s = median_s(lambda: composite_snow(image, nxt(), bank), repeats=max(8, repeats), warmup=2)
+    base = f"murk numpy composite_snow, 1 core, {w}x{h}, {n_particles} particles"
+    rec.add(Figure("cpu_img_s", base, 1 / cpu_s, "img/s"))
+    for bsz in batches:
+        x = torch.from_numpy(image).permute(2, 0, 1)[None].repeat(bsz, 1, 1, 1).to(dev)
+        ps = params[:bsz]
+        t = rec.attempt(
+            f"composite_snow_torch batch {bsz}",
+            lambda x=x, ps=ps: median_s(
+                lambda: composite_snow_torch(x, ps, bank), repeats=repeats, warmup=1, sync=sync
+            ),
+        )
+        if t is not None:
+            label = f"composite_snow_torch {dev.type}, {w}x{h}, {n_particles} particles, batch {bsz}"
+            rec.add(Figure(f"torch_b{bsz}_img_s", label, bsz / t, "img/s", base, 1 / cpu_s))
+
+
 def gpu(image: np.ndarray, bank: ParticleBank) -> None:
     if torch.cuda.is_available():
-        dev = torch.device("cuda")
-        for bsz in (64, 256):
-            x = torch.from_numpy(image).permute(2, 0, 1)[None].repeat(bsz, 1, 1, 1).to(dev)
-            ps = [sample_snow(s, bank, n_particles=(N, N)) for s in range(bsz)]
-            composite_snow_torch(x, ps, bank)
-            torch.cuda.synchronize()
-            t0 = time.perf_counter()
-            for _ in range(5):
-                composite_snow_torch(x, ps, bank)
-            torch.cuda.synchronize()
-            dt = (time.perf_counter() - t0) / 5
-            print(f"torch {torch.cuda.get_device_name()} batch {bsz}: {bsz / dt:,.0f} images/s")
+        gpu_figures(Recorder(echo=True), "cuda", image, bank)
     else:
         print("torch GPU path: not measured (no CUDA device)")
 

@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import cycler, interleaved, machine, pin_one_core
+from _common import Figure, Recorder, cycler, device_sync, interleaved, machine, median_s, pin_one_core
 
 pin_one_core()
 
@@ -49,11 +49,57 @@ def baseline(clean_u8: np.ndarray, depth_mm: np.ndarray, p, forward_scatter: boo
     return np.clip(img, 0.0, 1.0)
 
 
-def main() -> None:
+def redwood_pair(hw: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray, str]:
+    """The shipped 640x480 Redwood pair (float32 RGB, metres, hole-filled) and its RGB path; resized to ``hw``."""
     sources, _ = discover(sample_rgbd_dir())
     src = next(s for s in sources if s.stem.startswith("redwood"))  # 640x480
     clean, depth, _ = load_pair(src, DepthOptions())
-    clean_u8 = cv2.imread(src.rgb_path)[:, :, ::-1].copy()
+    if hw is not None:
+        clean = cv2.resize(clean, (hw[1], hw[0]), interpolation=cv2.INTER_AREA)
+        depth = cv2.resize(depth, (hw[1], hw[0]), interpolation=cv2.INTER_NEAREST)
+    return np.ascontiguousarray(clean), np.ascontiguousarray(depth), src.rgb_path
+
+
+def gpu_figures(
+    rec: Recorder,
+    device: str | torch.device,
+    *,
+    batches: tuple[int, ...] = (64, 256),
+    hw: tuple[int, int] | None = None,
+    repeats: int = 10,
+    targets: bool = True,
+) -> None:
+    """Variants/s of the batched torch path (``basic,forward_scatter``) on ``device``, against murk's numpy
+    ``render`` on one core in the same run (the caller pins one core), on the Redwood pair (640x480 or ``hw``)."""
+    dev = torch.device(device)
+    sync = device_sync(dev)
+    clean, depth, _ = redwood_pair(hw)
+    size = f"{clean.shape[1]}x{clean.shape[0]}"
+    cfg = SynthConfig()
+    params = [sample_variant(s, cfg) for s in range(max(batches))]
+    nxt = cycler(params[:8])
+    cpu_s = median_s(lambda: render(clean, depth, nxt()), repeats=max(8, repeats), warmup=2)
+    base = f"murk numpy render, 1 core, {size}"
+    rec.add(Figure("cpu_variants_s", base, 1 / cpu_s, "variants/s"))
+    for bsz in batches:
+        c = torch.from_numpy(clean).permute(2, 0, 1)[None].repeat(bsz, 1, 1, 1).to(dev)
+        d = torch.from_numpy(depth)[None, None].repeat(bsz, 1, 1, 1).to(dev)
+        ps = params[:bsz]
+        t = rec.attempt(
+            f"render_batch_torch batch {bsz}",
+            lambda c=c, d=d, ps=ps: median_s(
+                lambda: render_batch_torch(c, d, ps), repeats=repeats, warmup=2, sync=sync
+            ),
+        )
+        if t is not None:
+            target = ">= 5,000 variants/s (640x480)" if targets else None
+            label = f"render_batch_torch {dev.type}, {size}, batch {bsz}"
+            rec.add(Figure(f"torch_b{bsz}_variants_s", label, bsz / t, "variants/s", base, 1 / cpu_s, target))
+
+
+def main() -> None:
+    clean, depth, rgb_path = redwood_pair()
+    clean_u8 = cv2.imread(rgb_path)[:, :, ::-1].copy()
     # the baseline reads the same hole-filled depth (as millimetres) so both compute the same image
     depth_mm = np.rint(depth.astype(np.float64) * 1000.0).astype(np.uint16)
     print(f"# bench_synth  {time.strftime('%Y-%m-%d')}  {machine()}  image {clean.shape[1]}x{clean.shape[0]}, 1 thread")
@@ -86,22 +132,7 @@ def main() -> None:
         assert diff < 1 / 255, diff
     print("check: murk equals the baseline within 1/255 on all 8 variants")
     if torch.cuda.is_available():
-        dev = torch.device("cuda")
-        for bsz in (64, 256):
-            c = torch.from_numpy(clean).permute(2, 0, 1)[None].repeat(bsz, 1, 1, 1).to(dev)
-            d = torch.from_numpy(depth)[None, None].repeat(bsz, 1, 1, 1).to(dev)
-            ps = [sample_variant(s, cfg) for s in range(bsz)]
-            render_batch_torch(c, d, ps)
-            torch.cuda.synchronize()
-            t0 = time.perf_counter()
-            n = 10
-            for _ in range(n):
-                render_batch_torch(c, d, ps)
-            torch.cuda.synchronize()
-            dt = (time.perf_counter() - t0) / n
-            print(
-                f"torch {torch.cuda.get_device_name()} batch {bsz}: {bsz / dt:,.0f} variants/s (basic,forward_scatter)"
-            )
+        gpu_figures(Recorder(echo=True), "cuda")
     else:
         print("torch GPU path: not measured (no CUDA device)")
 

@@ -14,14 +14,15 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import numpy as np
 import torch
-from _common import machine
+from _common import Figure, Recorder, machine
 
-from murk.models.jointid import build_jointid, normalize_input, unused_parameter_names
+from murk.models.jointid import JointIDConfig, build_jointid, normalize_input, unused_parameter_names
 from murk.synth.config import SynthConfig
 from murk.train.data import OnlineDegrader
 from murk.train.losses import jointid_loss
@@ -32,7 +33,18 @@ def sync(device: torch.device) -> None:
         torch.cuda.synchronize(device)
 
 
-def measure(variant: str, hw: tuple[int, int], batch: int, precision: str, device: torch.device, steps: int) -> dict:
+def measure(
+    variant: str | JointIDConfig,
+    hw: tuple[int, int],
+    batch: int,
+    precision: str,
+    device: torch.device,
+    steps: int,
+    *,
+    wrap: Callable[[torch.nn.Module], torch.nn.Module] | None = None,
+) -> dict:
+    """One configuration: median step and online-synthesis times over ``steps`` steps after 2 warm-up steps.
+    ``wrap`` wraps the model for the step (e.g. DistributedDataParallel); the optimiser sees the bare model."""
     torch.manual_seed(0)
     model = build_jointid(variant).to(device)
     for n, p in model.named_parameters():
@@ -41,6 +53,7 @@ def measure(variant: str, hw: tuple[int, int], batch: int, precision: str, devic
     if device.type == "cuda":
         model = model.to(memory_format=torch.channels_last)
     opt = torch.optim.AdamW(model.parameters(), lr=2e-4, weight_decay=0.01, fused=device.type == "cuda")
+    net = wrap(model) if wrap is not None else model
     h, w = hw
     clean = torch.rand(batch, 3, h, w, device=device)
     yy, xx = torch.meshgrid(torch.arange(h, device=device), torch.arange(w, device=device), indexing="ij")
@@ -58,9 +71,9 @@ def measure(variant: str, hw: tuple[int, int], batch: int, precision: str, devic
             inp = inp.contiguous(memory_format=torch.channels_last)
         if autocast is not None:
             with autocast:
-                out = model(inp)
+                out = net(inp)
         else:
-            out = model(inp)
+            out = net(inp)
         loss = jointid_loss(out.enhanced.float(), clean, out.depth_m.float(), depth).total
         opt.zero_grad(set_to_none=True)
         loss.backward()
@@ -86,7 +99,7 @@ def measure(variant: str, hw: tuple[int, int], batch: int, precision: str, devic
         t_step.append(t2 - t1)
     syn, st = float(np.median(t_syn)), float(np.median(t_step))
     return {
-        "variant": variant,
+        "variant": variant if isinstance(variant, str) else "custom",
         "size": f"{h}x{w}",
         "batch": batch,
         "precision": precision,
@@ -96,6 +109,61 @@ def measure(variant: str, hw: tuple[int, int], batch: int, precision: str, devic
         "synth_share": syn / (syn + st),
         "peak_gib": torch.cuda.max_memory_allocated(device) / 2**30 if device.type == "cuda" else None,
     }
+
+
+def gpu_figures(
+    rec: Recorder,
+    device: str | torch.device,
+    *,
+    variant: str | JointIDConfig = "base",
+    hw: tuple[int, int] = (288, 512),
+    configs: tuple[tuple[int, str], ...] = ((7, "fp32"), (7, "bf16"), (32, "bf16")),
+    steps: int = 20,
+    need_s: float = 0.0,
+    targets: bool = True,
+) -> None:
+    """Training images/s, peak memory and online-synthesis share per (batch, precision) in ``configs``; the first
+    configuration (fp32 batch 7: the official trainer's) is the same-run baseline of the others. A configuration
+    is skipped when less than ``need_s`` of the recorder's budget is left."""
+    dev = torch.device(device)
+    name = variant if isinstance(variant, str) else "custom"
+    size = f"{hw[0]}x{hw[1]}"
+    base: tuple[str, float] | None = None
+    for i, (batch, precision) in enumerate(configs):
+        label = f"{name} {size} {precision} batch {batch}"
+        r = rec.attempt(
+            f"train {label}", lambda b=batch, p=precision: measure(variant, hw, b, p, dev, steps), need_s=need_s
+        )
+        if r is None:
+            continue
+        if i == 0:
+            official = name == "base" and batch == 7 and precision == "fp32"
+            base = (label + (" (the official trainer's configuration)" if official else ""), r["img_s"])
+        target = ">= 100 img/s (official trainer: 24.3 img/s, H200)" if targets and precision == "bf16" else None
+        ref_label, ref = (None, None) if base is None or i == 0 else base
+        rec.add(
+            Figure(
+                f"train_{precision}_b{batch}_img_s",
+                f"training step, {label}",
+                r["img_s"],
+                "img/s",
+                ref_label,
+                ref,
+                target,
+            )
+        )
+        share = "<= 10 %" if targets else None
+        rec.add(
+            Figure(
+                f"train_{precision}_b{batch}_synth_pct",
+                f"online synthesis share of step+synthesis, {label}",
+                100 * r["synth_share"],
+                "%",
+                target=share,
+            )
+        )
+        if r["peak_gib"] is not None:
+            rec.add(Figure(f"train_{precision}_b{batch}_peak_gib", f"peak memory, {label}", r["peak_gib"], "GiB"))
 
 
 def main() -> None:
@@ -110,9 +178,9 @@ def main() -> None:
         + (f" ({torch.cuda.get_device_name()})" if cuda else f", {torch.get_num_threads()} threads")
     )
     if cuda:
-        configs = [("base", (288, 512), 7, "fp32"), ("base", (288, 512), 7, "bf16"), ("base", (288, 512), 32, "bf16")]
-    else:
-        configs = [("tiny", (288, 512), 4, "fp32"), ("base", (288, 512), 1, "fp32")]
+        gpu_figures(Recorder(echo=True), device, steps=steps)
+        return
+    configs = [("tiny", (288, 512), 4, "fp32"), ("base", (288, 512), 1, "fp32")]
     for variant, hw, batch, precision in configs:
         r = measure(variant, hw, batch, precision, device, steps)
         mem = f", peak {r['peak_gib']:.1f} GiB" if r["peak_gib"] is not None else ""
@@ -121,8 +189,7 @@ def main() -> None:
             f"(step {r['step_ms']:.0f} ms; online synthesis {r['synth_ms']:.1f} ms = {100 * r['synth_share']:.1f} % "
             f"of step+synthesis{mem})"
         )
-    if not cuda:
-        print("GPU figures: not measured (no CUDA device); the official trainer's reference is 24.3 img/s on an H200")
+    print("GPU figures: not measured (no CUDA device); the official trainer's reference is 24.3 img/s on an H200")
 
 
 if __name__ == "__main__":
