@@ -57,3 +57,39 @@ def stop_if_orphaned() -> None:
     """Exit the worker process at once when its parent has died (the portable check between units of work)."""
     if not parent_alive():
         os._exit(1)
+
+
+def _pdeathsig_term() -> None:  # runs in the child between fork and exec
+    import ctypes
+
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+
+
+def subprocess_dies_with_parent() -> object:
+    """``preexec_fn`` for :class:`subprocess.Popen`: on Linux the child gets SIGTERM when this process dies
+    (however it dies, SIGKILL included); None elsewhere (there the owner's ``finally`` is the only guard)."""
+    return _pdeathsig_term if sys.platform.startswith("linux") else None
+
+
+class TerminateAsExit:
+    """Context manager: while active in the main thread, SIGTERM raises SystemExit(143) like Ctrl+C raises
+    KeyboardInterrupt, so ``finally`` blocks (stopping child processes) run; the old handler is restored."""
+
+    def __enter__(self) -> TerminateAsExit:
+        import threading
+
+        self._old = None
+        if threading.current_thread() is threading.main_thread():
+            self._old = signal.signal(signal.SIGTERM, _raise_exit)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._old is not None:
+            signal.signal(signal.SIGTERM, self._old)
+
+
+def _raise_exit(signum: int, frame: object) -> None:
+    raise SystemExit(128 + signum)

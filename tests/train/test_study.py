@@ -3,6 +3,11 @@
 from __future__ import annotations
 
 import json
+import os
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -129,3 +134,44 @@ def test_a_killed_arm_resumes_to_the_same_weights(tmp_path: Path) -> None:
     a, _ = read_checkpoint(whole / "models" / "basic" / "latest.pt")
     b, _ = read_checkpoint(part / "models" / "basic" / "latest.pt")
     assert all(torch.equal(a[k], b[k]) for k in a)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="SIGKILL of the parent: Linux death signal")
+@pytest.mark.parametrize("how", ["SIGTERM", "SIGKILL"])
+def test_a_killed_study_leaves_no_arm_training(tmp_path: Path, how: str) -> None:
+    """`kill` (SIGTERM) runs the study's cleanup; SIGKILL cannot, and the arms get SIGTERM from the kernel."""
+    _write(tmp_path, jobs=2)
+    pids = tmp_path / "pids"
+    fake = tmp_path / "fake_python.sh"  # stands in for `python -m murk train`: records its pid, then waits
+    fake.write_text(f"#!/bin/sh\necho $$ >> {pids}\nexec sleep 120\n")
+    fake.chmod(0o755)
+    driver = (
+        "from murk.train.study import load_study, train_arms\n"
+        f"study, base = load_study({str(tmp_path / 'study.yaml')!r})\n"
+        f"train_arms(study, base, {str(tmp_path / 'study')!r}, python={str(fake)!r})\n"
+    )
+    parent = subprocess.Popen([sys.executable, "-c", driver])
+    deadline = time.monotonic() + 240  # generous: importing murk on a loaded 2-core machine
+    while time.monotonic() < deadline and (not pids.exists() or len(pids.read_text().split()) < 2):
+        time.sleep(0.1)
+    assert pids.exists(), "the study did not start its arms"
+    children = [int(p) for p in pids.read_text().split()]
+    assert len(children) == 2
+    os.kill(parent.pid, getattr(signal, how))
+    parent.wait(timeout=60)
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and any(_alive(p) for p in children):
+        time.sleep(0.1)
+    assert not any(_alive(p) for p in children)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.waitpid(pid, os.WNOHANG)  # reap if it happens to be our child (it is not: the driver's)
+    except ChildProcessError:
+        pass
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split()[2] != "Z"  # a zombie waiting for its (dead) parent is not running
+    except FileNotFoundError:
+        return False

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from murk._config import dump_yaml, load_yaml, merge
+from murk._workers import TerminateAsExit, subprocess_dies_with_parent
 from murk.io.atomic import write_text_atomic
 from murk.synth.config import parse_stages
 from murk.train.config import TrainConfig
@@ -64,6 +65,10 @@ class StudyEvalConfig:
     synthetic_hw: tuple[int, int] = (240, 320)
     post_lambda: float = 0.3
     """lambda of Eq. (9) for the '+post' methods."""
+    baselines: tuple[str, ...] = ()
+    """Extra ``murk compare`` method specs scored on the real images beside the arms, e.g. the paper's
+    comparison baselines ``udaformer:weights/UDA.pt`` and ``ursct:weights/URSCT.pth`` (``docs/baselines.md``;
+    weights the user downloads; they must load with weights_only=True)."""
 
 
 @dataclass(frozen=True)
@@ -179,6 +184,23 @@ def train_arms(
     if study.threads_per_job > 0:
         env["OMP_NUM_THREADS"] = env["MKL_NUM_THREADS"] = str(study.threads_per_job)
     active: list[tuple[ArmConfig, subprocess.Popen, float, Any]] = []
+    with TerminateAsExit():
+        _run_arms(pending, active, runs, study, study_dir, python, env, say)
+    return [runs[a.name] for a in study.arms]
+
+
+def _run_arms(
+    pending: list[tuple[ArmConfig, Any, Path]],
+    active: list[tuple[ArmConfig, subprocess.Popen, float, Any]],
+    runs: dict[str, ArmRun],
+    study: StudyConfig,
+    study_dir: Path,
+    python: str,
+    env: dict[str, str],
+    say: Callable[[str], None],
+) -> None:
+    """Start pending arms (``study.jobs`` at a time) and collect them; on any exit (Ctrl+C, SIGTERM, an
+    exception) the running arms are stopped. Each arm also gets SIGTERM if this process is killed outright."""
     try:
         while pending or active:
             while pending and len(active) < study.jobs:
@@ -191,7 +213,9 @@ def train_arms(
                 log = open(out / "train.out", "a", encoding="utf-8")
                 log.write(f"$ {' '.join(cmd)}\n")
                 log.flush()
-                proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env)
+                proc = subprocess.Popen(
+                    cmd, stdout=log, stderr=subprocess.STDOUT, env=env, preexec_fn=subprocess_dies_with_parent()
+                )
                 active.append((arm, proc, time.perf_counter(), log))
                 say(f"{arm.name}: training ({'resumed' if '--resume' in cmd else 'started'}), log {out / 'train.out'}")
             time.sleep(0.5)
@@ -221,4 +245,3 @@ def train_arms(
                 except subprocess.TimeoutExpired:
                     proc.kill()
             log.close()
-    return [runs[a.name] for a in study.arms]
