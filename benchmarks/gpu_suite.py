@@ -85,7 +85,7 @@ MIN_PART_S = 15.0
 """A part starts only if at least this much of the limit is left."""
 DRY_LIMIT_S = 1200.0
 DRY_BUDGET_FACTOR = 3.0
-DRY_MIN_BUDGET_S = 120.0
+DRY_MIN_BUDGET_S = 300.0
 """The dry run's limits are generous (its timings mean nothing; a loaded 2-core machine can be 10x slower than
 a quiet one): a part gets ``max(DRY_BUDGET_FACTOR * budget, DRY_MIN_BUDGET_S)``, so only a hang trips them."""
 LOG_TAIL_BYTES = 200_000

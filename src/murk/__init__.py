@@ -49,6 +49,8 @@ _LAZY = {
     "load_checkpoint": "murk.models.jointid",
     "save_checkpoint": "murk.models.jointid",
     "shipped_jointid_weights": "murk.data",
+    "load_udaformer": "murk.models.udaformer",
+    "load_ursct": "murk.models.ursct_sesr",
     # training and evaluation
     "TrainConfig": "murk.train.config",
     "train": "murk.train.loop",

@@ -144,3 +144,39 @@ def test_cached_scenes_equal_rendered_scenes() -> None:
             assert torch.equal(a[k], b[k])
     cached[0]["clean"].zero_()  # callers may modify what they get
     assert torch.equal(cached[0]["clean"], fresh[0]["clean"])
+
+
+def test_scene_scale_windows_are_fixed_per_scene_and_inside_the_render() -> None:
+    """data.scene_scale: render s x larger, cut a crop-sized window; (1, 1) is the old centre crop."""
+    from murk.rng import derive_seed
+    from murk.scenes import render_scene, sample_scene
+    from murk.train.scenes_source import SceneDataset, render_size, scene_window
+
+    crop = (32, 64)
+    w, h = render_size(crop)
+    assert scene_window(1, 3, crop, (1.0, 1.0)) == ((w, h), ((h - 32) // 2, (w - 64) // 2))
+    sizes = set()
+    for index in range(20):
+        (ws, hs), (y0, x0) = scene_window(1, index, crop, (1.5, 2.5))
+        assert scene_window(1, index, crop, (1.5, 2.5)) == ((ws, hs), (y0, x0))  # fixed per scene
+        assert 1.5 * w - 1 <= ws <= 2.5 * w + 1 and 1.5 * h - 1 <= hs <= 2.5 * h + 1
+        assert 0 <= y0 <= hs - 32 and 0 <= x0 <= ws - 64
+        sizes.add(ws)
+    assert len(sizes) > 10  # the scale varies between scenes
+
+    ds = SceneDataset([3], crop, seed=1, scale=(1.5, 2.5))
+    (ws, hs), (y0, x0) = scene_window(1, 3, crop, (1.5, 2.5))
+    rgb, dist = render_scene(sample_scene(derive_seed(1, 3)), (ws, hs))
+    item = ds[0]
+    assert item["clean"].shape == (3, 32, 64) and item["depth"].shape == (1, 32, 64)
+    np.testing.assert_array_equal(item["clean"].numpy(), rgb[y0 : y0 + 32, x0 : x0 + 64].transpose(2, 0, 1))
+    np.testing.assert_array_equal(item["depth"][0].numpy(), dist[y0 : y0 + 32, x0 : x0 + 64])
+
+
+def test_scene_scale_is_validated() -> None:
+    from murk.train.config import DataConfig
+
+    with pytest.raises(ValueError, match="scene_scale"):
+        DataConfig(scene_scale=(0.5, 2.0))
+    with pytest.raises(ValueError, match="scene_scale"):
+        DataConfig(scene_scale=(2.0, 1.5))

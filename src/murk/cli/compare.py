@@ -17,7 +17,8 @@ def compare(
         typer.Option(
             "--method",
             help="[LABEL=]METHOD[:CHECKPOINT], repeatable: raw, post, jointid:CKPT, jointid+post:CKPT, "
-            "retrained=jointid+post:runs/x/best.pt",
+            "retrained=jointid+post:runs/x/best.pt, and the paper's baselines udaformer:WEIGHTS, ursct:WEIGHTS "
+            "(docs/baselines.md); per-method options after '?', e.g. ursct:W.pth?policy=official",
         ),
     ],
     out: Annotated[Path, typer.Option("--out", help="Report folder.")],
@@ -30,6 +31,13 @@ def compare(
     device: Annotated[str, typer.Option("--device", help="cpu, cuda or cuda:N.")] = "cpu",
     precision: Annotated[str, typer.Option("--precision", help="Joint-ID precision: fp32, bf16 or fp16.")] = "fp32",
     tile: Annotated[int | None, typer.Option("--tile", help="Joint-ID tile size for large images (px).")] = None,
+    policy: Annotated[
+        str,
+        typer.Option(
+            "--policy",
+            help="udaformer/ursct: native (any size, default) or official (256x256 as their published test scripts).",
+        ),
+    ] = "native",
     trust_checkpoint: Annotated[
         bool, typer.Option("--trust-checkpoint", help="Allow pickled objects in checkpoints (trusted files only).")
     ] = False,
@@ -64,6 +72,7 @@ def compare(
         "precision": precision,
         "tile": tile,
         "trust_checkpoint": trust_checkpoint,
+        "policy": policy,
     }
 
     def on_image(i: int, n: int, name: str) -> None:

@@ -36,6 +36,11 @@ class FormatChoice(str, Enum):
     jpg = "jpg"
 
 
+class PolicyChoice(str, Enum):
+    native = "native"
+    official = "official"
+
+
 class BackendChoice(str, Enum):
     auto = "auto"
     opencv = "opencv"
@@ -57,6 +62,7 @@ def method_options(
     overlap: int = 64,
     trust_checkpoint: bool = False,
     compile: bool = False,
+    policy: str = "native",
 ) -> dict[str, Any]:
     """Keyword options handed to every stage of ``--method`` (each factory takes what it knows and ignores
     the rest). New method options (checkpoint, precision, tiling, ...) are added here and in :func:`enhance`."""
@@ -74,6 +80,7 @@ def method_options(
         "overlap": overlap,
         "trust_checkpoint": trust_checkpoint,
         "compile": compile,
+        "policy": policy,
     }
 
 
@@ -125,7 +132,8 @@ def enhance(
         typer.Option(
             "--checkpoint",
             help="jointid: weights (a murk checkpoint from 'murk train', the official joint_id_ckpt.pth, or an "
-            ".onnx export run with ONNX Runtime).",
+            ".onnx export run with ONNX Runtime); lite: a 'murk train' lite checkpoint or its .onnx export. "
+            "Default: the weights shipped with murk.",
         ),
     ] = None,
     precision: Annotated[
@@ -145,6 +153,14 @@ def enhance(
     compile_model: Annotated[
         bool, typer.Option("--compile", help="jointid: torch.compile the network (GPU; slow first frames).")
     ] = False,
+    policy: Annotated[
+        PolicyChoice,
+        typer.Option(
+            "--policy",
+            help="udaformer/ursct: native (any size, output at the input size) or official (the published test "
+            "script: resized to 256x256, output 256x256; docs/baselines.md).",
+        ),
+    ] = PolicyChoice.native,
     depth: Annotated[
         bool,
         typer.Option("--depth/--no-depth", help="Write depth/ and depth_preview/ when the method estimates depth."),
@@ -196,6 +212,7 @@ def enhance(
             overlap=overlap,
             trust_checkpoint=trust_checkpoint,
             compile=compile_model,
+            policy=policy.value,
         ),
     )
     options = OutputOptions(
@@ -211,10 +228,10 @@ def enhance(
     summary = make_console(False)
     weights = weights_of(restorer)
     if weights:
-        shipped = (
-            " (shipped with murk: the 'small' Joint-ID murk trained, docs/models.md)" if checkpoint is None else ""
-        )
-        console.print(f"jointid weights: {weights}{shipped}", soft_wrap=True, highlight=False)
+        stage = next(s.name for s in getattr(restorer, "stages", [restorer]) if getattr(s, "weights", None))
+        what = {"jointid": "the 'small' Joint-ID murk trained", "lite": "the 'lite' network murk trained"}.get(stage)
+        shipped = f" (shipped with murk: {what}, docs/models.md)" if checkpoint is None and what else ""
+        console.print(f"{stage} weights: {weights}{shipped}", soft_wrap=True, highlight=False)
     inp = resolve_input(input, recursive=recursive, exclude=out)
     with _stop_on_signals() as stop:
         if inp.kind == "images":

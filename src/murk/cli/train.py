@@ -1,4 +1,4 @@
-"""``murk train``: retrain Joint-ID (the paper's experiment) from a YAML config."""
+"""``murk train``: retrain Joint-ID (the paper's experiment), or train the lite restorer, from a YAML config."""
 
 from __future__ import annotations
 
@@ -35,7 +35,8 @@ def train(
     workers: Annotated[int | None, typer.Option("--workers", help="DataLoader workers per process.")] = None,
     quiet: QuietOpt = False,
 ) -> None:
-    """Train Joint-ID (unchanged architecture and loss) on synthetic underwater data.
+    """Train Joint-ID (unchanged architecture and loss), or the lite real-time restorer (model.kind: lite, e.g.
+    configs/train-lite-cpu.yaml), on synthetic underwater data.
 
     Single process, or DistributedDataParallel with: torchrun --nproc_per_node N -m murk train --config ...
     """

@@ -8,6 +8,8 @@
   suspended particles (``underwater/ufen_gan``); how it was made is in ``DATA_LICENSES.md``.
 - ``models/jointid-small.pt``: the Joint-ID weights murk trained itself (variant ``small``, fp16 storage; model
   card: ``docs/models.md``), used by ``jointid`` when no checkpoint is given.
+- ``models/lite.pt``: the ``lite`` real-time restorer's weights (model card: ``docs/models.md``), used by ``lite``
+  when no checkpoint is given.
 """
 
 from __future__ import annotations
@@ -43,6 +45,15 @@ SHIPPED_JOINTID = "jointid-small.pt"
 def shipped_jointid_weights() -> Path:
     """Path of the Joint-ID weights shipped with murk (``small`` variant; model card ``docs/models.md``)."""
     return _HERE / "models" / SHIPPED_JOINTID
+
+
+SHIPPED_LITE = "lite.pt"
+
+
+def shipped_lite_weights() -> Path:
+    """Path of the ``lite`` restorer weights shipped with murk (model card ``docs/models.md``); the file may be
+    missing from an installation that predates them (the ``lite`` restorer then asks for ``--checkpoint``)."""
+    return _HERE / "models" / SHIPPED_LITE
 
 
 def default_snow_bank() -> Path:

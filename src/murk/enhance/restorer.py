@@ -153,5 +153,11 @@ def _load_builtin() -> None:
         importlib.import_module(module)
 
 
-_BUILTIN_MODULES: list[str] = ["murk.enhance.post", "murk.enhance.jointid_restorer"]
+_BUILTIN_MODULES: list[str] = [
+    "murk.enhance.post",
+    "murk.enhance.jointid_restorer",
+    "murk.enhance.lite_restorer",
+    "murk.enhance.udaformer_restorer",
+    "murk.enhance.ursct_restorer",
+]
 """Modules whose import registers built-in methods (imported on first use of the registry)."""

@@ -33,18 +33,21 @@ class Padding:
         return x[..., self.top : h - self.bottom, self.left : w - self.right]
 
 
-def padding_for(height: int, width: int, multiple: int = 32) -> Padding:
-    """The symmetric padding (extra pixel at the bottom/right) that makes (height, width) multiples of ``multiple``.
+def padding_for(height: int, width: int, multiple: int = 32, *, min_size: int = 1) -> Padding:
+    """The symmetric padding (extra pixel at the bottom/right) that makes (height, width) multiples of ``multiple``
+    and at least ``min_size`` (a network that runs on fixed-size tiles needs frames at least one tile large).
 
     Raises:
-        ValueError: non-positive sizes or multiple.
+        ValueError: non-positive sizes, multiple or min_size.
     """
     if height < 1 or width < 1:
         raise ValueError(f"size: expected a positive height and width, got {height}x{width}")
     if multiple < 1:
         raise ValueError(f"multiple: expected a positive integer, got {multiple}")
-    ph = -height % multiple
-    pw = -width % multiple
+    if min_size < 1:
+        raise ValueError(f"min_size: expected a positive integer, got {min_size}")
+    ph = max(height + -height % multiple, min_size + -min_size % multiple) - height
+    pw = max(width + -width % multiple, min_size + -min_size % multiple) - width
     return Padding(ph // 2, ph - ph // 2, pw // 2, pw - pw // 2)
 
 
@@ -62,7 +65,9 @@ def _pad_axis(x: Tensor, before: int, after: int, dim: int, mode: PadMode) -> Te
     return x
 
 
-def pad_to_multiple(x: Tensor, multiple: int = 32, mode: PadMode = "reflect") -> tuple[Tensor, Padding]:
+def pad_to_multiple(
+    x: Tensor, multiple: int = 32, mode: PadMode = "reflect", *, min_size: int = 1
+) -> tuple[Tensor, Padding]:
     """Pad a (B, C, H, W) batch so that H and W become multiples of ``multiple``; never resizes.
 
     Reflection mirrors without repeating the edge pixel (like ``numpy.pad(mode="reflect")``) and is repeated
@@ -72,6 +77,7 @@ def pad_to_multiple(x: Tensor, multiple: int = 32, mode: PadMode = "reflect") ->
         x: (B, C, H, W) tensor, any float dtype/device.
         multiple: the size multiple (32 for Joint-ID).
         mode: ``"reflect"`` or ``"replicate"``.
+        min_size: pad smaller axes up to at least this size (rounded up to ``multiple``).
 
     Returns:
         The padded tensor and the :class:`Padding`, whose ``crop`` undoes it.
@@ -86,7 +92,7 @@ def pad_to_multiple(x: Tensor, multiple: int = 32, mode: PadMode = "reflect") ->
         raise ShapeError(f"x: expected shape (B, C, H, W), got {tuple(x.shape)}")
     if mode not in ("reflect", "replicate"):
         raise ValueError(f"mode: expected 'reflect' or 'replicate', got {mode!r}")
-    pad = padding_for(x.shape[2], x.shape[3], multiple)
+    pad = padding_for(x.shape[2], x.shape[3], multiple, min_size=min_size)
     x = _pad_axis(x, pad.top, pad.bottom, -2, mode)
     x = _pad_axis(x, pad.left, pad.right, -1, mode)
     return x, pad

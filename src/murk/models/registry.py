@@ -11,6 +11,9 @@ from typing import Any
 
 _BUILDERS: dict[str, str] = {
     "jointid": "murk.models.jointid.network:build_jointid",
+    "lite": "murk.models.lite.network:build_lite",
+    "udaformer": "murk.models.udaformer.network:build_udaformer",
+    "ursct": "murk.models.ursct_sesr.network:build_ursct",
 }
 
 

@@ -115,6 +115,7 @@ def run_compare(
     result = CompareResult(out)
     out_names = output_names(images)
     sections = []
+    resized: set[str] = set()
     for i, path in enumerate(images):
         if on_image:
             on_image(i, len(images), path.name)
@@ -138,13 +139,15 @@ def run_compare(
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
                 metrics = score(restored, uiqm_preset=uiqm_preset, uciqe_preset=uciqe_preset)
-                metrics.update(restoration_measures(img, restored))
+                metrics.update(restoration_measures(resize_to(img, restored.shape[:2]), restored))
             row = {"image": path.name, "path": str(path), "method": spec.label, "spec": spec.text, "ms": ms, **metrics}
             row["flags"] = join_flags(flags(metrics))
             if caught:
                 row["warnings"] = "; ".join(sorted({str(w.message) for w in caught}))
             rows.append(row)
-            outputs.append((spec.label, restored))
+            outputs.append((spec.label, resize_to(restored, img.shape[:2])))
+            if restored.shape != img.shape:
+                resized.add(f"{spec.label} ({restored.shape[1]}x{restored.shape[0]})")
             if save_outputs:
                 write_rgb(out / "restored" / _safe(spec.label) / f"{out_names[path]}.png", restored)
         if not outputs:
@@ -183,6 +186,12 @@ def run_compare(
         " UIQM and UCIQE reward noise and artefacts: read them with the flags.",
     ]
     notes += [f"Weights of {lab}: {w}" for lab, w in weights.items() if w]
+    if resized:
+        notes.append(
+            f"Outputs at another size than their input: {', '.join(sorted(resized))} (e.g. a baseline's official "
+            "policy, 256x256 as its published test script). Their scores are computed at that size, their "
+            "restoration measures against the input resized to it, and the grids show them resized to the input."
+        )
     html_text = render_report(
         title=title,
         methods=[{"label": m.label, "spec": m.text} for m in methods],
@@ -197,6 +206,17 @@ def run_compare(
     elif (out / "errors.jsonl").exists():
         (out / "errors.jsonl").unlink()
     return result
+
+
+def resize_to(image: np.ndarray, size_hw: tuple[int, ...]) -> np.ndarray:
+    """``image`` at (height, width) ``size_hw``: unchanged when it has that size, else area-resampled when
+    shrinking and bilinear when enlarging (float32, [0, 1] kept)."""
+    h, w = int(size_hw[0]), int(size_hw[1])
+    if image.shape[:2] == (h, w):
+        return image
+    shrink = h * w < image.shape[0] * image.shape[1]
+    out = cv2.resize(image, (w, h), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
+    return np.clip(out, 0.0, 1.0).astype(np.float32)
 
 
 def output_names(images: Sequence[Path]) -> dict[Path, str]:

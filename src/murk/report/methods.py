@@ -1,9 +1,11 @@
 """Method specifications of ``murk compare``: ``[LABEL=]METHOD[:CHECKPOINT][?KEY=VALUE,...]``.
 
 ``METHOD`` is ``raw`` (the input itself) or any restorer of the enhance registry, chained with ``+``
-(``post``, ``jointid``, ``jointid+post``); ``CHECKPOINT`` is the Joint-ID weights (a murk checkpoint, the
-official ``joint_id_ckpt.pth``, or an ``.onnx`` export); without it Joint-ID uses the weights shipped with murk
-(the ``small`` model murk trained itself, ``docs/models.md``). Examples::
+(``post``, ``jointid``, ``jointid+post``, the paper's baselines ``udaformer`` and ``ursct``); ``CHECKPOINT`` is
+the method's weights: for Joint-ID a murk checkpoint, the official ``joint_id_ckpt.pth``, or an ``.onnx``
+export (without it Joint-ID uses the weights shipped with murk, the ``small`` model murk trained itself,
+``docs/models.md``); for the baselines the file downloaded from their authors (``docs/baselines.md``).
+Examples::
 
     raw
     post
@@ -11,9 +13,12 @@ official ``joint_id_ckpt.pth``, or an ``.onnx`` export); without it Joint-ID use
     original=jointid:joint_id_ckpt.pth
     retrained+post=jointid+post:runs/base-gpu/best.pt
     clahe=post?he=clahe,clahe_clip=3
+    udaformer:weights/UDA.pt
+    ursct-256=ursct:weights/model_bestSSIM.pth?policy=official
 
 Options after ``?`` go to that method's restorer only (the same names as ``murk enhance``'s options:
-``he``, ``sigma_px``, ``lam``, ``clahe_clip``, ``clahe_tiles``, ``precision``, ``tile``, ``overlap``, ...).
+``he``, ``sigma_px``, ``lam``, ``clahe_clip``, ``clahe_tiles``, ``precision``, ``tile``, ``overlap``,
+``policy``, ...).
 """
 
 from __future__ import annotations

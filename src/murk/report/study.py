@@ -3,9 +3,10 @@
 Outputs in the study folder (besides ``models/`` and ``configs/``):
 
 - ``real/``: ``murk compare`` on the real images with the methods ``raw``, ``post`` (Eq. 9 only), every arm,
-  and the last arm (the proposed data) + ``post``: ``metrics.csv``/``metrics.json`` (per image and method,
-  UIQM/UCIQE and the restoration measures of :mod:`murk.metrics.fidelity`, with flags), ``grids/`` (Fig. 9:
-  the methods side by side with zoomed boxes) and ``report.html``;
+  the last arm (the proposed data) + ``post``, and the ``eval.baselines`` specs (UDAformer, URSCT-SESR):
+  ``metrics.csv``/``metrics.json`` (per image and method, UIQM/UCIQE and the restoration measures of
+  :mod:`murk.metrics.fidelity`, with flags), ``grids/`` (Fig. 9: the methods side by side with zoomed boxes)
+  and ``report.html``;
 - ``heldout.json``: PSNR/SSIM and depth errors of every arm on held-out degraded procedural scenes;
 - ``study.json`` (everything) and ``study.md`` (the Fig. 8 table as mean +- std per method over the real
   images, the held-out table, and the training record of every arm).
@@ -81,6 +82,7 @@ def evaluate_study(
 
     say = on_event or (lambda _m: None)
     ev = study.eval
+    method = base.model.kind  # the restorer of the arms' network kind: jointid or lite
     ckpts = {a.name: Path(arm_config(base, a, out).out) / "latest.pt" for a in study.arms}
     for name, path in ckpts.items():
         if not path.is_file():
@@ -92,7 +94,7 @@ def evaluate_study(
         say(f"held-out: rendering {ev.synthetic_scenes} scenes at {ev.synthetic_hw[1]}x{ev.synthetic_hw[0]}")
         synthesis = merge(base.data.synthesis, {"stages": ["basic", "forward_scatter", "marine_snow"]})
         data = make_heldout(ev.synthetic_scenes, seed=ev.synthetic_seed, size_hw=ev.synthetic_hw, synthesis=synthesis)
-        restorers = {name: create("jointid", checkpoint=str(p)) for name, p in ckpts.items()}
+        restorers = {name: create(method, checkpoint=str(p)) for name, p in ckpts.items()}
         heldout = {
             "scenes": ev.synthetic_scenes,
             "seed": ev.synthetic_seed,
@@ -109,8 +111,9 @@ def evaluate_study(
         raise ValueError(f"eval.real: {real_dir} holds no images")
     last = study.arms[-1].name
     specs = ["raw", f"post?lam={ev.post_lambda}"]
-    specs += [f"{name}=jointid:{p}" for name, p in ckpts.items()]
-    specs.append(f"{last}+post=jointid+post:{ckpts[last]}?lam={ev.post_lambda}")
+    specs += [f"{name}={method}:{p}" for name, p in ckpts.items()]
+    specs.append(f"{last}+post={method}+post:{ckpts[last]}?lam={ev.post_lambda}")
+    specs += list(ev.baselines)  # e.g. udaformer:PATH, ursct:PATH (docs/baselines.md)
     methods = [parse_method(s) for s in specs]
     say(f"real: {len(images)} images x {len(methods)} methods")
     res = run_compare(images, methods, out / "real", title="murk study: the paper's ablation")

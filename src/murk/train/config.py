@@ -17,13 +17,24 @@ DataKind = Literal["auto", "synth", "list", "rgbd", "scenes"]
 class ModelConfig:
     """Which network, and optionally the weights to start from."""
 
+    kind: Literal["jointid", "lite"] = "jointid"
+    """``jointid`` (enhancement + depth, :mod:`murk.models.jointid`) or ``lite`` (the small real-time
+    restorer, :mod:`murk.models.lite`; enhancement only: the depth loss is skipped)."""
     variant: Literal["base", "small", "tiny"] = "base"
+    """jointid: base, small or tiny; lite: base (shipped) or tiny."""
     init_checkpoint: str | None = None
     """Start from these weights (murk or official format) instead of the random initialisation."""
     init: Literal["original", "icnr"] = "original"
     """Random initialisation: the recipe's, or with ICNR for the convolutions before pixel shuffles
-    (:func:`murk.models.jointid.network.icnr_init_`; no sub-pixel grid at the start)."""
+    (:func:`murk.models.jointid.network.icnr_init_`; no sub-pixel grid at the start; jointid only)."""
     trust_checkpoint: bool = False
+
+    def __post_init__(self) -> None:
+        if self.kind == "lite":
+            if self.variant not in ("base", "tiny"):
+                raise ValueError(f"variant: expected base or tiny for model.kind lite, got {self.variant!r}")
+            if self.init != "original":
+                raise ValueError(f"init: {self.init!r} applies to model.kind jointid only (lite has no pixel shuffle)")
 
 
 @dataclass(frozen=True)
@@ -55,6 +66,11 @@ class DataConfig:
     cache_scenes: bool = False
     """Keep rendered scenes in memory (``source: scenes``, ``workers: 0``): each scene is rendered once instead
     of every epoch (about 12 ms per 128x160 scene; 0.33 MB each)."""
+    scene_scale: tuple[float, float] = (1.0, 1.0)
+    """``source: scenes``: each scene is rendered at ``s`` times the size that just covers the crop (``s``
+    uniform in this range, fixed per scene by its seed) and a crop-sized window is cut at a position also fixed
+    per scene. With ``s > 1`` objects appear larger in pixels, as in higher-resolution footage, so a model
+    cannot read distance from apparent size at one resolution only. (1, 1): the whole scene, centre-cropped."""
     synthesis: SynthConfig = field(
         default_factory=lambda: SynthConfig(stages=("basic", "forward_scatter", "marine_snow"))
     )
@@ -70,6 +86,9 @@ class DataConfig:
         check_positive("depth_scale", self.depth_scale)
         if self.scenes_count < 1:
             raise ValueError(f"scenes_count: expected >= 1, got {self.scenes_count}")
+        lo, hi = self.scene_scale
+        if not (1.0 <= lo <= hi <= 4.0):
+            raise ValueError(f"scene_scale: expected 1 <= low <= high <= 4, got {list(self.scene_scale)}")
 
 
 @dataclass(frozen=True)

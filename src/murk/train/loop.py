@@ -124,8 +124,9 @@ def build_data(config: TrainConfig) -> DataSetup:
         n_val = max(1, round(d.val_fraction * count)) if d.val_fraction > 0 else 0
         online = OnlineDegrader(d.synthesis, seed=config.seed)
         cache = d.cache_scenes and d.workers == 0
-        train = SceneDataset(range(n_val, count), crop, seed=config.seed, cache=cache)
-        val = SceneDataset(range(n_val), crop, seed=config.seed, cache=cache) if n_val else None
+        scale = d.scene_scale
+        train = SceneDataset(range(n_val, count), crop, seed=config.seed, cache=cache, scale=scale)
+        val = SceneDataset(range(n_val), crop, seed=config.seed, cache=cache, scale=scale) if n_val else None
         return DataSetup(train, val, online, kind)
     raise ValueError(f"data.kind: expected auto, synth, list, rgbd or scenes, got {kind!r}")
 
@@ -185,8 +186,9 @@ def train(
     stop_after: int | None = None,
     on_log: Callable[[dict[str, Any]], None] | None = None,
 ) -> TrainSummary:
-    """Train Joint-ID as ``config`` says. Under ``torchrun`` (``WORLD_SIZE`` > 1) it runs DDP: gloo on CPU,
-    NCCL on CUDA, each process with ``config.batch`` samples per step.
+    """Train the network of ``config.model`` (Joint-ID, or ``lite``: see :mod:`murk.train.networks`) as
+    ``config`` says. Under ``torchrun`` (``WORLD_SIZE`` > 1) it runs DDP: gloo on CPU, NCCL on CUDA, each process
+    with ``config.batch`` samples per step.
 
     Args:
         config: the run.
@@ -194,15 +196,16 @@ def train(
         stop_after: stop after this many steps in this invocation (a time-boxed job; resume later).
         on_log: called with every log record (the CLI prints progress with it).
     """
-    from murk.models.jointid import (
-        build_jointid,
-        normalize_input,
-        read_checkpoint,
-        save_checkpoint,
-        unused_parameter_names,
+    from murk.train.networks import (
+        build_network,
+        frozen_parameter_names,
+        has_depth,
+        read_network_checkpoint,
+        run_network,
+        save_network,
     )
-    from murk.models.jointid.network import icnr_init_
 
+    kind = config.model.kind
     rank, world, local_rank = _dist_info()
     distributed = world > 1
     dev_name = config.device
@@ -242,13 +245,8 @@ def train(
     )
 
     torch.manual_seed(config.seed)
-    model = build_jointid(config.model.variant)
-    if config.model.init == "icnr":
-        icnr_init_(model)
-    if config.model.init_checkpoint:
-        state, _ = read_checkpoint(config.model.init_checkpoint, trust=config.model.trust_checkpoint)
-        model.load_state_dict(state, strict=True)
-    unused = set(unused_parameter_names(model))
+    model = build_network(config.model)
+    unused = set(frozen_parameter_names(kind, model))
     for name, p in model.named_parameters():
         if name in unused:
             p.requires_grad_(False)  # checkpoint-only parameters: never used in forward
@@ -268,17 +266,17 @@ def train(
     if resume:
         if not latest.is_file():
             raise ValueError(f"--resume: {latest} not found (nothing to resume)")
-        state, info = read_checkpoint(latest)
-        missing = [k for k in ("optimizer", "step") if k not in info.meta]
+        state, meta = read_network_checkpoint(kind, latest)
+        missing = [k for k in ("optimizer", "step") if k not in meta]
         if missing:
             raise ValueError(
                 f"--resume: {latest} has no {' and no '.join(missing)} (not a 'murk train' latest.pt: it holds "
                 "weights only); start a new run, or use it as model.init_checkpoint"
             )
         model.load_state_dict({k: v.to(device) for k, v in state.items()}, strict=True)
-        optim.load_state_dict(info.meta["optimizer"])
-        start = int(info.meta["step"])
-        best = dict(info.meta.get("best") or {})
+        optim.load_state_dict(meta["optimizer"])
+        start = int(meta["step"])
+        best = dict(meta.get("best") or {})
     net = model
     if distributed:
         net = torch.nn.parallel.DistributedDataParallel(
@@ -336,12 +334,12 @@ def train(
         lr = schedule.lr(step)
         for group in optim.param_groups:
             group["lr"] = lr
-        x = normalize_input(inputs)
-        if config.channels_last:
-            x = x.contiguous(memory_format=torch.channels_last)
+        x = inputs.contiguous(memory_format=torch.channels_last) if config.channels_last else inputs
         with autocast:
-            outp = net(x)
-        terms = jointid_loss(outp.enhanced.float(), targets, outp.depth_m.float(), depth, config.loss)
+            enhanced, depth_m = run_network(kind, net, x)
+        terms = jointid_loss(
+            enhanced.float(), targets, None if depth_m is None else depth_m.float(), depth, config.loss
+        )
         optim.zero_grad(set_to_none=True)
         terms.total.backward()
         if config.optim.grad_clip > 0:
@@ -356,19 +354,20 @@ def train(
             rate = imgs / max(now - t_last, 1e-9)
             t_last, imgs = now, 0
             summary.last_loss, summary.images_per_s = loss, rate
-            emit(
-                {
-                    "kind": "train",
-                    "step": step,
-                    "epoch": round(step / spe, 4),
-                    "lr": lr,
-                    "loss": loss,
-                    "l2": float(terms.l2),
-                    "lap": float(terms.lap),
-                    "silog": float(terms.silog),
-                    "images_per_s": rate,
-                }
-            )
+            record = {
+                "kind": "train",
+                "step": step,
+                "epoch": round(step / spe, 4),
+                "lr": lr,
+                "loss": loss,
+                "l2": float(terms.l2),
+                "lap": float(terms.lap),
+                "silog": float(terms.silog),
+                "images_per_s": rate,
+            }
+            if not has_depth(kind):
+                del record["silog"]
+            emit(record)
         if step % config.eval.every == 0 or step == end:
             metrics = evaluate(model, data, config, device, step) if main_rank else {}
             if metrics:
@@ -388,10 +387,11 @@ def train(
                 if better:
                     best = {"metric": key, "value": float(value), "step": step}
                     summary.best = best
-                    save_checkpoint(
-                        model, out / "best.pt", step=step, best=best, metrics=metrics, config=to_dict(config)
+                    save_network(
+                        kind, model, out / "best.pt", step=step, best=best, metrics=metrics, config=to_dict(config)
                     )
-                save_checkpoint(
+                save_network(
+                    kind,
                     model,
                     latest,
                     step=step,
@@ -438,8 +438,10 @@ def evaluate(
     """Loss, PSNR/SSIM (and the degraded input's PSNR) and depth errors on the held-out synthetic split (the
     same ``eval.val_batches`` batches every time, unaugmented); UIQM/UCIQE on real images."""
     from murk.metrics import depth_errors_torch, psnr_torch, ssim_torch, uciqe_torch, uiqm_torch
-    from murk.models.jointid import SIZE_MULTIPLE, normalize_input
     from murk.models.padding import pad_to_multiple
+    from murk.train.networks import run_network, size_multiple
+
+    kind = config.model.kind
 
     was_training = model.training
     model.eval()
@@ -457,14 +459,15 @@ def evaluate(
                 targets = batch["clean"]
             else:
                 inputs, targets = batch["input"], batch["target"]
-            o = model(normalize_input(inputs))
-            losses.append(
-                float(jointid_loss(o.enhanced.float(), targets, o.depth_m.float(), batch["depth"], config.loss).total)
-            )
+            enhanced, depth_m = run_network(kind, model, inputs)
+            enhanced = enhanced.float()
+            depth_m = None if depth_m is None else depth_m.float()
+            losses.append(float(jointid_loss(enhanced, targets, depth_m, batch["depth"], config.loss).total))
             in_ps.append(psnr_torch(inputs.float().clamp(0, 1), targets, data_range=1.0))
-            ps.append(psnr_torch(o.enhanced.float().clamp(0, 1), targets, data_range=1.0))
-            ss.append(ssim_torch(o.enhanced.float().clamp(0, 1), targets, data_range=1.0))
-            errs.append(depth_errors_torch(o.depth_m.float(), batch["depth"]))
+            ps.append(psnr_torch(enhanced.clamp(0, 1), targets, data_range=1.0))
+            ss.append(ssim_torch(enhanced.clamp(0, 1), targets, data_range=1.0))
+            if depth_m is not None:  # networks without a depth head: no depth errors
+                errs.append(depth_errors_torch(depth_m, batch["depth"]))
         if ps:
             out["val_loss"] = float(np.mean(losses))
             out["val_psnr"] = float(torch.cat(ps).clamp(max=100).mean())
@@ -472,7 +475,7 @@ def evaluate(
             out["val_ssim"] = float(torch.cat(ss).mean())
             for name in ("silog", "abs_rel", "rmse", "d1"):
                 vals = [getattr(e, name, None) for e in errs]
-                if all(v is not None for v in vals):
+                if vals and all(v is not None for v in vals):
                     out[f"val_{name}"] = float(torch.cat([v.reshape(-1) for v in vals]).nanmean())
     if config.eval.real:
         from murk.io.images import list_images, read_rgb
@@ -486,8 +489,8 @@ def evaluate(
             x = torch.from_numpy(img).permute(2, 0, 1)[None].to(device)
             if scale < 1.0:
                 x = F.interpolate(x, scale_factor=scale, mode="area")
-            xp, padding = pad_to_multiple(x, SIZE_MULTIPLE)
-            o = padding.crop(model(normalize_input(xp)).enhanced.float()).clamp(0, 1)
+            xp, padding = pad_to_multiple(x, size_multiple(kind))
+            o = padding.crop(run_network(kind, model, xp)[0].float()).clamp(0, 1)
             uiqms.append(uiqm_torch(o, data_range=1.0).uiqm)
             uciqes.append(uciqe_torch(o, data_range=1.0).uciqe)
         if uiqms:

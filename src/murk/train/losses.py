@@ -96,13 +96,23 @@ class LossTerms:
 
 
 def jointid_loss(
-    enhanced: Tensor, clean: Tensor, depth_m: Tensor, gt_depth_m: Tensor, weights: LossWeights = LossWeights()
+    enhanced: Tensor,
+    clean: Tensor,
+    depth_m: Tensor | None,
+    gt_depth_m: Tensor,
+    weights: LossWeights = LossWeights(),
 ) -> LossTerms:
-    """The full training loss: ``2.0 * (L2 + 0.1 Lap) + 1.8 SILog`` (+ ``ssim * (1 - SSIM)`` when enabled)."""
+    """The full training loss: ``2.0 * (L2 + 0.1 Lap) + 1.8 SILog`` (+ ``ssim * (1 - SSIM)`` when enabled).
+
+    ``depth_m`` None (a network without a depth head, e.g. ``lite``): the SILog term is left out (0)."""
     l2 = row_l2(enhanced, clean)
     lap = laplacian_l2(enhanced, clean)
-    si = silog(depth_m, gt_depth_m, lam=weights.silog_lambda, min_m=weights.depth_min_m)
-    total = weights.enhance * (l2 + weights.laplacian * lap) + weights.depth * si
+    total = weights.enhance * (l2 + weights.laplacian * lap)
+    if depth_m is None:
+        si = torch.zeros((), device=enhanced.device)
+    else:
+        si = silog(depth_m, gt_depth_m, lam=weights.silog_lambda, min_m=weights.depth_min_m)
+        total = total + weights.depth * si
     ssim_term = torch.zeros((), device=enhanced.device)
     if weights.ssim > 0:
         ssim_term = 1.0 - ssim_index(enhanced, clean)

@@ -17,8 +17,6 @@ Reference: Yang, Kang, Lee, Cho, IEEE Sensors Journal 2023, doi:10.1109/JSEN.202
 from __future__ import annotations
 
 import os
-import pickle
-import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,6 +28,9 @@ from torch import nn
 from murk._version import __version__
 from murk.errors import InputFileError
 from murk.io.atomic import atomic_path
+from murk.models.checkpoint_io import is_state_dict as _is_state_dict
+from murk.models.checkpoint_io import strip_prefixes
+from murk.models.checkpoint_io import torch_load as _torch_load_io
 from murk.models.jointid.network import VARIANTS, JointID, JointIDConfig, variant_name
 
 FORMAT = "murk.jointid"
@@ -121,86 +122,8 @@ def _check_meta(name: str, value: Any) -> None:
     )
 
 
-def _numpy_array_globals() -> list[Any]:
-    """The pickle globals a plain numeric numpy array needs, under the names numpy 1.x and 2.x write."""
-    import numpy as np
-
-    try:
-        from numpy._core.multiarray import _reconstruct
-    except ImportError:  # numpy < 2
-        from numpy.core.multiarray import _reconstruct  # type: ignore[no-redef]
-    numeric_dtype_classes = {type(np.dtype(code)) for code in "?bhilqBHILQefdgFDG"}  # no object/str/void
-    return [
-        (_reconstruct, "numpy.core.multiarray._reconstruct"),
-        (_reconstruct, "numpy._core.multiarray._reconstruct"),
-        np.ndarray,
-        np.dtype,
-        *sorted(numeric_dtype_classes, key=lambda c: c.__name__),
-    ]
-
-
-def _unsafe_globals(path: Path) -> list[str]:
-    """Pickle globals of a (zip-format) checkpoint outside torch's and our allow-list; [] when unknown."""
-    if not zipfile.is_zipfile(path):
-        return []
-    try:
-        found = torch.serialization.get_unsafe_globals_in_checkpoint(path)
-    except Exception:
-        return []
-    allowed = {name for item in _numpy_array_globals() for name in _global_names(item)}
-    return [g for g in found if g not in allowed]
-
-
-def _global_names(item: Any) -> list[str]:
-    obj, name = item if isinstance(item, tuple) else (item, None)
-    return [name or f"{obj.__module__}.{obj.__qualname__}"]
-
-
-def _first_line(exc: BaseException) -> str:
-    """A one-line reason: torch's weights-only errors bury it after 'WeightsUnpickler error:'."""
-    text = str(exc).split("WeightsUnpickler error:")[-1]
-    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
-    return f"{type(exc).__name__}: {lines[0] if lines else ''}"
-
-
-def _torch_load(path: Path, trust: bool) -> Any:
-    if not path.is_file():
-        raise InputFileError(path, "checkpoint not found" if not path.exists() else "not a file")
-    if trust:
-        try:
-            return torch.load(path, map_location="cpu", weights_only=False)
-        except Exception as exc:
-            raise InputFileError(path, f"not a readable PyTorch checkpoint ({_first_line(exc)})") from exc
-    try:
-        with torch.serialization.safe_globals(_numpy_array_globals()):
-            return torch.load(path, map_location="cpu", weights_only=True)
-    except pickle.UnpicklingError as exc:
-        unsafe = _unsafe_globals(path)
-        if not unsafe and "add_safe_globals" not in str(exc):  # not a refusal: a broken or foreign file
-            raise InputFileError(path, f"not a readable PyTorch checkpoint ({_first_line(exc)})") from exc
-        what = ", ".join(unsafe) or "objects other than tensors and plain data"
-        raise InputFileError(
-            path,
-            f"refusing to load it with weights_only=True: it pickles {what}, and unpickling arbitrary objects "
-            "can run code from the file. If you trust where it comes from, pass --trust-checkpoint "
-            "(trust=True in Python).",
-        ) from exc
-    except Exception as exc:
-        raise InputFileError(path, f"not a readable PyTorch checkpoint ({_first_line(exc)})") from exc
-
-
-def _is_state_dict(obj: Any) -> bool:
-    return isinstance(obj, Mapping) and bool(obj) and all(isinstance(v, torch.Tensor) for v in obj.values())
-
-
 def _strip(key: str) -> str:
-    changed = True
-    while changed:
-        changed = False
-        for p in _PREFIXES:
-            if key.startswith(p):
-                key, changed = key[len(p) :], True
-    return key
+    return strip_prefixes(key, _PREFIXES)
 
 
 def _expected_shapes(config: JointIDConfig) -> dict[str, tuple[int, ...]]:
@@ -250,7 +173,7 @@ def read_checkpoint(path: str | Path, *, trust: bool = False) -> tuple[dict[str,
             ``--trust-checkpoint``), or names/shapes that do not match the network.
     """
     path = Path(path)
-    obj = _torch_load(path, trust)
+    obj = _torch_load_io(path, trust=trust)
     if isinstance(obj, Mapping) and obj.get("format") == FORMAT:
         version = obj.get("format_version")
         if version != FORMAT_VERSION:

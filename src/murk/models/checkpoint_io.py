@@ -1,0 +1,163 @@
+"""Safe reading of PyTorch checkpoint files, shared by every network murk loads (Joint-ID, UDAformer,
+URSCT-SESR).
+
+Files are read with ``torch.load(weights_only=True)``: tensors and plain data only, plus exactly the numpy
+globals a plain numeric array needs (the official Joint-ID file pickles one). A file that pickles anything
+else (an optimiser object, a model class) is refused with a message that names ``--trust-checkpoint`` and
+why; ``trust=True`` loads it with ``weights_only=False`` (this runs code from the file: trusted files only).
+"""
+
+from __future__ import annotations
+
+import pickle
+import zipfile
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from murk.errors import InputFileError
+
+
+def numpy_array_globals() -> list[Any]:
+    """The pickle globals a plain numeric numpy array needs, under the names numpy 1.x and 2.x write."""
+    import numpy as np
+
+    try:
+        from numpy._core.multiarray import _reconstruct
+    except ImportError:  # numpy < 2
+        from numpy.core.multiarray import _reconstruct  # type: ignore[no-redef]
+    numeric_dtype_classes = {type(np.dtype(code)) for code in "?bhilqBHILQefdgFDG"}  # no object/str/void
+    return [
+        (_reconstruct, "numpy.core.multiarray._reconstruct"),
+        (_reconstruct, "numpy._core.multiarray._reconstruct"),
+        np.ndarray,
+        np.dtype,
+        *sorted(numeric_dtype_classes, key=lambda c: c.__name__),
+    ]
+
+
+def _global_names(item: Any) -> list[str]:
+    obj, name = item if isinstance(item, tuple) else (item, None)
+    return [name or f"{obj.__module__}.{obj.__qualname__}"]
+
+
+def unsafe_globals(path: Path) -> list[str]:
+    """Pickle globals of a (zip-format) checkpoint outside torch's and our allow-list; [] when unknown."""
+    if not zipfile.is_zipfile(path):
+        return []
+    try:
+        found = torch.serialization.get_unsafe_globals_in_checkpoint(path)
+    except Exception:
+        return []
+    allowed = {name for item in numpy_array_globals() for name in _global_names(item)}
+    return [g for g in found if g not in allowed]
+
+
+def first_line(exc: BaseException) -> str:
+    """A one-line reason: torch's weights-only errors bury it after 'WeightsUnpickler error:'."""
+    text = str(exc).split("WeightsUnpickler error:")[-1]
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+    return f"{type(exc).__name__}: {lines[0] if lines else ''}"
+
+
+def torch_load(path: str | Path, *, trust: bool = False, hint: str = "") -> Any:
+    """Read a checkpoint file onto the CPU, with ``weights_only=True`` unless ``trust``.
+
+    Args:
+        path: the file.
+        trust: load with ``weights_only=False`` (runs arbitrary pickled code: only for files you trust).
+        hint: appended to the refusal message (e.g. what the official file is known to pickle).
+
+    Raises:
+        InputFileError: missing or unreadable file, or a pickle that ``weights_only`` refuses (the message
+            names ``--trust-checkpoint`` and the objects found).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputFileError(path, "checkpoint not found" if not path.exists() else "not a file")
+    if trust:
+        try:
+            return torch.load(path, map_location="cpu", weights_only=False)
+        except Exception as exc:
+            raise InputFileError(path, f"not a readable PyTorch checkpoint ({first_line(exc)})") from exc
+    try:
+        with torch.serialization.safe_globals(numpy_array_globals()):
+            return torch.load(path, map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError as exc:
+        unsafe = unsafe_globals(path)
+        if not unsafe and "add_safe_globals" not in str(exc):  # not a refusal: a broken or foreign file
+            raise InputFileError(path, f"not a readable PyTorch checkpoint ({first_line(exc)})") from exc
+        what = ", ".join(unsafe) or "objects other than tensors and plain data"
+        raise InputFileError(
+            path,
+            f"refusing to load it with weights_only=True: it pickles {what}, and unpickling arbitrary objects "
+            "can run code from the file. If you trust where it comes from, pass --trust-checkpoint "
+            f"(trust=True in Python).{' ' + hint if hint else ''}",
+        ) from exc
+    except Exception as exc:
+        raise InputFileError(path, f"not a readable PyTorch checkpoint ({first_line(exc)})") from exc
+
+
+def is_state_dict(obj: Any) -> bool:
+    """A non-empty mapping whose values are all tensors."""
+    return isinstance(obj, Mapping) and bool(obj) and all(isinstance(v, torch.Tensor) for v in obj.values())
+
+
+def strip_prefixes(key: str, prefixes: Iterable[str]) -> str:
+    """``key`` without any of ``prefixes`` at its start (repeatedly: ``module._orig_mod.x`` -> ``x``)."""
+    prefixes = tuple(prefixes)
+    changed = True
+    while changed:
+        changed = False
+        for p in prefixes:
+            if key.startswith(p):
+                key, changed = key[len(p) :], True
+    return key
+
+
+def check_state_dict(
+    path: Path, state: Mapping[str, torch.Tensor], expected: Mapping[str, tuple[int, ...]], what: str
+) -> None:
+    """Raise unless ``state`` has exactly the names and shapes of ``expected`` (a strict load would pass).
+
+    Raises:
+        InputFileError: missing/unexpected keys or shape mismatches (counted, with examples), naming ``what``.
+    """
+    missing = [k for k in expected if k not in state]
+    unexpected = [k for k in state if k not in expected]
+    wrong = [k for k in expected if k in state and tuple(state[k].shape) != tuple(expected[k])]
+    if missing or unexpected or wrong:
+        parts = []
+        if missing:
+            parts.append(f"{len(missing)} missing keys (e.g. {', '.join(missing[:3])})")
+        if unexpected:
+            parts.append(f"{len(unexpected)} unexpected keys (e.g. {', '.join(unexpected[:3])})")
+        if wrong:
+            k = wrong[0]
+            parts.append(f"{len(wrong)} shape mismatches (e.g. {k}: {tuple(state[k].shape)} != {tuple(expected[k])})")
+        raise InputFileError(path, f"not a {what} checkpoint: " + "; ".join(parts))
+
+
+def extract_state_dict(
+    obj: Any, path: Path, containers: tuple[str, ...], what: str
+) -> tuple[dict[str, torch.Tensor], str]:
+    """The state dict inside a loaded checkpoint: ``obj[key]`` for the first of ``containers`` present, or
+    ``obj`` itself when it is a bare state dict. Returns (state dict, where it was found: a key or "state_dict").
+
+    Raises:
+        InputFileError: no state dict of tensors where expected.
+    """
+    if isinstance(obj, Mapping):
+        for key in containers:
+            if key in obj:
+                if not is_state_dict(obj[key]):
+                    raise InputFileError(path, f"the checkpoint's [{key!r}] is not a state dict of tensors")
+                return dict(obj[key]), key
+    if is_state_dict(obj):
+        return dict(obj), "state_dict"
+    keys = " or ".join(repr(k) for k in containers)
+    raise InputFileError(
+        path, f"not a {what} checkpoint (expected a dict with {keys} holding the weights, or a state dict)"
+    )

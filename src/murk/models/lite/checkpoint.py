@@ -1,0 +1,153 @@
+"""``lite`` checkpoint I/O: ``{"format": "murk.lite", "format_version": 1, "variant", "config", "state_dict",
+"meta", "murk_version"}``, written atomically, read with ``torch.load(weights_only=True)``.
+
+The state dict is always the TRAINING form (re-parameterisable blocks with their batch norms), so a checkpoint
+can be trained further; :func:`load_lite` folds it for inference (:func:`~murk.models.lite.network.reparameterize`).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import torch
+from torch import nn
+
+from murk._version import __version__
+from murk.errors import InputFileError
+from murk.io.atomic import atomic_path
+from murk.models.checkpoint_io import check_state_dict, is_state_dict, strip_prefixes, torch_load
+from murk.models.lite.network import LiteConfig, LiteNet, reparameterize, unwrap, variant_name
+
+FORMAT = "murk.lite"
+FORMAT_VERSION = 1
+_PREFIXES = ("module.", "_orig_mod.")
+
+
+@dataclass(frozen=True)
+class LiteCheckpointInfo:
+    """What :func:`read_lite_checkpoint` found: the network configuration and the metadata."""
+
+    config: LiteConfig
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def variant(self) -> str | None:
+        """``"base"``, ``"tiny"`` or None for a custom configuration."""
+        return variant_name(self.config)
+
+
+def save_lite_checkpoint(model: nn.Module, path: str | Path, **meta: Any) -> Path:
+    """Write ``model`` (training form: weights, configuration) and ``meta`` to ``path``, atomically.
+
+    Args:
+        model: a :class:`~murk.models.lite.network.LiteNet` in its training form, possibly wrapped (DDP,
+            ``torch.compile``).
+        path: output file; parent folders are created.
+        **meta: metadata (step, metrics, optimiser state, ...): numbers, strings, None, tensors and lists/dicts of
+            them, so that the file loads with ``weights_only=True``.
+
+    Raises:
+        TypeError: not a LiteNet, or a metadata value of another type.
+        ValueError: a folded network (it cannot be trained further; save the training form).
+    """
+    from murk.models.jointid.checkpoint import _check_meta
+
+    net = unwrap(model)
+    if net.folded:
+        raise ValueError("model: a folded (re-parameterised) lite network; save the training form instead")
+    for key, value in meta.items():
+        _check_meta(f"meta[{key!r}]", value)
+    obj = {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "murk_version": __version__,
+        "variant": variant_name(net.config),
+        "config": net.config.to_dict(),
+        "state_dict": {k: v.detach().cpu().contiguous() for k, v in net.state_dict().items()},
+        "meta": meta,
+    }
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:
+            torch.save(obj, f)
+            f.flush()
+            os.fsync(f.fileno())
+    return path
+
+
+def is_lite_checkpoint(path: str | Path) -> bool:
+    """True when ``path`` is a file in the ``murk.lite`` format (memory-mapped read: cheap for any size)."""
+    try:
+        obj = torch.load(Path(path), map_location="cpu", weights_only=True, mmap=True)
+    except Exception:
+        return False
+    return isinstance(obj, Mapping) and obj.get("format") == FORMAT
+
+
+def read_lite_checkpoint(
+    path: str | Path, *, trust: bool = False
+) -> tuple[dict[str, torch.Tensor], LiteCheckpointInfo]:
+    """Read a ``lite`` checkpoint: the training-form state dict and what the file says about it.
+
+    Raises:
+        InputFileError: missing or unreadable file, a pickle that ``weights_only`` refuses, not the
+            ``murk.lite`` format (e.g. a Joint-ID checkpoint: the message says to use ``--method jointid``), or
+            names/shapes that do not match the configuration.
+    """
+    path = Path(path)
+    obj = torch_load(path, trust=trust)
+    if not isinstance(obj, Mapping) or obj.get("format") != FORMAT:
+        found = obj.get("format") if isinstance(obj, Mapping) else None
+        raise InputFileError(
+            path,
+            f"not a murk lite checkpoint (format {found!r}, expected {FORMAT!r}); Joint-ID weights run with "
+            "--method jointid, lite weights come from 'murk train' with model.kind: lite",
+        )
+    version = obj.get("format_version")
+    if version != FORMAT_VERSION:
+        raise InputFileError(path, f"murk lite format_version {version!r} is not supported (expected {FORMAT_VERSION})")
+    try:
+        config = LiteConfig.from_dict(dict(obj["config"]))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputFileError(path, f"invalid lite network configuration in the checkpoint ({exc})") from exc
+    raw = obj.get("state_dict")
+    if not is_state_dict(raw):
+        raise InputFileError(path, "the checkpoint's weights are not a state dict of tensors")
+    state = {strip_prefixes(k, _PREFIXES): v for k, v in raw.items()}
+    with torch.device("meta"):
+        expected = {k: tuple(v.shape) for k, v in LiteNet(config).state_dict().items()}
+    check_state_dict(path, state, expected, f"lite ({variant_name(config) or 'custom'})")
+    return state, LiteCheckpointInfo(config, dict(obj.get("meta") or {}))
+
+
+def load_lite(
+    path: str | Path, *, trust: bool = False, device: str | torch.device = "cpu", fold: bool = True
+) -> LiteNet:
+    """The network a ``lite`` checkpoint describes, in eval mode: folded for inference (default) or in its
+    training form (``fold=False``).
+
+    Raises:
+        InputFileError: see :func:`read_lite_checkpoint`.
+    """
+    state, info = read_lite_checkpoint(path, trust=trust)
+    model = LiteNet(info.config)
+    model.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in state.items()}, strict=True)
+    model.eval()
+    if fold:
+        model = reparameterize(model)
+    return model.to(device)
+
+
+def slim_lite_checkpoint(src: str | Path, dst: str | Path, **meta: Any) -> Path:
+    """A weights-only copy of a ``lite`` checkpoint for distribution: the optimiser state and other training
+    metadata dropped, ``meta`` (plain data: provenance, metrics) recorded instead; weights stay float32 (the
+    whole network is under 0.5 MB). Loads with ``weights_only=True``.
+
+    Raises:
+        InputFileError: ``src`` cannot be read (see :func:`read_lite_checkpoint`).
+    """
+    return save_lite_checkpoint(load_lite(src, fold=False), dst, **meta)

@@ -1,0 +1,229 @@
+"""``lite``: a small convolutional restorer for real-time CPU inference (about 90 K parameters folded).
+
+The network predicts, at 1/4 of the input resolution, a per-pixel and per-channel gain and offset, upsamples
+them bilinearly to full resolution and applies them to the input: ``enhanced = gain * x + offset``. That is
+the form of the inverse of the image formation model, Eq. (1) of the paper: with transmission ``t_c`` and
+backscatter ``B_c``, ``J_c = I_c / t_c - B_c (1 - t_c) / t_c``, a gain and an offset per colour channel that
+vary smoothly with distance. Working at 1/4 resolution keeps the convolutions cheap; full-resolution detail
+is never resampled (it passes through the per-pixel affine map), so there is no sub-pixel grid to draw.
+
+Structure (``widths = (c1, c2, c3)`` channels at 1/4, 1/8, 1/16 resolution; ``blocks`` per scale):
+``avg_pool x4 -> stem -> c1 blocks -> down -> c2 blocks -> down -> c3 blocks -> + global context ->
+1x1, bilinear x2, + skip -> block -> 1x1, bilinear x2, + skip -> block -> 1x1 head (6 channels) -> bounded
+log-gain and offset -> bilinear x4 -> gain * x + offset``. Every block is a :class:`~murk.models.lite.blocks.RepConv`
+while training and one 3x3 convolution after :func:`reparameterize`.
+
+``forward`` takes RGB in [0, 1] (no normalisation), height and width multiples of :data:`SIZE_MULTIPLE`, and
+returns the enhanced image, not clamped (the restorer clamps; training sees the unclamped values). No depth.
+
+References:
+    Yun et al., "Robust Image Processing Techniques for Construction Environment Monitoring Using Underwater
+    Robots", Eq. (1) (the image formation model whose inverse the output layer has the form of).
+    M. Gharbi, J. Chen, J. T. Barron, S. W. Hasinoff, F. Durand, "Deep Bilateral Learning for Real-Time Image
+    Enhancement", ACM TOG 36(4), 2017, doi:10.1145/3072959.3073592 (low-resolution coefficients applied at full
+    resolution).
+    X. Ding et al., "RepVGG", CVPR 2021, doi:10.1109/CVPR46437.2021.01352 (re-parameterised blocks).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any, Literal
+
+import torch
+import torch.nn.functional as F
+from torch import Tensor, nn
+
+from murk.errors import ShapeError
+from murk.models.lite.blocks import RepConv, conv_block, fold_rep_conv
+
+LiteVariant = Literal["base", "tiny"]
+
+SIZE_MULTIPLE = 16
+"""Input height and width must be multiples of this (pooling x4, then two stride-2 blocks)."""
+POOL = 4
+"""The coefficients are computed at 1/POOL of the input resolution."""
+
+
+@dataclass(frozen=True)
+class LiteConfig:
+    """Widths and depths of a ``lite`` network. The defaults are the shipped ``base`` variant."""
+
+    widths: tuple[int, int, int] = (16, 32, 48)
+    """Channels at 1/4, 1/8 and 1/16 of the input resolution."""
+    blocks: tuple[int, int, int] = (1, 1, 2)
+    """Encoder blocks at each scale after the stem / the downsampling block."""
+    max_log_gain: float = 2.0
+    """The gain is ``exp(g)`` with ``|g| <= max_log_gain`` (soft bound by tanh): 0.14x to 7.4x."""
+    max_offset: float = 1.0
+    """The offset is soft-bounded to ``[-max_offset, max_offset]`` (tanh)."""
+
+    def __post_init__(self) -> None:
+        if len(self.widths) != 3 or any(int(w) < 1 for w in self.widths):
+            raise ValueError(f"widths: expected three positive channel counts, got {self.widths}")
+        if len(self.blocks) != 3 or any(int(b) < 0 for b in self.blocks):
+            raise ValueError(f"blocks: expected three block counts >= 0, got {self.blocks}")
+        if not self.max_log_gain > 0 or not self.max_offset > 0:
+            raise ValueError(f"max_log_gain, max_offset: expected > 0, got {self.max_log_gain}, {self.max_offset}")
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict (lists and numbers only), safe for ``torch.load(weights_only=True)`` and JSON."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> LiteConfig:
+        """Inverse of :meth:`to_dict`.
+
+        Raises:
+            ValueError: unknown keys or bad values.
+        """
+        unknown = set(d) - set(cls.__dataclass_fields__)
+        if unknown:
+            raise ValueError(f"config: unknown keys {sorted(unknown)}")
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+
+
+VARIANTS: dict[str, LiteConfig] = {
+    "base": LiteConfig(),
+    # For tests and quick experiments.
+    "tiny": LiteConfig(widths=(8, 8, 16), blocks=(0, 1, 1)),
+}
+
+
+def variant_name(config: LiteConfig) -> str | None:
+    """The registered variant equal to ``config``, or None."""
+    return next((name for name, cfg in VARIANTS.items() if cfg == config), None)
+
+
+def _up(x: Tensor, factor: int) -> Tensor:
+    return F.interpolate(x, scale_factor=factor, mode="bilinear", align_corners=False)
+
+
+class LiteNet(nn.Module):
+    """The ``lite`` restorer network (see the module docstring).
+
+    Args:
+        config: widths and depths (default: ``base``).
+        folded: build the inference form (plain convolutions) instead of the training form; normally made by
+            :func:`reparameterize` from a trained network.
+    """
+
+    def __init__(self, config: LiteConfig | None = None, *, folded: bool = False) -> None:
+        super().__init__()
+        cfg = config or LiteConfig()
+        self.config = cfg
+        self.folded = folded
+        c1, c2, c3 = (int(w) for w in cfg.widths)
+        n1, n2, n3 = (int(b) for b in cfg.blocks)
+
+        def block(cin: int, cout: int, stride: int = 1) -> nn.Module:
+            return conv_block(cin, cout, stride, folded=folded)
+
+        self.stem = block(3, c1)
+        self.enc1 = nn.Sequential(*[block(c1, c1) for _ in range(n1)])
+        self.down2 = block(c1, c2, 2)
+        self.enc2 = nn.Sequential(*[block(c2, c2) for _ in range(n2)])
+        self.down3 = block(c2, c3, 2)
+        self.enc3 = nn.Sequential(*[block(c3, c3) for _ in range(n3)])
+        self.context = nn.Sequential(nn.Conv2d(c3, c3, 1), nn.LeakyReLU(0.1), nn.Conv2d(c3, c3, 1))
+        self.proj2 = nn.Conv2d(c3, c2, 1)
+        self.dec2 = block(c2, c2)
+        self.proj1 = nn.Conv2d(c2, c1, 1)
+        self.dec1 = block(c1, c1)
+        self.head = nn.Conv2d(c1, 6, 1)
+        nn.init.zeros_(self.head.weight)  # starts as the identity: gain 1, offset 0
+        nn.init.zeros_(self.head.bias)
+
+    def coefficients(self, x: Tensor) -> Tensor:
+        """Gain (channels 0-2) and offset (3-5) at 1/4 resolution for an input (B, 3, H, W) in [0, 1]."""
+        f1 = self.enc1(self.stem(F.avg_pool2d(x, POOL)))
+        f2 = self.enc2(self.down2(f1))
+        f3 = self.enc3(self.down3(f2))
+        f3 = f3 + self.context(f3.mean(dim=(2, 3), keepdim=True))  # global context: the water's overall cast
+        u2 = self.dec2(_up(self.proj2(f3), 2) + f2)  # a 1x1 conv commutes with bilinear upsampling: done first
+        u1 = self.dec1(_up(self.proj1(u2), 2) + f1)
+        h = self.head(u1)
+        g, o = self.config.max_log_gain, self.config.max_offset
+        gain = torch.exp(g * torch.tanh(h[:, :3] / g))
+        offset = o * torch.tanh(h[:, 3:] / o)
+        return torch.cat([gain, offset], dim=1)
+
+    def forward(self, x: Tensor) -> Tensor:
+        """Enhance (B, 3, H, W) RGB in [0, 1] (H, W multiples of 16): ``gain * x + offset``, not clamped.
+
+        Raises:
+            ShapeError: not (B, 3, H, W) with H and W multiples of 16.
+        """
+        if x.ndim != 4 or x.shape[1] != 3 or x.shape[2] % SIZE_MULTIPLE or x.shape[3] % SIZE_MULTIPLE:
+            raise ShapeError(
+                f"x: expected (B, 3, H, W) with H and W multiples of {SIZE_MULTIPLE}, got {tuple(x.shape)}"
+            )
+        c = _up(self.coefficients(x), POOL)
+        return torch.addcmul(c[:, 3:], c[:, :3], x)  # Eq. (1) inverted: J = I / t - B (1 - t) / t, per channel
+
+
+def build_lite(variant: LiteVariant | str = "base", **overrides: Any) -> LiteNet:
+    """A randomly initialised ``lite`` network in its training form.
+
+    Args:
+        variant: ``"base"`` (shipped, about 90 K parameters folded) or ``"tiny"`` (tests).
+        **overrides: :class:`LiteConfig` fields to change.
+
+    Raises:
+        ValueError: unknown variant or bad overrides.
+    """
+    if variant not in VARIANTS:
+        raise ValueError(f"variant: expected one of {', '.join(VARIANTS)} for lite, got {variant!r}")
+    cfg = VARIANTS[variant]
+    if overrides:
+        cfg = LiteConfig.from_dict({**cfg.to_dict(), **overrides})
+    return LiteNet(cfg)
+
+
+def unwrap(model: nn.Module) -> LiteNet:
+    """The :class:`LiteNet` inside a DistributedDataParallel / ``torch.compile`` wrapper.
+
+    Raises:
+        TypeError: no LiteNet inside ``model``.
+    """
+    m = model
+    for _ in range(4):
+        if isinstance(m, LiteNet):
+            return m
+        m = getattr(m, "module", None) or getattr(m, "_orig_mod", None)
+        if m is None:
+            break
+    raise TypeError(f"model: expected a LiteNet (optionally wrapped by DDP or torch.compile), got {type(model)}")
+
+
+@torch.no_grad()
+def reparameterize(model: nn.Module) -> LiteNet:
+    """The inference form of a trained network: every :class:`RepConv` folded into one 3x3 convolution (see
+    :func:`~murk.models.lite.blocks.fold_rep_conv`); equal to ``model`` in eval mode to float rounding.
+
+    Returns a new network in eval mode on ``model``'s device and dtype; ``model`` is not changed. An already
+    folded network is returned as is.
+
+    Raises:
+        TypeError: ``model`` is not a LiteNet.
+    """
+    net = unwrap(model)
+    if net.folded:
+        return net.eval()
+    param = next(net.parameters())
+    folded = LiteNet(net.config, folded=True).to(device=param.device, dtype=param.dtype)
+    reps = {name: m for name, m in net.named_modules() if isinstance(m, RepConv)}
+    state = {}
+    for name, module in reps.items():
+        for k, v in fold_rep_conv(module).state_dict().items():
+            state[f"{name}.{k}"] = v
+    for k, v in net.state_dict().items():
+        if not any(k.startswith(f"{name}.") for name in reps):
+            state[k] = v
+    folded.load_state_dict(state, strict=True)
+    return folded.eval()
+
+
+def parameter_count(model: nn.Module) -> int:
+    """Number of parameters (the inference count when ``model`` is folded)."""
+    return sum(p.numel() for p in model.parameters())

@@ -1,0 +1,104 @@
+"""What the training loop needs from each network kind (``model.kind``): build it (with its initialisation and
+starting weights), run it on RGB in [0, 1], and read/write its checkpoints.
+
+- ``jointid``: :mod:`murk.models.jointid`; input normalised with the recipe's mean/std; enhanced + depth;
+  sizes multiples of 32.
+- ``lite``: :mod:`murk.models.lite`; RGB in [0, 1] as is; enhanced only (no depth: the SILog term and the
+  depth evaluation are skipped); sizes multiples of 16. Trained in its multi-branch form; checkpoints hold that
+  form and are folded when loaded for inference.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import torch
+from torch import Tensor, nn
+
+from murk.train.config import ModelConfig
+
+
+def has_depth(kind: str) -> bool:
+    """Whether networks of ``kind`` estimate depth."""
+    return kind == "jointid"
+
+
+def size_multiple(kind: str) -> int:
+    """Input height and width must be multiples of this."""
+    if kind == "lite":
+        from murk.models.lite.network import SIZE_MULTIPLE
+
+        return SIZE_MULTIPLE
+    from murk.models.jointid import SIZE_MULTIPLE as JOINTID_MULTIPLE
+
+    return JOINTID_MULTIPLE
+
+
+def build_network(config: ModelConfig) -> nn.Module:
+    """The randomly initialised network of ``config`` (call after seeding torch), with the weights of
+    ``config.init_checkpoint`` when given (strict)."""
+    if config.kind == "lite":
+        from murk.models.lite.network import build_lite
+
+        model: nn.Module = build_lite(config.variant)
+    else:
+        from murk.models.jointid import build_jointid
+        from murk.models.jointid.network import icnr_init_
+
+        model = build_jointid(config.variant)
+        if config.init == "icnr":
+            icnr_init_(model)
+    if config.init_checkpoint:
+        state, _ = read_network_checkpoint(config.kind, config.init_checkpoint, trust=config.trust_checkpoint)
+        model.load_state_dict(state, strict=True)
+    return model
+
+
+def frozen_parameter_names(kind: str, model: nn.Module) -> list[str]:
+    """Parameters never used in ``forward`` (kept for checkpoint compatibility; frozen for DDP)."""
+    if kind == "lite":
+        return []
+    from murk.models.jointid import unused_parameter_names
+
+    return list(unused_parameter_names(model))
+
+
+def run_network(kind: str, net: nn.Module, images: Tensor) -> tuple[Tensor, Tensor | None]:
+    """``(enhanced, depth_m or None)`` of ``net`` for a batch (B, 3, H, W) of RGB in [0, 1]."""
+    if kind == "lite":
+        return net(images), None
+    from murk.models.jointid import normalize_input
+
+    out = net(normalize_input(images))
+    return out.enhanced, out.depth_m
+
+
+def save_network(kind: str, model: nn.Module, path: str | Path, **meta: Any) -> Path:
+    """Write a checkpoint of ``model`` in the format of ``kind`` (atomically; loadable with weights_only)."""
+    if kind == "lite":
+        from murk.models.lite.checkpoint import save_lite_checkpoint
+
+        return save_lite_checkpoint(model, path, **meta)
+    from murk.models.jointid import save_checkpoint
+
+    return save_checkpoint(model, path, **meta)
+
+
+def read_network_checkpoint(
+    kind: str, path: str | Path, *, trust: bool = False
+) -> tuple[dict[str, torch.Tensor], dict[str, Any]]:
+    """The state dict (training form) and the metadata of a checkpoint of ``kind``.
+
+    Raises:
+        InputFileError: unreadable file, or a checkpoint of another kind or shape.
+    """
+    if kind == "lite":
+        from murk.models.lite.checkpoint import read_lite_checkpoint
+
+        state, info = read_lite_checkpoint(path, trust=trust)
+        return state, info.meta
+    from murk.models.jointid import read_checkpoint
+
+    state, jinfo = read_checkpoint(path, trust=trust)
+    return state, jinfo.meta

@@ -1,0 +1,105 @@
+"""The ``lite`` and ``lite+post`` restorers: any frame size, folded network, ONNX backend, shipped-weights
+fallback, and errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from murk.enhance.post import post_process
+from murk.enhance.restorer import Chain, available, create, weights_of
+from murk.models.lite.checkpoint import save_lite_checkpoint
+from murk.models.lite.network import build_lite
+
+
+@pytest.fixture(scope="module")
+def lite_ckpt(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    torch.manual_seed(0)
+    net = build_lite("tiny")
+    with torch.no_grad():
+        net.head.weight.normal_(std=0.3)  # not the identity
+        net.head.bias.normal_(std=0.1)
+    return save_lite_checkpoint(net, tmp_path_factory.mktemp("lite") / "lite.pt", step=0)
+
+
+def _images(n: int = 2, h: int = 37, w: int = 53) -> np.ndarray:
+    return np.random.default_rng(7).random((n, h, w, 3), dtype=np.float32)
+
+
+def test_lite_restores_any_size_without_depth(lite_ckpt: Path) -> None:
+    assert {"lite", "post"} <= set(available())
+    r = create("lite", checkpoint=str(lite_ckpt))
+    assert r.model is not None and r.model.folded  # re-parameterised for inference
+    assert weights_of(r) == str(lite_ckpt)
+    imgs = _images()
+    out = r.restore(imgs)
+    assert out.images.shape == imgs.shape and out.depth_m is None
+    assert out.images.dtype == np.float32 and 0.0 <= out.images.min() and out.images.max() <= 1.0
+    assert np.abs(out.images - imgs).mean() > 1e-3  # it changed the images
+    t = r.restore_tensor(torch.from_numpy(imgs).permute(0, 3, 1, 2))
+    assert np.array_equal(t.images.permute(0, 2, 3, 1).numpy(), out.images)
+    assert np.array_equal(r.restore(imgs).images, out.images)  # deterministic
+    per_frame = np.concatenate([create("lite", checkpoint=str(lite_ckpt), batch=1).restore(imgs).images])
+    np.testing.assert_allclose(per_frame, out.images, atol=1e-6)
+
+
+def test_lite_plus_post_is_post_after_lite(lite_ckpt: Path) -> None:
+    chain = create("lite+post", checkpoint=str(lite_ckpt), lam=0.3)
+    assert isinstance(chain, Chain) and [s.name for s in chain.stages] == ["lite", "post"]
+    imgs = _images(1, 48, 64)
+    lite = create("lite", checkpoint=str(lite_ckpt)).restore(imgs).images[0]
+    out = chain.restore(imgs)
+    assert out.depth_m is None
+    np.testing.assert_allclose(out.images[0], post_process(lite, lam=0.3), atol=1e-6)
+
+
+def test_onnx_backend_matches_torch(lite_ckpt: Path, tmp_path: Path) -> None:
+    pytest.importorskip("onnxruntime")
+    from murk.models.lite.checkpoint import load_lite
+    from murk.models.lite.onnx_export import export_lite_onnx
+
+    onnx_path = export_lite_onnx(load_lite(lite_ckpt), tmp_path / "lite.onnx")
+    imgs = _images()
+    ref = create("lite", checkpoint=str(lite_ckpt)).restore(imgs).images
+    via_onnx = create("lite", checkpoint=str(onnx_path), threads=1)
+    assert via_onnx.model is None and weights_of(via_onnx) == str(onnx_path)
+    np.testing.assert_allclose(via_onnx.restore(imgs).images, ref, atol=1e-4)
+    np.testing.assert_allclose(create("lite", onnx=str(onnx_path)).restore(imgs).images, ref, atol=1e-4)
+
+
+def test_without_checkpoint_uses_the_shipped_file_or_says_there_is_none(
+    lite_ckpt: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import murk.data
+
+    monkeypatch.setattr(murk.data, "shipped_lite_weights", lambda: tmp_path / "absent" / "lite.pt")
+    with pytest.raises(ValueError, match=r"no shipped lite weights.*--checkpoint"):
+        create("lite")
+    monkeypatch.setattr(murk.data, "shipped_lite_weights", lambda: lite_ckpt)
+    r = create("lite+post")
+    assert weights_of(r) == str(lite_ckpt)
+
+
+def test_errors(lite_ckpt: Path, tmp_path: Path) -> None:
+    from murk.errors import InputFileError
+    from murk.models.jointid import build_jointid, save_checkpoint
+
+    with pytest.raises(ValueError, match="fp32 only"):
+        create("lite", checkpoint=str(lite_ckpt), precision="bf16")
+    with pytest.raises(ValueError, match="not both"):
+        create("lite", checkpoint=str(lite_ckpt), onnx="x.onnx")
+    with pytest.raises(ValueError, match="batch"):
+        create("lite", checkpoint=str(lite_ckpt), batch=0)
+    jid = save_checkpoint(build_jointid("tiny"), tmp_path / "j.pt")
+    with pytest.raises(InputFileError, match="--method jointid"):
+        create("lite", checkpoint=str(jid))
+    r = create("lite", checkpoint=str(lite_ckpt))
+    with pytest.raises(TypeError, match="float tensor"):
+        r.restore_tensor(torch.zeros(1, 3, 8, 8, dtype=torch.uint8))
+    from murk.errors import ShapeError
+
+    with pytest.raises(ShapeError, match=r"\(B, 3, H, W\)"):
+        r.restore_tensor(torch.zeros(3, 8, 8))

@@ -1,0 +1,203 @@
+"""The lite network: folding equals the training form, the parameter budget, identity at initialisation,
+ONNX round trip, determinism, checkpoints, and errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import torch
+
+from murk.errors import InputFileError, ShapeError
+from murk.models import build_model
+from murk.models.lite.blocks import RepConv, fold_rep_conv
+from murk.models.lite.checkpoint import (
+    is_lite_checkpoint,
+    load_lite,
+    read_lite_checkpoint,
+    save_lite_checkpoint,
+    slim_lite_checkpoint,
+)
+from murk.models.lite.network import LiteConfig, LiteNet, build_lite, parameter_count, reparameterize
+
+MAX_INFERENCE_PARAMETERS = 100_000
+"""The issue's budget for the folded network."""
+
+
+def _trained_like(variant: str = "base", seed: int = 0) -> LiteNet:
+    """A network whose batch norms and head are far from their initial values (as after training), so that
+    folding is tested on every term: running statistics, affine BN parameters, identity branches, the head."""
+    torch.manual_seed(seed)
+    net = build_lite(variant)
+    g = torch.Generator().manual_seed(seed)
+    with torch.no_grad():
+        for m in net.modules():
+            if isinstance(m, torch.nn.BatchNorm2d):
+                m.running_mean.copy_(torch.rand(m.num_features, generator=g) - 0.5)
+                m.running_var.copy_(0.5 + 1.5 * torch.rand(m.num_features, generator=g))
+                m.weight.copy_(0.5 + torch.rand(m.num_features, generator=g))
+                m.bias.copy_(0.4 * torch.rand(m.num_features, generator=g) - 0.2)
+        net.head.weight.copy_(0.3 * torch.randn(net.head.weight.shape, generator=g))
+        net.head.bias.copy_(0.1 * torch.randn(net.head.bias.shape, generator=g))
+    return net.eval()
+
+
+@pytest.mark.parametrize("variant", ["base", "tiny"])
+@pytest.mark.parametrize("hw", [(64, 96), (48, 80), (16, 16)])
+def test_folded_equals_training_form_in_eval_mode(variant: str, hw: tuple[int, int]) -> None:
+    net = _trained_like(variant)
+    folded = reparameterize(net)
+    assert folded.folded and not net.folded
+    assert not any(isinstance(m, RepConv) for m in folded.modules())
+    x = torch.rand(2, 3, *hw, generator=torch.Generator().manual_seed(1))
+    with torch.no_grad():
+        ref, out = net(x), folded(x)
+    assert (ref - x).abs().max() > 1e-2  # not the identity: the comparison means something
+    assert (out - ref).abs().max().item() <= 1e-5
+
+
+def test_one_block_folds_exactly_with_and_without_identity() -> None:
+    g = torch.Generator().manual_seed(3)
+    for cin, cout, stride in ((8, 8, 1), (8, 16, 2), (3, 8, 1)):
+        block = RepConv(cin, cout, stride)
+        with torch.no_grad():
+            for bn in (block.bn3, block.bn1, block.bn_id):
+                if bn is not None:
+                    bn.running_mean.copy_(torch.randn(cout, generator=g))
+                    bn.running_var.copy_(torch.rand(cout, generator=g) + 0.1)
+                    bn.weight.copy_(torch.randn(cout, generator=g))
+        block.eval()
+        assert (block.bn_id is not None) == (cin == cout and stride == 1)
+        x = torch.randn(2, cin, 12, 20, generator=g)
+        with torch.no_grad():
+            assert (fold_rep_conv(block)(x) - block(x)).abs().max().item() <= 1e-5
+
+
+def test_parameter_budget() -> None:
+    net = build_lite("base")
+    folded = reparameterize(net.eval())
+    assert parameter_count(folded) <= MAX_INFERENCE_PARAMETERS
+    assert parameter_count(folded) == 90_566  # pinned: the shipped architecture (docs/models.md)
+    assert parameter_count(net) > parameter_count(folded)  # the training form carries the extra branches
+
+
+def test_a_fresh_network_is_the_identity() -> None:
+    """The head starts at zero: gain 1 and offset 0 everywhere, so training starts from the input."""
+    net = build_lite("base").eval()
+    x = torch.rand(1, 3, 32, 48)
+    with torch.no_grad():
+        assert torch.allclose(net(x), x, atol=1e-6)
+
+
+def test_output_is_deterministic() -> None:
+    a, b = _trained_like("base", seed=5), _trained_like("base", seed=5)
+    x = torch.rand(1, 3, 48, 64, generator=torch.Generator().manual_seed(2))
+    with torch.no_grad():
+        ya, yb = reparameterize(a)(x), reparameterize(b)(x)
+        again = reparameterize(a)(x)
+    assert torch.equal(ya, yb) and torch.equal(ya, again)
+
+
+def test_every_parameter_gets_a_gradient() -> None:
+    torch.manual_seed(0)
+    net = build_lite("tiny").train()
+    with torch.no_grad():
+        net.head.weight.normal_(std=0.1)  # a zero head blocks the gradient to everything before it
+    x = torch.rand(2, 3, 32, 32)
+    (net(x) - x.flip(-1)).square().mean().backward()
+    missing = [n for n, p in net.named_parameters() if p.grad is None or not torch.isfinite(p.grad).all()]
+    assert not missing
+    assert all(p.grad.abs().sum() > 0 for p in net.parameters())
+
+
+def test_output_bounds_follow_the_config() -> None:
+    """Gain in [exp(-g), exp(g)], offset in [-o, o], however extreme the head."""
+    net = build_lite("tiny").eval()
+    with torch.no_grad():
+        net.head.bias.copy_(torch.tensor([100.0, -100.0, 0.0, 100.0, -100.0, 0.0]))
+        c = net.coefficients(torch.rand(1, 3, 32, 32))
+    g, o = net.config.max_log_gain, net.config.max_offset
+    assert torch.allclose(c[:, 0], torch.full_like(c[:, 0], float(torch.exp(torch.tensor(g)))), rtol=1e-4)
+    assert torch.allclose(c[:, 1], torch.full_like(c[:, 1], float(torch.exp(torch.tensor(-g)))), rtol=1e-4)
+    assert torch.allclose(c[:, 3], torch.full_like(c[:, 3], o))
+    assert torch.allclose(c[:, 4], torch.full_like(c[:, 4], -o))
+
+
+def test_errors() -> None:
+    net = build_lite("tiny")
+    with pytest.raises(ShapeError, match="multiples of 16"):
+        net(torch.rand(1, 3, 30, 32))
+    with pytest.raises(ShapeError, match=r"\(B, 3, H, W\)"):
+        net(torch.rand(1, 4, 32, 32))
+    with pytest.raises(ValueError, match="variant: expected one of base, tiny"):
+        build_lite("small")
+    with pytest.raises(ValueError, match="widths"):
+        LiteConfig(widths=(8, 0, 16))
+    with pytest.raises(ValueError, match="unknown keys"):
+        LiteConfig.from_dict({"depth": 3})
+    with pytest.raises(TypeError, match="expected a LiteNet"):
+        reparameterize(torch.nn.Conv2d(3, 3, 1))
+    assert isinstance(build_model("lite", variant="tiny"), LiteNet)
+
+
+# --------------------------------------------------------------------------------------------- checkpoints
+
+
+def test_checkpoint_round_trip_loads_weights_only(tmp_path: Path) -> None:
+    net = _trained_like("tiny")
+    path = save_lite_checkpoint(net, tmp_path / "lite.pt", step=3, metrics={"val_psnr": 20.5})
+    obj = torch.load(path, weights_only=True)
+    assert obj["format"] == "murk.lite" and obj["variant"] == "tiny"
+    state, info = read_lite_checkpoint(path)
+    assert info.variant == "tiny" and info.meta["step"] == 3
+    assert all(torch.equal(state[k], v) for k, v in net.state_dict().items())
+    folded, training = load_lite(path), load_lite(path, fold=False)
+    assert folded.folded and not training.folded and not training.training
+    x = torch.rand(1, 3, 32, 48)
+    with torch.no_grad():
+        assert (folded(x) - net(x)).abs().max() <= 1e-5 and torch.equal(training(x), net(x))
+    assert is_lite_checkpoint(path)
+    slim = slim_lite_checkpoint(path, tmp_path / "slim.pt", source="test")
+    assert read_lite_checkpoint(slim)[1].meta == {"source": "test"}
+
+
+def test_checkpoint_errors(tmp_path: Path) -> None:
+    from murk.models.jointid import build_jointid, save_checkpoint
+
+    with pytest.raises(ValueError, match="folded"):
+        save_lite_checkpoint(reparameterize(build_lite("tiny").eval()), tmp_path / "f.pt")
+    jid = save_checkpoint(build_jointid("tiny"), tmp_path / "jointid.pt")
+    assert not is_lite_checkpoint(jid) and not is_lite_checkpoint(tmp_path / "missing.pt")
+    with pytest.raises(InputFileError, match="--method jointid"):
+        read_lite_checkpoint(jid)
+    with pytest.raises(InputFileError, match="not found"):
+        load_lite(tmp_path / "missing.pt")
+    bad = save_lite_checkpoint(build_lite("tiny"), tmp_path / "bad.pt")
+    obj = torch.load(bad, weights_only=True)
+    obj["config"]["widths"] = [8, 8, 32]
+    torch.save(obj, bad)
+    with pytest.raises(InputFileError, match="shape mismatches"):
+        read_lite_checkpoint(bad)
+
+
+# ---------------------------------------------------------------------------------------------------- ONNX
+
+
+def test_onnx_round_trip(tmp_path: Path) -> None:
+    pytest.importorskip("onnxruntime")
+    onnx = pytest.importorskip("onnx")
+    from murk.models.lite.onnx_export import OnnxLite, export_lite_onnx
+
+    net = _trained_like("base")
+    path = export_lite_onnx(net, tmp_path / "lite.onnx")
+    ops = {n.op_type for n in onnx.load(str(path)).graph.node}
+    assert not ops & {"DepthToSpace", "SpaceToDepth", "ConvTranspose"}  # no sub-pixel grids
+    assert "BatchNormalization" not in ops  # exported folded
+    runner = OnnxLite(path, threads=1)
+    folded = reparameterize(net)
+    for hw in ((64, 96), (48, 80), (96, 32)):  # dynamic height and width (multiples of 16)
+        x = torch.rand(2, 3, *hw, generator=torch.Generator().manual_seed(hw[0]))
+        with torch.no_grad():
+            assert (runner(x) - folded(x)).abs().max().item() <= 1e-4
+    with pytest.raises(ValueError, match="multiples of 16"):
+        export_lite_onnx(net, tmp_path / "x.onnx", sample_size=(40, 64))
