@@ -296,3 +296,22 @@ def test_eval_and_compare_agree_on_the_same_file(folder: Path, tmp_path: Path) -
     for row in cmp.rows:
         assert row["uiqm"] == pytest.approx(ev[row["image"]]["uiqm"], abs=1e-6)
         assert row["uciqe"] == pytest.approx(ev[row["image"]]["uciqe"], abs=1e-6)
+
+
+def test_depth_stem_shared_by_two_files_is_reported_not_guessed(tmp_path: Path, rng: np.random.Generator) -> None:
+    """pred/a.png + pred/a.npy (or the same in --depth-ref): which one is meant is unknown -> recorded error."""
+    for stem in ("a", "b"):
+        gt = rng.uniform(0.5, 12.0, (24, 32))
+        _write_depth_mm(tmp_path / "gt" / f"{stem}.png", gt)
+        _write_depth_mm(tmp_path / "pred" / f"{stem}.png", gt)
+    np.save(tmp_path / "pred" / "a.npy", np.ones((24, 32), np.float32))
+    np.save(tmp_path / "gt" / "b.npy", np.ones((24, 32), np.float32))
+    res = _run(
+        "--depth", str(tmp_path / "pred"), "--depth-ref", str(tmp_path / "gt"), "--json", str(tmp_path / "r.json")
+    )
+    assert res.exit_code == 1
+    err = _err(res)
+    assert "ambiguous stem 'a'" in err and "a.npy" in err and "a.png" in err
+    assert "ambiguous stem 'b'" in err and "b.npy" in err
+    assert "Traceback" not in res.output
+    assert json.loads((tmp_path / "r.json").read_text())["depth"] == []

@@ -235,22 +235,33 @@ def _read_same_size(path: Path, other: Path, shape: tuple[int, ...], what: str) 
     return rgb
 
 
-def _depth_files(path: Path, recursive: bool) -> dict[str, Path]:
+def _depth_files(path: Path, recursive: bool) -> dict[str, list[Path]]:
+    """Depth files by stem; a stem with several files (``x.npy`` and ``x.png``) keeps them all, so that the
+    caller reports it as ambiguous instead of silently scoring one of them."""
     from murk.errors import InputFileError
     from murk.io.listing import walk_files
     from murk.io.pairs import DEPTH_SUFFIXES
 
     if path.is_file():
-        return {path.stem: path}
+        return {path.stem: [path]}
     if not path.is_dir():
         raise InputFileError(path, "no such file or folder")
-    out: dict[str, Path] = {}
+    out: dict[str, list[Path]] = {}
     for f in walk_files(path, recursive=recursive):
         if f.suffix.lower() in DEPTH_SUFFIXES and not f.name.startswith("."):
-            out.setdefault(f.stem, f)
+            out.setdefault(f.stem, []).append(f)
     if not out:
         raise InputFileError(path, "no depth files in this folder")
     return out
+
+
+def _one(stem: str, files: list[Path]) -> Path:
+    from murk.errors import InputFileError
+
+    if len(files) > 1:
+        names = ", ".join(str(f) for f in sorted(files))
+        raise InputFileError(files[0], f"ambiguous stem {stem!r}: {names} share it; rename or remove all but one")
+    return files[0]
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -323,12 +334,14 @@ def _score_depth(pred: Path, gt: Path, depth_scale: float, recursive: bool, out:
         raise ValueError("--depth and --depth-ref: give two files or two folders")
     preds = _depth_files(pred, recursive)
     gts = _depth_files(gt, recursive)
-    pairs = [(stem, p) for stem, p in preds.items()] if pred.is_dir() else [(next(iter(gts)), pred)]
-    for stem, p in pairs:
+    pairs = [(stem, ps) for stem, ps in preds.items()] if pred.is_dir() else [(next(iter(gts)), [pred])]
+    for stem, ps in pairs:
+        p = ps[0]
         try:
-            g = gts.get(stem)
-            if g is None:
+            p = _one(stem, ps)
+            if stem not in gts:
                 raise InputFileError(p, f"no ground-truth depth with stem {stem!r} in --depth-ref")
+            g = _one(stem, gts[stem])
             errs = depth_errors(read_depth(p, depth_scale=depth_scale), read_depth(g, depth_scale=depth_scale))
             out.depth.append({"file": str(p), "ref": str(g), **errs.as_dict()})
         except (ValueError, OSError) as exc:
