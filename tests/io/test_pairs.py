@@ -58,6 +58,8 @@ def test_read_list(small_rgbd: Path) -> None:
     sources = read_list(lst)
     assert [s.stem for s in sources] == ["a", "b"]
     assert Path(sources[0].depth_path).is_file()
+    lst.write_text("rgb/a.png depth/a.png\nx/a.png d/a.png\nrgb/a_1.png depth/a_1.png\ny/a.png d/a.png\n")
+    assert [s.stem for s in read_list(lst)] == ["a", "a_1", "a_1_1", "a_2"]  # every output name distinct
     lst.write_text("rgb/a.png\n")
     with pytest.raises(InputFileError, match=r"pairs\.txt: line 1: expected 'rgb_path depth_path'"):
         read_list(lst)

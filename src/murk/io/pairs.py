@@ -102,6 +102,7 @@ def read_list(list_file: str | Path) -> list[RGBDSource]:
         raise InputFileError(list_file, "list file not found")
     sources: list[RGBDSource] = []
     seen: dict[str, int] = {}
+    used: set[str] = set()
     for n, line in enumerate(list_file.read_text(encoding="utf-8").splitlines(), start=1):
         line = line.split("#", 1)[0].strip()
         if not line:
@@ -110,12 +111,11 @@ def read_list(list_file: str | Path) -> list[RGBDSource]:
         if len(fields) != 2:
             raise InputFileError(list_file, f"line {n}: expected 'rgb_path depth_path', got {len(fields)} fields")
         rgb, depth = (Path(f) if Path(f).is_absolute() else list_file.parent / f for f in fields)
-        stem = rgb.stem
-        if stem in seen:
-            seen[stem] += 1
-            stem = f"{stem}_{seen[stem]}"
-        else:
-            seen[stem] = 0
+        stem = base = rgb.stem
+        while stem in used:  # x, x, x_1 -> x, x_1, x_1_1: every output name distinct
+            seen[base] = seen.get(base, 0) + 1
+            stem = f"{base}_{seen[base]}"
+        used.add(stem)
         sources.append(RGBDSource(stem, str(rgb), str(depth)))
     if not sources:
         raise InputFileError(list_file, "no pairs listed")
