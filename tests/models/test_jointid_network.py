@@ -312,3 +312,17 @@ def test_shuffle_smoothing_keeps_the_state_dict_and_flattens_a_flat_input() -> N
     ea = artefact_energy(a.permute(1, 2, 0).numpy().astype(np.float32)).periodic
     eb = artefact_energy(b.permute(1, 2, 0).numpy().astype(np.float32)).periodic
     assert ea > 10 * eb, (ea, eb)
+
+
+@pytest.mark.parametrize("r", [2, 4, 8])
+def test_smooth_shuffled_equals_the_separable_triangle_convolution(r: int) -> None:
+    import torch.nn.functional as F
+
+    from murk.models.jointid.decoder import smooth_shuffled, triangle_kernel
+
+    x = torch.randn(2, 3, 5 * r, 7 * r, generator=torch.Generator().manual_seed(r))
+    k = triangle_kernel(r)
+    ref = F.pad(x, (r - 1, r - 1, r - 1, r - 1), mode="replicate")
+    ref = F.conv2d(ref, k.view(1, 1, 1, -1).expand(3, 1, 1, -1), groups=3)
+    ref = F.conv2d(ref, k.view(1, 1, -1, 1).expand(3, 1, -1, 1), groups=3)
+    torch.testing.assert_close(smooth_shuffled(x, r), ref, rtol=0, atol=1e-6)

@@ -1,0 +1,40 @@
+"""The lite weights shipped in the package: loadable safely, small, folded for inference, and a real restorer."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from murk.data import sample_underwater_images, shipped_lite_weights
+from murk.enhance.restorer import create
+from murk.io import read_rgb
+from murk.metrics import restoration_measures
+
+
+def test_shipped_lite_file_is_small_safe_and_documented() -> None:
+    path = shipped_lite_weights()
+    assert path.is_file() and path.stat().st_size <= 1 * 2**20
+    obj = torch.load(path, weights_only=True)
+    assert obj["meta"]["command"].startswith("murk train --config configs/train-lite-cpu.yaml")
+    assert obj["meta"]["steps"] == 7000
+
+
+def test_shipped_lite_restores_heldout_scenes_and_keeps_real_images_sane() -> None:
+    from murk._config import merge
+    from murk.report.heldout import make_heldout, score_heldout
+    from murk.synth.config import SnowConfig, SynthConfig
+
+    torch.set_num_threads(2)
+    restorer = create("lite")
+    synthesis = merge(
+        SynthConfig(medium=SynthConfig().medium, marine_snow=SnowConfig(reference_area_px=307200)),
+        {"medium": {"vertical_depth_m": [2.0, 10.0]}},
+    )
+    data = make_heldout(6, seed=4242, size_hw=(96, 128), synthesis=synthesis)
+    scores = score_heldout(data, {"lite": restorer})
+    assert scores["lite"]["psnr"] > scores["input"]["psnr"] + 1.0, scores
+    img = read_rgb(sample_underwater_images()[0])
+    out = np.clip(restorer.restore(img[None]).images[0], 0, 1)
+    m = restoration_measures(img, out)
+    assert m["contrast_ratio"] > 0.5 and m["luminance_ratio"] > 0.9, m
+    assert m["artefact_periodic_ratio"] < 2.0, m
