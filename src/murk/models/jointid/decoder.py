@@ -91,9 +91,10 @@ def smooth_shuffled(x: Tensor, r: int) -> Tensor:
     """Separable :func:`triangle_kernel` filter of a map pixel-shuffled by ``r`` (replicate-padded so the size is
     kept). Identity for ``r == 1``. Reference: the zero-order-hold condition for sub-pixel convolutions without
     checkerboard artefacts (Sugawara, Shiota, Kiya, ICIP 2018), here with the hold kernel applied twice
-    (triangle) so that it is symmetric. Computed as box averages of ``r`` taps, twice along each axis (the triangle is the box convolved
-    with itself): on CPUs a depthwise convolution with the triangle is up to 15x slower (162 ms against 11 ms on
-    a 2-channel 640x480 map, 2 threads); the two are equal within float rounding (tested)."""
+    (triangle) so that it is symmetric. Computed as box averages of ``r`` taps, twice along each axis (the
+    triangle is the box convolved with itself): on CPUs a depthwise convolution with the triangle is up to 15x
+    slower (162 ms against 11 ms on a 2-channel 640x480 map, 2 threads); both agree within float rounding
+    (tested)."""
     if r == 1:
         return x
     x = F.pad(x, (r - 1, r - 1, r - 1, r - 1), mode="replicate")
