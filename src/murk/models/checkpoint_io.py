@@ -161,3 +161,42 @@ def extract_state_dict(
     raise InputFileError(
         path, f"not a {what} checkpoint (expected a dict with {keys} holding the weights, or a state dict)"
     )
+
+
+def check_meta(name: str, value: Any) -> None:
+    """Raise TypeError unless ``value`` is plain data that ``torch.load(weights_only=True)`` accepts (numbers,
+    strings, None, tensors, lists/dicts of them), naming the offending entry."""
+    if value is None or isinstance(value, (bool, int, float, str, torch.Tensor)):
+        return
+    if isinstance(value, (list, tuple)):
+        for i, v in enumerate(value):
+            check_meta(f"{name}[{i}]", v)
+        return
+    if isinstance(value, dict):
+        for k, v in value.items():
+            if not isinstance(k, (str, int)):
+                raise TypeError(f"{name}: expected str or int keys, got {type(k).__name__}")
+            check_meta(f"{name}[{k!r}]", v)
+        return
+    raise TypeError(
+        f"{name}: expected numbers, strings, None, tensors or lists/dicts of them (weights_only-safe), "
+        f"got {type(value).__name__}"
+    )
+
+
+def write_checkpoint(path: str | Path, obj: dict[str, Any]) -> Path:
+    """Write a checkpoint dict atomically (fsynced; a crash leaves no partial file under ``path``) after checking
+    that its ``meta`` is weights_only-safe (:func:`check_meta`). Used by every murk checkpoint writer."""
+    import os
+
+    from murk.io.atomic import atomic_path
+
+    for key, value in obj.get("meta", {}).items():
+        check_meta(f"meta[{key!r}]", value)
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:
+            torch.save(obj, f)
+            f.flush()
+            os.fsync(f.fileno())
+    return path

@@ -16,7 +16,6 @@ Reference: Yang, Kang, Lee, Cho, IEEE Sensors Journal 2023, doi:10.1109/JSEN.202
 
 from __future__ import annotations
 
-import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,9 +26,8 @@ from torch import nn
 
 from murk._version import __version__
 from murk.errors import InputFileError
-from murk.io.atomic import atomic_path
 from murk.models.checkpoint_io import is_state_dict as _is_state_dict
-from murk.models.checkpoint_io import strip_prefixes
+from murk.models.checkpoint_io import strip_prefixes, write_checkpoint
 from murk.models.checkpoint_io import torch_load as _torch_load_io
 from murk.models.jointid.network import VARIANTS, JointID, JointIDConfig, variant_name
 
@@ -83,42 +81,17 @@ def save_checkpoint(model: nn.Module, path: str | Path, **meta: Any) -> Path:
         TypeError: ``model`` is not a JointID, or a metadata value has another type.
     """
     net = unwrap(model)
-    for key, value in meta.items():
-        _check_meta(f"meta[{key!r}]", value)
-    obj = {
-        "format": FORMAT,
-        "format_version": FORMAT_VERSION,
-        "murk_version": __version__,
-        "variant": variant_name(net.config),
-        "config": net.config.to_dict(),
-        "state_dict": {k: v.detach().cpu().contiguous() for k, v in net.state_dict().items()},
-        "meta": meta,
-    }
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as f:
-            torch.save(obj, f)
-            f.flush()
-            os.fsync(f.fileno())
-    return path
-
-
-def _check_meta(name: str, value: Any) -> None:
-    if value is None or isinstance(value, (bool, int, float, str, torch.Tensor)):
-        return
-    if isinstance(value, (list, tuple)):
-        for i, v in enumerate(value):
-            _check_meta(f"{name}[{i}]", v)
-        return
-    if isinstance(value, dict):
-        for k, v in value.items():
-            if not isinstance(k, (str, int)):
-                raise TypeError(f"{name}: expected str or int keys, got {type(k).__name__}")
-            _check_meta(f"{name}[{k!r}]", v)
-        return
-    raise TypeError(
-        f"{name}: expected numbers, strings, None, tensors or lists/dicts of them (weights_only-safe), "
-        f"got {type(value).__name__}"
+    return write_checkpoint(
+        path,
+        {
+            "format": FORMAT,
+            "format_version": FORMAT_VERSION,
+            "murk_version": __version__,
+            "variant": variant_name(net.config),
+            "config": net.config.to_dict(),
+            "state_dict": {k: v.detach().cpu().contiguous() for k, v in net.state_dict().items()},
+            "meta": meta,
+        },
     )
 
 

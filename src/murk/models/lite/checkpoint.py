@@ -7,7 +7,6 @@ can be trained further; :func:`load_lite` folds it for inference (:func:`~murk.m
 
 from __future__ import annotations
 
-import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,8 +17,7 @@ from torch import nn
 
 from murk._version import __version__
 from murk.errors import InputFileError
-from murk.io.atomic import atomic_path
-from murk.models.checkpoint_io import check_state_dict, is_state_dict, strip_prefixes, torch_load
+from murk.models.checkpoint_io import check_state_dict, is_state_dict, strip_prefixes, torch_load, write_checkpoint
 from murk.models.lite.network import LiteConfig, LiteNet, reparameterize, unwrap, variant_name
 
 FORMAT = "murk.lite"
@@ -54,29 +52,21 @@ def save_lite_checkpoint(model: nn.Module, path: str | Path, **meta: Any) -> Pat
         TypeError: not a LiteNet, or a metadata value of another type.
         ValueError: a folded network (it cannot be trained further; save the training form).
     """
-    from murk.models.jointid.checkpoint import _check_meta
-
     net = unwrap(model)
     if net.folded:
         raise ValueError("model: a folded (re-parameterised) lite network; save the training form instead")
-    for key, value in meta.items():
-        _check_meta(f"meta[{key!r}]", value)
-    obj = {
-        "format": FORMAT,
-        "format_version": FORMAT_VERSION,
-        "murk_version": __version__,
-        "variant": variant_name(net.config),
-        "config": net.config.to_dict(),
-        "state_dict": {k: v.detach().cpu().contiguous() for k, v in net.state_dict().items()},
-        "meta": meta,
-    }
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as f:
-            torch.save(obj, f)
-            f.flush()
-            os.fsync(f.fileno())
-    return path
+    return write_checkpoint(
+        path,
+        {
+            "format": FORMAT,
+            "format_version": FORMAT_VERSION,
+            "murk_version": __version__,
+            "variant": variant_name(net.config),
+            "config": net.config.to_dict(),
+            "state_dict": {k: v.detach().cpu().contiguous() for k, v in net.state_dict().items()},
+            "meta": meta,
+        },
+    )
 
 
 def is_lite_checkpoint(path: str | Path) -> bool:
