@@ -120,7 +120,7 @@ def laplacian_of_gaussian(image: np.ndarray, sigma_px: float = SIGMA_PX) -> np.n
     src = np.ascontiguousarray(image, dtype=np.float32)
     a = cv2.sepFilter2D(src, cv2.CV_32F, g2, g, borderType=cv2.BORDER_REFLECT_101)  # d2/dx2
     b = cv2.sepFilter2D(src, cv2.CV_32F, g, g2, borderType=cv2.BORDER_REFLECT_101)  # d2/dy2
-    return (a + b).reshape(image.shape)
+    return cv2.add(a, b, dst=a).reshape(image.shape)
 
 
 def laplacian_of_gaussian_torch(images: torch.Tensor, sigma_px: float = SIGMA_PX) -> torch.Tensor:
@@ -199,13 +199,18 @@ def equalize(
         tiles = _tiles(clahe_tiles)
         clahe = cv2.createCLAHE(clipLimit=check_positive("clahe_clip", clahe_clip), tileGridSize=tiles)
         y_he = clahe.apply(_quantise(y).astype(np.uint8)).astype(np.float32) * _INV255
-    out = x + (y_he - y)[:, :, None]
+    y_he -= y  # the luma shift, added to every channel (chroma kept)
+    out = cv2.add(x, cv2.merge((y_he, y_he, y_he)))  # the same float32 sum as a broadcast add, 3x faster
     return np.clip(out, 0.0, 1.0, out=out)
 
 
 def _luma(x: np.ndarray) -> np.ndarray:
-    r, g, b = x[:, :, 0], x[:, :, 1], x[:, :, 2]
-    return np.float32(_LUMA[0]) * r + np.float32(_LUMA[1]) * g + np.float32(_LUMA[2]) * b
+    """BT.601 luma ``(0.299 R + 0.587 G) + 0.114 B`` in float32, in that order (the torch twin's order)."""
+    r, g, b = cv2.split(np.ascontiguousarray(x, dtype=np.float32))  # contiguous planes: 2x faster than strides
+    y = np.multiply(r, np.float32(_LUMA[0]), out=r)
+    y += np.multiply(g, np.float32(_LUMA[1]), out=g)
+    y += np.multiply(b, np.float32(_LUMA[2]), out=b)
+    return y
 
 
 def _quantise(c: np.ndarray) -> np.ndarray:
@@ -216,17 +221,21 @@ def _quantise(c: np.ndarray) -> np.ndarray:
 def _equalize_channel(c: np.ndarray) -> np.ndarray:
     """256-bin float equalisation of one channel in [0, 1] (float32 out)."""
     y255 = np.clip(c, 0.0, 1.0) * _F255
-    q = np.rint(y255).astype(np.uint8)  # the 8-bit bin of each pixel (round half to even)
+    q = cv2.convertScaleAbs(y255)  # the 8-bit bin of each pixel: round half to even, as np.rint (pinned by tests)
     hist = cv2.calcHist([q], [0], None, [256], [0, 256]).ravel().astype(np.int64)
     lut = equalize_lut(hist)
     # Linear interpolation lut[i0] + (lut[i0 + 1] - lut[i0]) * frac, with one gather from a (value, step) table.
     table = np.zeros((256, 2), np.float32)
     table[:, 0] = lut
     table[:255, 1] = lut[1:] - lut[:-1]
-    i0 = np.minimum(y255, np.float32(254.0)).astype(np.intp)  # truncation == floor, y255 >= 0
-    frac = y255 - i0.astype(np.float32)
+    i0 = y255.astype(np.intp)  # truncation == floor, y255 >= 0
+    np.minimum(i0, 254, out=i0)
+    frac = np.subtract(y255, i0, dtype=np.float32)
     pairs = table.view(np.float64).ravel().take(i0).view(np.float32).reshape(*c.shape, 2)
-    return (pairs[..., 0] + pairs[..., 1] * frac) * _INV255
+    out = np.multiply(pairs[..., 1], frac, out=frac)
+    out += pairs[..., 0]
+    out *= _INV255
+    return out
 
 
 # --- torch twin ---------------------------------------------------------------------------------------------
@@ -388,9 +397,13 @@ def post_process(
     i_he = equalize(image, params.he, clahe_clip=params.clahe_clip, clahe_tiles=params.clahe_tiles)
     if params.lam == 0.0:
         return i_he
-    edges = laplacian_of_gaussian(i_he, params.sigma_px)
-    edges *= np.float32(params.lam)
-    out = np.subtract(i_he, edges, out=edges)  # Eq. (9): I_HE - lambda (LoG * I_HE)
+    # Eq. (9): I_HE - lambda (LoG * I_HE), with -lambda folded into the second-derivative taps (one pass each
+    # for the two separable terms and two adds; the same sum as the unscaled LoG to float rounding).
+    g, g2 = log_kernels(params.sigma_px)
+    g2 = g2 * np.float32(-params.lam)
+    out = cv2.sepFilter2D(i_he, cv2.CV_32F, g2, g, borderType=cv2.BORDER_REFLECT_101)
+    cv2.add(out, cv2.sepFilter2D(i_he, cv2.CV_32F, g, g2, borderType=cv2.BORDER_REFLECT_101), dst=out)
+    cv2.add(out, i_he, dst=out)
     return np.clip(out, 0.0, 1.0, out=out)
 
 
