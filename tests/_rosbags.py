@@ -24,8 +24,7 @@ def frames(n: int, h: int = 24, w: int = 32) -> list[np.ndarray]:
     """Smooth, distinct uint8 RGB frames (the red level encodes the index)."""
     yy, xx = np.mgrid[0:h, 0:w]
     return [
-        np.stack([np.full_like(xx, 30 + 20 * i), 40 + 4 * xx, 60 + 5 * yy], axis=-1).astype(np.uint8)
-        for i in range(n)
+        np.stack([np.full_like(xx, 30 + 20 * i), 40 + 4 * xx, 60 + 5 * yy], axis=-1).astype(np.uint8) for i in range(n)
     ]
 
 
@@ -87,14 +86,24 @@ class BagBuilder:
             data, step = _raw(rgb, encoding)
             h, w = rgb.shape[:2]
             msg = Image(
-                header=self.header(i, frame_id), height=h, width=w, encoding=encoding, is_bigendian=0, step=step,
+                header=self.header(i, frame_id),
+                height=h,
+                width=w,
+                encoding=encoding,
+                is_bigendian=0,
+                step=step,
                 data=data,
             )
             self._write(topic, "sensor_msgs/msg/Image", msg, stamp_ns(i) + 5_000_000)
         return self
 
     def compressed(
-        self, topic: str, images: Sequence[np.ndarray], fmt: str = "jpeg", frame_id: str = "cam", broken: Sequence[int] = ()
+        self,
+        topic: str,
+        images: Sequence[np.ndarray],
+        fmt: str = "jpeg",
+        frame_id: str = "cam",
+        broken: Sequence[int] = (),
     ) -> BagBuilder:
         Compressed = self.ts.types["sensor_msgs/msg/CompressedImage"]
         for i, rgb in enumerate(images):
@@ -111,15 +120,28 @@ class BagBuilder:
         f64 = np.float64
         for i in range(n):
             kw = dict(
-                header=self.header(i, frame_id), height=h, width=w, distortion_model="plumb_bob",
-                roi=Roi(x_offset=0, y_offset=0, height=0, width=0, do_rectify=False), binning_x=0, binning_y=0,
+                header=self.header(i, frame_id),
+                height=h,
+                width=w,
+                distortion_model="plumb_bob",
+                roi=Roi(x_offset=0, y_offset=0, height=0, width=0, do_rectify=False),
+                binning_x=0,
+                binning_y=0,
             )
             if self.family == "ros1":
-                kw.update(D=np.zeros(5, f64), K=np.eye(3, dtype=f64).ravel(), R=np.eye(3, dtype=f64).ravel(),
-                          P=np.zeros(12, f64))
+                kw.update(
+                    D=np.zeros(5, f64),
+                    K=np.eye(3, dtype=f64).ravel(),
+                    R=np.eye(3, dtype=f64).ravel(),
+                    P=np.zeros(12, f64),
+                )
             else:
-                kw.update(d=np.zeros(5, f64), k=np.eye(3, dtype=f64).ravel(), r=np.eye(3, dtype=f64).ravel(),
-                          p=np.zeros(12, f64))
+                kw.update(
+                    d=np.zeros(5, f64),
+                    k=np.eye(3, dtype=f64).ravel(),
+                    r=np.eye(3, dtype=f64).ravel(),
+                    p=np.zeros(12, f64),
+                )
             self._write(topic, "sensor_msgs/msg/CameraInfo", Info(**kw), stamp_ns(i) + 6_000_000)
         return self
 
@@ -127,6 +149,11 @@ class BagBuilder:
         String = self.ts.types["std_msgs/msg/String"]
         for i in range(n):
             self._write(topic, "std_msgs/msg/String", String(data=f"m{i}"), stamp_ns(i))
+        return self
+
+    def empty(self, topic: str, msgtype: str = "sensor_msgs/msg/Image") -> BagBuilder:
+        """A topic with a connection and no message."""
+        self.conns[topic] = self.writer.add_connection(topic, msgtype, typestore=self.ts)
         return self
 
     def close(self) -> Path:

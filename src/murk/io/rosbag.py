@@ -104,8 +104,9 @@ def rosbags_available() -> bool:
 
 
 def _require() -> None:
+    """Raises ValueError (a clean one-line CLI error) when ``rosbags`` is missing."""
     if not rosbags_available():
-        raise ImportError(INSTALL_HINT)
+        raise ValueError(INSTALL_HINT)
 
 
 # ----------------------------------------------------------------------------------------------------------
