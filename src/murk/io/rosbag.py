@@ -695,3 +695,102 @@ class BagSink:
             self._writer.close()
         _remove(self._tmp)
         self.closed = True
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Bag frames as an image source for snow extract, eval and compare
+# ----------------------------------------------------------------------------------------------------------
+
+
+def iter_frames(path: str | Path, topic: str | None, *, every: int = 1) -> Iterator[BagFrame]:
+    """Every ``every``-th frame of ``topic`` (broken frames included, with ``image=None`` and ``error``).
+
+    Raises:
+        InputFileError: see :class:`BagSource`.
+    """
+    with BagSource(path, topic, every=every) as source:
+        yield from source
+        if source.end_reason not in (None, "end"):
+            yield BagFrame(source._index, None, source.end_reason, message=source._message)
+
+
+def frame_name(path: str | Path, index: int) -> str:
+    """``<bag>_<index:06d>``: the stem of a bag frame exported as a file."""
+    p = Path(path)
+    return f"{_safe_name(p.stem if p.suffix.lower() == '.bag' else p.name)}_{index:06d}"
+
+
+@dataclass
+class ExportedFrames:
+    """Bag frames written as lossless PNG files (16-bit encodings stay 16-bit) for commands that read files.
+
+    The temporary folders are deleted by :meth:`cleanup`, or when this object is garbage-collected (keep a
+    reference while the files are used).
+
+    Attributes:
+        paths: the inputs with every bag replaced by the folder of its frames (other inputs unchanged).
+        errors: one record per frame that could not be decoded (``input`` = ``<bag>:<topic>``, ``frame``).
+        rows: ``frames.jsonl`` rows (file_name, index, message, stamp_ns, frame_id, log_time_ns, topic).
+    """
+
+    paths: list[Path]
+    errors: list[Any]
+    rows: list[dict[str, Any]]
+    _tmp: list[Any]
+
+    def cleanup(self) -> None:
+        """Delete the temporary folders."""
+        for tmp in self._tmp:
+            tmp.cleanup()
+        self._tmp.clear()
+
+
+def export_bag_frames(paths: Sequence[Path], topic: str | None, *, every: int = 1) -> ExportedFrames:
+    """Replace each bag among ``paths`` by a temporary folder holding its sampled frames as PNG files
+    (``<bag>_<index:06d>.png``) and ``frames.jsonl``; call :meth:`ExportedFrames.cleanup` when done.
+
+    Raises:
+        InputFileError: a bag cannot be read or ``topic`` is missing/wrong (see :class:`BagSource`).
+    """
+    import tempfile
+
+    from murk.io.images import write_uint
+    from murk.io.jobs import ErrorRecord
+    from murk.io.jsonl import write_jsonl
+
+    out = ExportedFrames([], [], [], [])
+    try:
+        for p in paths:
+            if not is_bag(p):
+                out.paths.append(p)
+                continue
+            tmp = tempfile.TemporaryDirectory(prefix="murk-bag-")
+            out._tmp.append(tmp)
+            folder = Path(tmp.name) / frame_name(p, 0)[:-7]
+            folder.mkdir()
+            rows = []
+            label = f"{p}:{topic}"
+            for frame in iter_frames(p, topic, every=every):
+                if frame.image is None:
+                    out.errors.append(ErrorRecord(label, "decode", frame.error or "not decoded", frame=frame.index))
+                    continue
+                name = f"{frame_name(p, frame.index)}.png"
+                write_uint(folder / name, frame.image)
+                rows.append(
+                    {
+                        "file_name": name,
+                        "index": frame.index,
+                        "message": frame.message,
+                        "stamp_ns": frame.stamp_ns,
+                        "frame_id": frame.frame_id,
+                        "log_time_ns": frame.log_time_ns,
+                        "topic": topic,
+                    }
+                )
+            write_jsonl(folder / "frames.jsonl", rows)
+            out.rows += rows
+            out.paths.append(folder)
+    except BaseException:
+        out.cleanup()
+        raise
+    return out
