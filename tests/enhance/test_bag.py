@@ -212,3 +212,21 @@ def test_bad_inputs_are_one_clear_line(tmp_path: Path) -> None:
     res = _enhance(tmp_path / "frames_dir_does_not_exist", "--topic", "/cam", "--out", out)
     assert res.exit_code == 2 and "need a ROS bag" in res.output
     assert not out.exists()
+
+
+def test_copy_all_topics_makes_a_self_contained_bag(tmp_path: Path) -> None:
+    bag = _make(tmp_path, "ros1", None)
+    out = tmp_path / "all.bag"
+    res = _enhance(bag, "--topic", "/cam/rgb", "--out", out, "--copy-topics", "all", "--copy-topics", "camera_info")
+    assert res.exit_code == 0, res.output
+    assert topic_types(out) == {**topic_types(bag), "/cam/rgb/restored": IMAGE_MSG}
+    assert [m.data.tobytes() for _, m in read_topic(out, "/cam/bgr")] == [
+        m.data.tobytes() for _, m in read_topic(bag, "/cam/bgr")
+    ]
+
+
+def test_without_rosbags_the_error_says_how_to_install(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    bag = _make(tmp_path, "ros1", None)
+    monkeypatch.setattr(rosbag_mod, "rosbags_available", lambda: False)
+    res = _enhance(bag, "--topic", "/cam/rgb", "--out", tmp_path / "o.bag")
+    assert res.exit_code == 2 and "pip install 'murk[ros]'" in res.output

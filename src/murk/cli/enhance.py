@@ -200,7 +200,7 @@ def enhance(
         list[str] | None,
         typer.Option(
             "--copy-topics",
-            help="Bag output: copy these topics unchanged (repeatable; camera_info = every CameraInfo).",
+            help="Bag output: copy these topics unchanged (repeatable; camera_info = every CameraInfo; all).",
         ),
     ] = None,
     quiet: QuietOpt = False,

@@ -6,7 +6,7 @@ as the input unless ``storage``) with the restored frames on ``out_topic`` (defa
 in the input's message type and encoding family, with the ORIGINAL header stamps, frame ids and bag record
 times; depth maps (methods that estimate depth) on ``depth_topic`` (default ``<base>/depth``) as ``32FC1``
 metres; and, when asked, other topics copied unchanged (``camera_info``: every ``sensor_msgs/CameraInfo``
-topic).
+topic; ``all``: every topic).
 
 Frames output (:func:`enhance_bag_to_frames`): numbered images ``<bag>_<index:06d>.<format>`` written by
 :func:`murk.enhance.pipeline.enhance_frames` (same depth outputs, same per-frame resume) plus ``frames.jsonl``
@@ -100,7 +100,8 @@ def writes_bag(out: Path, family: str, image_format: str | None) -> bool:
 
 
 def resolve_copy_topics(source: BagSource, copy_topics: Sequence[str], skip: Sequence[str]) -> list[str]:
-    """Topic names to copy: names as given, ``camera_info`` for every CameraInfo topic of the bag.
+    """Topic names to copy: names as given, ``camera_info`` for every CameraInfo topic of the bag, ``all`` for
+    every topic (the input image topic included; never the output topics).
 
     Raises:
         InputFileError: a named topic is not in the bag.
@@ -109,7 +110,9 @@ def resolve_copy_topics(source: BagSource, copy_topics: Sequence[str], skip: Seq
     names = {t.name for t in topics}
     chosen: list[str] = []
     for spec in copy_topics:
-        if spec == "camera_info":
+        if spec == "all":
+            found = [t.name for t in topics]
+        elif spec == "camera_info":
             found = [t.name for t in topics if t.msgtype == CAMERA_INFO_MSG]
             if not found:
                 raise InputFileError(
