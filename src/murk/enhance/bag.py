@@ -41,7 +41,7 @@ from murk.enhance.pipeline import (
 )
 from murk.enhance.preview import side_by_side
 from murk.enhance.restorer import Restorer
-from murk.errors import InputFileError, OutputError
+from murk.errors import InputFileError
 from murk.io.images import IMAGE_SUFFIXES, to_float, to_uint
 from murk.io.jobs import ErrorLog, ErrorRecord
 from murk.io.jsonl import write_jsonl
@@ -282,50 +282,24 @@ def enhance_bag_to_frames(
     should_stop: StopFn | None = None,
 ) -> EnhanceReport:
     """Restore the frames of ``source`` into numbered images in the folder ``out`` plus ``frames.jsonl``."""
-    seen: list[BagFrame] = []
-    real_read = source.read
-
-    def read() -> BagFrame | None:
-        frame = real_read()
-        if frame is not None:
-            seen.append(frame)
-        return frame
-
-    source.read = read  # type: ignore[method-assign]
-    try:
-        report = enhance_frames(
-            source,
-            restorer,
-            out,
-            options,
-            batch=batch,
-            max_frames=max_frames,
-            on_progress=on_progress,
-            should_stop=should_stop,
-        )
-    finally:
-        del source.read
+    report = enhance_frames(
+        source,
+        restorer,
+        out,
+        options,
+        batch=batch,
+        max_frames=max_frames,
+        on_progress=on_progress,
+        should_stop=should_stop,
+    )
     ext = f".{(options.format if options else None) or 'jpg'}"
     rows = []
-    for f in seen:
-        name = f"{source.name}_{f.index:06d}{ext}"
+    for row in source.history:
+        name = f"{source.name}_{row['index']:06d}{ext}"
         if (out / name).is_file():
-            rows.append(
-                {
-                    "file_name": name,
-                    "index": f.index,
-                    "message": f.message,
-                    "stamp_ns": f.stamp_ns,
-                    "frame_id": f.frame_id,
-                    "log_time_ns": f.log_time_ns,
-                    "topic": source.topic,
-                }
-            )
+            rows.append({"file_name": name, **row, "topic": source.topic})
     if rows:
-        try:
-            write_jsonl(out / FRAMES_FILE, rows)
-        except OutputError:
-            raise
+        write_jsonl(out / FRAMES_FILE, rows)
         report.outputs.append(out / FRAMES_FILE)
     return report
 

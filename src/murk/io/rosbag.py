@@ -358,6 +358,8 @@ class BagSource(FrameSource):
             raise ValueError(f"every: expected >= 1, got {every}")
         self.path = Path(path)
         self.every = every
+        self.history: list[dict[str, Any]] = []
+        """One row per frame read so far (index, message, stamp_ns, frame_id, log_time_ns; no pixels)."""
         self._reader = _open_reader(self.path)
         try:
             self._init(topic)
@@ -425,6 +427,20 @@ class BagSource(FrameSource):
         return next(self._it, None)
 
     def read(self) -> BagFrame | None:
+        frame = self._read()
+        if frame is not None:
+            self.history.append(
+                {
+                    "index": frame.index,
+                    "message": frame.message,
+                    "stamp_ns": frame.stamp_ns,
+                    "frame_id": frame.frame_id,
+                    "log_time_ns": frame.log_time_ns,
+                }
+            )
+        return frame
+
+    def _read(self) -> BagFrame | None:
         if self.end_reason is not None:
             return None
         while True:
