@@ -51,7 +51,8 @@ CAMERA_INFO_MSG = "sensor_msgs/msg/CameraInfo"
 IMAGE_MSGTYPES = (IMAGE_MSG, COMPRESSED_MSG)
 INSTALL_HINT = "ROS bags need the optional 'ros' extra: pip install 'murk[ros]'"
 ROS2_BAG_VERSION = 8
-"""rosbag2 metadata version of written ROS 2 bags (read by Humble, Iron, Jazzy and later)."""
+"""rosbag2 metadata version of written ROS 2 bags: the oldest one the rosbags writer offers (8 or 9), for the widest
+compatibility with installed ROS 2 tools (not tested here against a ROS installation)."""
 
 # raw Image encodings -> (channels, bytes per sample, how to make RGB)
 _RAW: dict[str, tuple[int, int, str]] = {
