@@ -14,11 +14,11 @@ from typer.testing import CliRunner
 pytest.importorskip("rosbags", reason="ROS bag support needs the optional 'ros' extra: pip install 'murk[ros]'")
 
 from murk.cli.main import app
-from murk.io import read_jsonl
+from murk.io import read_jsonl, rosbag_writer
 from murk.io import rosbag as rosbag_mod
 from murk.io.atomic import TMP_PREFIX
 from murk.io.jobs import read_errors
-from murk.io.rosbag import COMPRESSED_MSG, IMAGE_MSG, decode_image_msg
+from murk.io.ros_image import COMPRESSED_MSG, IMAGE_MSG, decode_image_msg
 
 from .._rosbags import BagBuilder, frames, read_topic, stamp_ns, topic_types
 
@@ -130,17 +130,17 @@ def test_rerun_skips_a_finished_bag_and_a_killed_run_leaves_no_bag(
     class Killed(BaseException):
         """Stands for SIGKILL: nothing after it runs (no abort, no cleanup)."""
 
-    real_write = rosbag_mod.BagSink.write_image
+    real_write = rosbag_writer.BagSink.write_image
     calls = {"n": 0}
 
-    def dying_write(self: rosbag_mod.BagSink, *args: object, **kwargs: object) -> None:
+    def dying_write(self: rosbag_writer.BagSink, *args: object, **kwargs: object) -> None:
         calls["n"] += 1
         if calls["n"] == 2:
             raise Killed
         real_write(self, *args, **kwargs)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(rosbag_mod.BagSink, "write_image", dying_write)
-    monkeypatch.setattr(rosbag_mod.BagSink, "abort", lambda self: None)
+    monkeypatch.setattr(rosbag_writer.BagSink, "write_image", dying_write)
+    monkeypatch.setattr(rosbag_writer.BagSink, "abort", lambda self: None)
     with pytest.raises(Killed):
         from murk.enhance.bag import enhance_bag
         from murk.enhance.post import PostRestorer

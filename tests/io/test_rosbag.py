@@ -15,17 +15,9 @@ pytest.importorskip("rosbags", reason="ROS bag support needs the optional 'ros' 
 
 from murk.errors import InputFileError
 from murk.io.atomic import TMP_PREFIX
-from murk.io.rosbag import (
-    IMAGE_MSG,
-    BagSink,
-    BagSource,
-    bag_family,
-    bag_storage,
-    decode_image_msg,
-    image_topics,
-    is_bag,
-    list_topics,
-)
+from murk.io.ros_image import IMAGE_MSG, decode_image_msg
+from murk.io.rosbag import BagSource, bag_family, bag_storage, image_topics, is_bag, list_topics
+from murk.io.rosbag_writer import BagSink
 
 from .._rosbags import BagBuilder, frames, read_topic, stamp_ns, topic_types
 

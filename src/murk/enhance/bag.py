@@ -45,17 +45,9 @@ from murk.errors import InputFileError
 from murk.io.images import IMAGE_SUFFIXES, to_float, to_uint
 from murk.io.jobs import ErrorLog, ErrorRecord
 from murk.io.jsonl import write_jsonl
-from murk.io.rosbag import (
-    CAMERA_INFO_MSG,
-    COMPRESSED_MSG,
-    STORAGES,
-    BagFrame,
-    BagSink,
-    BagSource,
-    Storage,
-    output_bits,
-    remove_stale_bags,
-)
+from murk.io.ros_image import CAMERA_INFO_MSG, COMPRESSED_MSG, output_bits
+from murk.io.rosbag import STORAGES, BagFrame, BagSource, Storage
+from murk.io.rosbag_writer import BagSink, remove_stale_bags
 from murk.io.video import VIDEO_SUFFIXES
 
 FRAMES_FILE = "frames.jsonl"
