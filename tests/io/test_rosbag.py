@@ -177,3 +177,47 @@ def test_sink_abort_leaves_nothing(tmp_path: Path) -> None:
     assert list(tmp_path.iterdir()) == []
     with pytest.raises(ValueError, match=r"needs the \.bag suffix"):
         BagSink(tmp_path / "x", "ros1")
+
+
+@pytest.mark.parametrize(
+    ("encoding", "written"),
+    [("bgr8", "bgr8"), ("rgb8", "rgb8"), ("bgra8", "bgr8"), ("mono8", "mono8"), ("16UC1", "16UC1"),
+     ("mono16", "mono16"), ("bayer_rggb8", "rgb8"), ("8UC3", "8UC3")],
+)  # fmt: skip
+def test_encodings_keep_their_family(encoding: str, written: str) -> None:
+    from types import SimpleNamespace
+
+    from murk.io.ros_image import encode_pixels, output_bits
+
+    bits = output_bits(IMAGE_MSG, encoding)
+    rgb = frames(1)[0].astype(np.uint16) * 257 if bits == 16 else frames(1)[0]
+    enc, data, step = encode_pixels(rgb, IMAGE_MSG, encoding)
+    assert enc == written and step * rgb.shape[0] == len(data)
+    msg = SimpleNamespace(
+        encoding=enc,
+        height=rgb.shape[0],
+        width=rgb.shape[1],
+        step=step,
+        is_bigendian=0,
+        data=np.frombuffer(data, np.uint8),
+    )
+    back = decode_image_msg(msg, IMAGE_MSG)
+    assert back.dtype == rgb.dtype
+    if written.startswith("mono") or written == "16UC1":
+        grey = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
+        assert np.array_equal(back, np.repeat(grey[:, :, None], 3, axis=2))
+    else:
+        assert np.array_equal(back, rgb)
+
+
+def test_big_endian_16bit_and_row_padding_decode() -> None:
+    from types import SimpleNamespace
+
+    grey = (np.arange(6 * 5, dtype=np.uint16).reshape(6, 5) * 2000).astype(">u2")
+    padded = np.zeros((6, 12), np.uint8)  # step 12 bytes for 10 bytes of pixels per row
+    padded[:, :10] = np.frombuffer(grey.tobytes(), np.uint8).reshape(6, 10)
+    msg = SimpleNamespace(encoding="mono16", height=6, width=5, step=12, is_bigendian=1, data=padded.ravel())
+    assert np.array_equal(decode_image_msg(msg, IMAGE_MSG)[:, :, 1], grey.astype(np.uint16))
+    short = SimpleNamespace(encoding="rgb8", height=6, width=5, step=15, is_bigendian=0, data=np.zeros(50, np.uint8))
+    with pytest.raises(ValueError, match=r"rgb8 5x6: 50 bytes of data with step 15"):
+        decode_image_msg(short, IMAGE_MSG)
