@@ -11,7 +11,9 @@ from murk.cli._common import EXIT_PARTIAL, QuietOpt, make_console
 
 
 def compare(
-    real_dir: Annotated[Path, typer.Argument(help="Folder (or one file) of REAL underwater images.")],
+    real_dir: Annotated[
+        Path, typer.Argument(help="Folder (or one file) of REAL underwater images, or a ROS bag (--topic).")
+    ],
     method: Annotated[
         list[str],
         typer.Option(
@@ -45,6 +47,10 @@ def compare(
         bool, typer.Option("--save-outputs", help="Also write restored/<label>/<stem>.png.")
     ] = False,
     title: Annotated[str, typer.Option("--title", help="Report title.")] = "murk compare",
+    topic: Annotated[
+        str | None, typer.Option("--topic", help="REAL_DIR a ROS bag: the image topic (omit it to list them).")
+    ] = None,
+    every: Annotated[int, typer.Option("--every", min=1, help="REAL_DIR a ROS bag: every N-th frame.")] = 1,
     quiet: QuietOpt = False,
 ) -> None:
     """Run every --method on every image; per-image UIQM (+ UICM/UISM/UIConM) and UCIQE, a per-method
@@ -52,6 +58,7 @@ def compare(
     from murk.cli._common import resolve_device
     from murk.io.images import list_images
     from murk.io.paths import check_output_location
+    from murk.io.rosbag import export_bag_frames, is_bag
     from murk.report.compare import run_compare
     from murk.report.figures import parse_box
     from murk.report.methods import parse_method
@@ -59,7 +66,14 @@ def compare(
     console = make_console(quiet)
     specs = [parse_method(m) for m in method]
     boxes = [parse_box(b) for b in box or []]
-    if real_dir.is_file():
+    bag_errors: list = []
+    if is_bag(real_dir):  # issue 17: the frames of --topic, exported to a temporary folder for the run
+        bags = export_bag_frames([real_dir], topic, every=every)  # deleted with `bags` when the command returns
+        images = list_images(bags.paths[0])
+        bag_errors = bags.errors
+        for e in bags.errors:
+            console.print(f"  [red]skipped:[/] {e.input}: frame {e.frame}: {e.error}", soft_wrap=True)
+    elif real_dir.is_file():
         images = [real_dir]
     else:
         check_output_location(out, [real_dir], inside="allow")  # an --out inside REAL_DIR is left out below
@@ -99,7 +113,7 @@ def compare(
             highlight=False,
         )
     summary.print(f"report: {Path(out) / 'report.html'}", soft_wrap=True, highlight=False)
-    if res.errors:
+    if res.errors or bag_errors:
         for e in res.errors[:10]:
             summary.print(f"  [red]failed:[/] {e['path']}: {e['error']}", soft_wrap=True)
         raise typer.Exit(EXIT_PARTIAL)

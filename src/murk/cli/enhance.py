@@ -41,6 +41,11 @@ class PolicyChoice(str, Enum):
     official = "official"
 
 
+class StorageChoice(str, Enum):
+    mcap = "mcap"
+    sqlite3 = "sqlite3"
+
+
 class BackendChoice(str, Enum):
     auto = "auto"
     opencv = "opencv"
@@ -178,9 +183,29 @@ def enhance(
             help="Video writer: opencv, av (PyAV; kill-safe fragmented MP4), auto (av for live streams if installed).",
         ),
     ] = BackendChoice.auto,
+    topic: Annotated[
+        str | None, typer.Option("--topic", help="ROS bag input: the image topic (omit it to list them).")
+    ] = None,
+    every: Annotated[int, typer.Option("--every", min=1, help="ROS bag input: every N-th frame of the topic.")] = 1,
+    out_topic: Annotated[
+        str | None, typer.Option("--out-topic", help="Bag output: topic of restored frames (<topic>/restored).")
+    ] = None,
+    depth_topic: Annotated[
+        str | None, typer.Option("--depth-topic", help="Bag output: topic of 32FC1 depth in metres (<topic>/depth).")
+    ] = None,
+    storage: Annotated[
+        StorageChoice | None, typer.Option("--storage", help="ROS 2 bag output: mcap or sqlite3 (default: as input).")
+    ] = None,
+    copy_topics: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--copy-topics",
+            help="Bag output: copy these topics unchanged (repeatable; camera_info = every CameraInfo; all).",
+        ),
+    ] = None,
     quiet: QuietOpt = False,
 ) -> None:
-    """Restore underwater images, folders, videos and live streams (Eq. 9 post-processing by default).
+    """Restore underwater images, folders, videos, live streams and ROS bags (Eq. 9 post-processing by default).
 
     Prints processed/skipped/failed counts, frames per second and read/restore/write milliseconds per frame.
     Unreadable inputs go to errors.jsonl in the output folder (exit code 1); reruns skip finished outputs.
@@ -193,6 +218,7 @@ def enhance(
         resolve_input,
     )
     from murk.enhance.restorer import create, weights_of
+    from murk.io.rosbag import is_bag
     from murk.io.video import CaptureSource
 
     dev = resolve_device(device)
@@ -232,9 +258,22 @@ def enhance(
         what = {"jointid": "the 'small' Joint-ID murk trained", "lite": "the 'lite' network murk trained"}.get(stage)
         shipped = f" (shipped with murk: {what}, docs/models.md)" if checkpoint is None and what else ""
         console.print(f"{stage} weights: {weights}{shipped}", soft_wrap=True, highlight=False)
-    inp = resolve_input(input, recursive=recursive, exclude=out)
+    bag_options = {"out_topic": out_topic, "depth_topic": depth_topic, "copy_topics": copy_topics or []}
+    if is_bag(input):  # ROS bags (issue 17): murk.enhance.bag does the work
+        report = _enhance_bag(
+            input, topic, every, restorer, out, options, bag_options, storage, batch, max_frames, console
+        )
+        inp = None
+    elif topic is not None or every != 1 or storage is not None or any(bag_options.values()):
+        raise ValueError(
+            f"{input}: --topic, --every, --out-topic, --depth-topic, --storage, --copy-topics need a ROS bag"
+        )
+    else:
+        inp = resolve_input(input, recursive=recursive, exclude=out)
     with _stop_on_signals() as stop:
-        if inp.kind == "images":
+        if inp is None:  # (the bag branch ran above)
+            pass
+        elif inp.kind == "images":
             jobs, out_dir = plan_images(inp, out, options.format)
             jobs = jobs[:max_frames] if max_frames else jobs
             with _Display(console, f"{restorer.name}: {inp.label}", total=len(jobs), live=False) as display:
@@ -256,13 +295,47 @@ def enhance(
                         should_stop=stop,
                     )
     _print_summary(summary, report)
-    live = inp.kind == "stream"
+    live = inp is not None and inp.kind == "stream"
     if report.failed:
         raise typer.Exit(EXIT_PARTIAL)
     if report.stopped and not live:
         summary.print("interrupted; rerun the same command to resume", soft_wrap=True)
         raise typer.Exit(EXIT_INTERRUPTED)
     raise typer.Exit(EXIT_OK)
+
+
+def _enhance_bag(
+    input: str,
+    topic: str | None,
+    every: int,
+    restorer: Any,
+    out: Path,
+    options: Any,
+    bag_options: dict[str, Any],
+    storage: StorageChoice | None,
+    batch: int,
+    max_frames: int | None,
+    console: Any,
+) -> Any:
+    """The ROS bag branch of :func:`enhance` (opens the topic, shows progress, delegates to enhance_bag)."""
+    from murk.enhance.bag import enhance_bag
+    from murk.io.rosbag import BagSource
+
+    with _stop_on_signals() as stop, BagSource(input, topic, every=every) as source:
+        total = source.frame_count if max_frames is None else min(source.frame_count or max_frames, max_frames)
+        with _Display(console, f"{restorer.name}: {source.label}", total=total, live=False) as display:
+            return enhance_bag(
+                source,
+                restorer,
+                out,
+                options,
+                storage=None if storage is None else storage.value,  # type: ignore[arg-type]
+                batch=batch,
+                max_frames=max_frames,
+                on_progress=display.update,
+                should_stop=stop,
+                **bag_options,
+            )
 
 
 def _print_summary(console: Any, report: Any) -> None:

@@ -86,6 +86,10 @@ def evaluate(
     json_out: Annotated[
         Path | None, typer.Option("--json", help="Write rows, summary, presets and errors to this JSON file.")
     ] = None,
+    topic: Annotated[
+        str | None, typer.Option("--topic", help="ROS bags among IMAGES: the image topic (omit it to list them).")
+    ] = None,
+    every: Annotated[int, typer.Option("--every", min=1, help="ROS bags among IMAGES: every N-th frame.")] = 1,
     quiet: QuietOpt = False,
 ) -> None:
     """Score images: UIQM (Eq. 10, with UICM/UISM/UIConM) and UCIQE; PSNR/SSIM with --ref; restoration measures
@@ -112,6 +116,7 @@ def evaluate(
     console = make_console(quiet)
     out = _Outcome()
     if images:
+        images, _bags = _bag_frames(images, topic, every, out)  # (its temporary folders live until we return)
         files = _collect_images(images, recursive)
         refs = _index_folder(ref, recursive, "--ref", "reference") if ref is not None else None
         inputs = _index_folder(input_dir, recursive, "--input", "raw input") if input_dir is not None else None
@@ -174,6 +179,18 @@ def _parse_presets(values: list[str], uiqm_presets: tuple[str, ...], uciqe_prese
 
 # ----------------------------------------------------------------------------------------------------------
 # file discovery
+
+
+def _bag_frames(images: list[Path], topic: str | None, every: int, out: _Outcome) -> tuple[list[Path], Any]:
+    """ROS bags among IMAGES become temporary folders of their frames (issue 17; deleted with the returned
+    object); frames that fail to decode are recorded as errors."""
+    from murk.io.rosbag import export_bag_frames, is_bag
+
+    if not any(is_bag(p) for p in images):
+        return images, None
+    bags = export_bag_frames(images, topic, every=every)
+    out.errors += [{"file": e.input, "error": f"frame {e.frame}: {e.error}"} for e in bags.errors]
+    return bags.paths, bags
 
 
 def _collect_images(paths: list[Path], recursive: bool) -> list[tuple[str, Path]]:

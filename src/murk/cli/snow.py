@@ -26,11 +26,14 @@ def _list_inputs(inputs: list[Path]) -> list[Path | tuple[str, str]]:
     """In input order: the files to read (image files and videos as given, the images of folders, recursively;
     each file once) and, where an input cannot be used, its (path, problem)."""
     from murk.io.images import list_images
+    from murk.io.rosbag import is_bag
 
     entries: list[Path | tuple[str, str]] = []
     seen: set[str] = set()
     for inp in inputs:
-        if inp.is_dir():
+        if is_bag(inp):  # a ROS bag (its frames are read by _frames)
+            inside = [inp]
+        elif inp.is_dir():
             try:
                 inside = list_images(inp, recursive=True)
             except OSError as exc:
@@ -52,16 +55,30 @@ def _list_inputs(inputs: list[Path]) -> list[Path | tuple[str, str]]:
 
 
 def _frames(
-    entries: list[Path | tuple[str, str]], every: int, problems: list[tuple[str, str]]
+    entries: list[Path | tuple[str, str]], every: int, problems: list[tuple[str, str]], topic: str | None = None
 ) -> Iterator[tuple[dict[str, Any], Any]]:
-    """Yield (description, uint8 RGB) for image files and videos (every N-th frame); problems in input order."""
+    """Yield (description, uint8 RGB) for image files, videos and ROS bag topics (every N-th frame); problems in
+    input order."""
     import cv2
 
+    from murk.errors import InputFileError
     from murk.io.images import read_image
+    from murk.io.rosbag import is_bag, iter_frames
 
     for f in entries:
         if isinstance(f, tuple):
             problems.append(f)
+            continue
+        if is_bag(f):  # issue 17: frames of --topic, every N-th message
+            try:
+                for frame in iter_frames(f, topic, every=every):
+                    if frame.image is None:
+                        problems.append((f"{f}:{topic}", f"frame {frame.index}: {frame.error}"))
+                        continue
+                    rgb = frame.image if frame.image.dtype == "uint8" else (frame.image // 257).astype("uint8")
+                    yield {"path": str(f), "frame": frame.message}, rgb
+            except InputFileError as exc:  # no such topic, unreadable bag: recorded like an unreadable file
+                problems.append((str(f), exc.problem))
             continue
         if f.suffix.lower() in VIDEO_SUFFIXES:
             cap = cv2.VideoCapture(str(f))
@@ -100,7 +117,8 @@ def _frames(
 @app.command("extract")
 def extract(
     inputs: Annotated[
-        list[Path], typer.Argument(help="Image files, folders or video files of REAL underwater footage.")
+        list[Path],
+        typer.Argument(help="Image files, folders, video files or ROS bags (--topic) of REAL underwater footage."),
     ],
     out: Annotated[Path, typer.Option("--out", help="The bank file to write (.npz).")],
     method: Annotated[
@@ -126,7 +144,10 @@ def extract(
     max_coverage: Annotated[
         float, typer.Option("--max-coverage", help="Reject frames whose mask covers more than this fraction.")
     ] = 0.25,
-    every: Annotated[int, typer.Option("--every", help="Use every N-th video frame.")] = 10,
+    every: Annotated[int, typer.Option("--every", help="Use every N-th video or bag frame.")] = 10,
+    topic: Annotated[
+        str | None, typer.Option("--topic", help="ROS bag inputs: the image topic (omit it to list them).")
+    ] = None,
     scale: Annotated[
         str, typer.Option("--scale", help="The resize range used at synthesis, for the sub-pixel check.")
     ] = "0.3,0.6",
@@ -203,7 +224,7 @@ def extract(
         write_uint(preview_dir / f"{name}.jpg", panel, jpeg_quality=90)
 
     try:
-        report = extract_bank(_frames(entries, every, read_problems), config, scale=(lo, hi), on_frame=on_frame)
+        report = extract_bank(_frames(entries, every, read_problems, topic), config, scale=(lo, hi), on_frame=on_frame)
     except ValueError as exc:  # no particle at all: say which inputs could not even be read
         raise ValueError(_nothing_extracted(inputs, read_problems, count["frames"], str(exc))) from None
     save_bank(report.bank, out)
