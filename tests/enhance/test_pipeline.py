@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import cv2
@@ -241,7 +242,8 @@ def test_broken_frame_is_recorded_and_replaced_by_the_previous_one(tmp_path: Pat
 def test_live_source_disconnecting_leaves_a_closed_playable_video(tmp_path: Path) -> None:
     src = FakeSource(make_frames(7), live=True)
     opts = OutputOptions(video_backend="opencv")
-    report = enhance_frames(src, PostRestorer(), tmp_path / "rec.avi", opts, batch=3)
+    # read_ahead=False: this fake camera bursts all frames at once, which read-ahead would rightly drop
+    report = enhance_frames(src, PostRestorer(), tmp_path / "rec.avi", opts, batch=3, read_ahead=False)
     assert report.processed == 7 and report.total is None
     assert len(read_video(tmp_path / "rec.avi")) == 7
     assert any("disconnected" in n for n in report.notes)
@@ -254,7 +256,11 @@ def test_stopping_a_live_recording_keeps_it_and_a_file_run_discards_it(tmp_path:
     polls = iter(range(100))
     stop_after_4 = lambda: next(polls) >= 4  # noqa: E731
     live = enhance_frames(
-        FakeSource(make_frames(10), live=True), PostRestorer(), tmp_path / "live.avi", should_stop=stop_after_4
+        FakeSource(make_frames(10), live=True),
+        PostRestorer(),
+        tmp_path / "live.avi",
+        should_stop=stop_after_4,
+        read_ahead=False,
     )
     assert live.stopped and live.processed == 4 and len(read_video(tmp_path / "live.avi")) == 4
     polls = iter(range(100))
@@ -300,3 +306,26 @@ def test_frame_pipeline_refuses_unwritable_video_suffix(tmp_path: Path) -> None:
         enhance_frames(FakeSource(make_frames(2), live=False), PostRestorer(), tmp_path / "x.png")
     with pytest.raises(ValueError, match="batch: expected >= 1"):
         enhance_frames(FakeSource(make_frames(2), live=False), PostRestorer(), tmp_path / "x.mp4", batch=0)
+
+
+class _SlowPost(PostRestorer):
+    """``post`` that takes at least 20 ms per call: slower than the bursting fake camera."""
+
+    def restore(self, images: np.ndarray):  # type: ignore[no-untyped-def]
+        time.sleep(0.02)
+        return super().restore(images)
+
+
+def test_a_live_source_faster_than_restoration_drops_frames_and_says_how_many(tmp_path: Path) -> None:
+    frames = make_frames(40)
+    report = enhance_frames(FakeSource(frames, live=True), _SlowPost(), tmp_path / "live", OutputOptions("png"))
+    written = sorted(tmp_path.joinpath("live").glob("fake_*.png"))
+    assert report.dropped > 0 and report.processed + report.dropped == 40
+    assert len(written) == report.processed and written[-1].name == "fake_000039.png"  # the newest is kept
+    assert any(f"{report.dropped} frame(s) dropped" in n for n in report.notes)
+
+
+def test_a_file_source_loses_nothing_with_read_ahead(tmp_path: Path) -> None:
+    report = enhance_frames(FakeSource(make_frames(12), live=False), _SlowPost(), tmp_path / "f", OutputOptions("png"))
+    assert (report.processed, report.dropped) == (12, 0)
+    assert len(list(tmp_path.joinpath("f").glob("fake_*.png"))) == 12

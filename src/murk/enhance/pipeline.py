@@ -41,6 +41,7 @@ from murk.io.images import IMAGE_SUFFIXES, list_images, read_image, to_float, to
 from murk.io.jsonl import append_jsonl
 from murk.io.listing import glob_files
 from murk.io.paths import check_output_location, output_names
+from murk.io.readahead import ReadAhead
 from murk.io.video import (
     DEFAULT_FPS,
     VIDEO_SUFFIXES,
@@ -254,6 +255,8 @@ class EnhanceReport:
     write_s: float = 0.0
     wall_s: float = 0.0
     stopped: bool = False
+    dropped: int = 0
+    """Live sources: frames replaced by a newer one while restoration was busy (see murk.io.readahead)."""
     errors_path: Path | None = None
     outputs: list[Path] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
@@ -557,9 +560,14 @@ def enhance_frames(
     max_frames: int | None = None,
     on_progress: ProgressFn | None = None,
     should_stop: StopFn | None = None,
+    read_ahead: bool = True,
 ) -> EnhanceReport:
     """Restore the frames of ``source`` into a video (``out`` with a video suffix) or numbered images (``out``
     a folder: ``<name>_<index:06d>.<format>``).
+
+    With ``read_ahead`` (default) frames are decoded in a background thread while the previous ones are
+    restored (:class:`murk.io.readahead.ReadAhead`); for a live source only the newest frame waits, and frames
+    the source delivered while restoration was busy are counted in ``report.dropped``.
 
     A video from a finite source is written atomically: when ``should_stop`` interrupts it, the partial video
     is discarded. A live source is recorded directly and closed cleanly on disconnect, on ``max_frames`` and
@@ -649,6 +657,7 @@ def enhance_frames(
 
     complete = False
     n_read = 0
+    reader: FrameSource = ReadAhead(source) if read_ahead else source
     try:
         while True:
             if should_stop and should_stop():
@@ -657,7 +666,7 @@ def enhance_frames(
             if max_frames is not None and n_read >= max_frames:
                 break
             t0 = time.perf_counter()
-            frame = source.read()
+            frame = reader.read()
             if frame is None:
                 report.read_s += time.perf_counter() - t0
                 break
@@ -675,8 +684,16 @@ def enhance_frames(
         flush()
         complete = source.live or not report.stopped
     finally:
+        if isinstance(reader, ReadAhead):
+            reader.stop()
+            report.dropped = reader.dropped
         writer.finish(complete)
         report.tick()
+    if report.dropped:
+        report.note(
+            f"{label}: {report.dropped} frame(s) dropped: the source delivered them faster than {restorer.name} "
+            "restored (the newest frame is always the one restored)"
+        )
     if report.stopped and not source.live and writer.as_video:
         report.note(f"interrupted: the partial video was discarded; rerun to write {out}")
     if source.end_reason and source.end_reason != "end" and not report.stopped:

@@ -1,0 +1,137 @@
+"""The live path end to end: decode -> restore -> encode at 640x480, as ``murk enhance`` runs it.
+
+Run: PYTHONPATH=src python benchmarks/bench_live.py [--frames 300] [--threads 2] [--methods lite,lite+post,post]
+
+Two measurements per method, both through :func:`murk.enhance.pipeline.enhance_frames` (the function behind
+``murk enhance``) with the shipped weights:
+
+1. a 640x480 MJPEG ``.avi`` file -> ``.avi`` (as fast as possible): frames/s end to end, and the wall time per
+   frame spent waiting for decoded input, restoring and encoding;
+2. a live MJPEG-over-HTTP camera on localhost that sends 640x480 frames at 30 frames/s (``--camera-fps``) ->
+   ``.avi``: frames restored, frames dropped (the camera outpacing restoration), and the achieved frames/s.
+
+Torch and OpenCV use ``--threads`` threads (default 2, the robot's 2 cores); decoding runs in a read-ahead thread.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import http.server
+import socketserver
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import ClassVar
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import cv2
+import numpy as np
+import torch
+from _common import machine
+
+from murk.data import sample_underwater_images
+from murk.enhance.pipeline import EnhanceReport, OutputOptions, enhance_frames
+from murk.enhance.restorer import create
+from murk.io import read_rgb
+from murk.io.video import CaptureSource
+
+W, H = 640, 480
+
+
+def make_frames(n: int) -> list[np.ndarray]:
+    """``n`` 640x480 BGR uint8 frames: the shipped underwater samples panning slowly (real image content)."""
+    base = [
+        cv2.resize((read_rgb(p) * 255 + 0.5).astype(np.uint8)[:, :, ::-1], (W + 64, H), interpolation=cv2.INTER_AREA)
+        for p in sample_underwater_images()[:3]
+    ]
+    return [np.ascontiguousarray(base[(i // 100) % len(base)][:, (i % 64) : (i % 64) + W]) for i in range(n)]
+
+
+def write_avi(path: Path, frames: list[np.ndarray], fps: float = 30.0) -> None:
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), fps, (W, H))
+    for f in frames:
+        writer.write(f)
+    writer.release()
+
+
+class _Camera(http.server.BaseHTTPRequestHandler):
+    jpegs: ClassVar[list[bytes]] = []
+    fps: ClassVar[float] = 30.0
+
+    def do_GET(self) -> None:
+        self.send_response(200)
+        self.send_header("Content-Type", "multipart/x-mixed-replace; boundary=frame")
+        self.end_headers()
+        start = time.perf_counter()
+        try:
+            for i, b in enumerate(self.jpegs):
+                delay = start + i / self.fps - time.perf_counter()  # paced like a camera: frame i at i / fps
+                if delay > 0:
+                    time.sleep(delay)
+                head = b"--frame\r\nContent-Type: image/jpeg\r\nContent-Length: %d\r\n\r\n" % len(b)
+                self.wfile.write(head + b + b"\r\n")
+                self.wfile.flush()
+        except (BrokenPipeError, ConnectionResetError):
+            pass
+
+    def log_message(self, *args: object) -> None:
+        pass
+
+
+@contextlib.contextmanager
+def camera(frames: list[np.ndarray], fps: float) -> Iterator[str]:
+    jpegs = [cv2.imencode(".jpg", f, [cv2.IMWRITE_JPEG_QUALITY, 90])[1].tobytes() for f in frames]
+    handler = type("Cam", (_Camera,), {"jpegs": jpegs, "fps": fps})
+    server = socketserver.ThreadingTCPServer(("127.0.0.1", 0), handler)
+    server.daemon_threads = True
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        yield f"http://127.0.0.1:{server.server_address[1]}/cam.mjpg"
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+def line(label: str, report: EnhanceReport) -> str:
+    ms = report.stage_ms()
+    return (
+        f"{label:<28} {report.processed:>5} restored {report.dropped:>4} dropped {report.fps:7.1f} frames/s"
+        f"   per frame: wait for input {ms['read']:5.1f} ms, restore {ms['restore']:5.1f} ms,"
+        f" encode {ms['write']:5.1f} ms"
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--frames", type=int, default=300)
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--camera-fps", type=float, default=30.0)
+    parser.add_argument("--methods", default="lite,lite+post,post")
+    args = parser.parse_args()
+    torch.set_num_threads(args.threads)
+    cv2.setNumThreads(args.threads)
+    print(machine())
+    print(f"torch threads {torch.get_num_threads()}, OpenCV threads {cv2.getNumThreads()}, {W}x{H}")
+    frames = make_frames(args.frames)
+    with tempfile.TemporaryDirectory() as tmp:
+        src = Path(tmp) / "in.avi"
+        write_avi(src, frames)
+        opts = OutputOptions(overwrite=True, video_backend="opencv")
+        for method in args.methods.split(","):
+            restorer = create(method)
+            with CaptureSource(src) as source:  # warm-up: first calls allocate
+                enhance_frames(source, restorer, Path(tmp) / "warm.avi", opts, max_frames=10)
+            with CaptureSource(src) as source:
+                report = enhance_frames(source, restorer, Path(tmp) / "out.avi", opts)
+            print(line(f"{method}: file -> file", report))
+            with camera(frames, args.camera_fps) as url, CaptureSource(url) as source:
+                report = enhance_frames(source, restorer, Path(tmp) / "live.avi", opts)
+            print(line(f"{method}: {args.camera_fps:g} fps camera", report))
+
+
+if __name__ == "__main__":
+    main()
