@@ -126,7 +126,7 @@ def test_sources_index_pattern_and_bare_tars_agree(shard_folder: Path, tmp_path:
     assert detect_kind(str(shard_folder)) == "shards" and detect_kind("x/{000000..000003}.tar") == "shards"
     from murk.errors import InputFileError
 
-    with pytest.raises(InputFileError, match="000008.tar: shard not found"):
+    with pytest.raises(InputFileError, match=r"000008\.tar: shard not found"):
         resolve_shards(str(shard_folder / "shards/{000000..000009}.tar"))
     with pytest.raises(ValueError, match="cannot give 4 rank"):
         build_shard_data(_config(str(shard_folder), batch=4, data={"workers": 2}), world=4)
