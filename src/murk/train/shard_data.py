@@ -77,7 +77,7 @@ class ShardSet:
 def is_shard_source(source: str) -> bool:
     """True for a brace pattern or path of ``.tar`` shards, an ``index.json``, or a folder holding one."""
     s = source.strip()
-    if ".tar" in s or s.endswith(".json"):
+    if s.endswith((".tar", ".json")):
         return True
     return Path(s).is_dir() and (Path(s) / INDEX_NAME).is_file() and not (Path(s) / "manifest.jsonl").exists()
 
@@ -120,7 +120,7 @@ def resolve_shards(source: str) -> ShardSet:
     from braceexpand import braceexpand
 
     s = source.strip()
-    if ".tar" not in s:
+    if not s.endswith(".tar"):
         path = Path(s) / INDEX_NAME if Path(s).is_dir() else Path(s)
         index = _read_index(path)
         if not index.get("complete", False):
