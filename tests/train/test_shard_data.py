@@ -11,17 +11,17 @@ import torch
 
 from murk._config import merge
 from murk.io import discover, read_jsonl
-from murk.models.jointid import read_checkpoint
 from murk.synth.config import SynthConfig
 from murk.synth.shards import write_shards
 from murk.train.config import TrainConfig
 from murk.train.loop import detect_kind, train
+from murk.train.networks import read_network_checkpoint
 from murk.train.shard_data import build_shard_data, resolve_shards, shuffle_buffer_order
 
 pytest.importorskip("webdataset", reason="the webdataset package is needed to read tar shards")
 
 TINY = {
-    "model": {"variant": "tiny"},
+    "model": {"kind": "lite", "variant": "tiny"},  # the fastest network: the data path is under test
     "data": {"crop_hw": [32, 64], "workers": 0, "val_fraction": 0.0, "shuffle_buffer": 3},
     "eval": {"every": 1000, "val_batches": 1},
     "batch": 2,
@@ -141,8 +141,8 @@ def test_train_on_shards_resumes_exactly(shard_folder: Path, tmp_path: Path) -> 
     part = _config(source, tmp_path / "part", steps=5, data={"val_fraction": 0.25})
     train(part, stop_after=2)
     train(part, resume=True)
-    a = read_checkpoint(tmp_path / "full" / "latest.pt")[0]
-    b = read_checkpoint(tmp_path / "part" / "latest.pt")[0]
+    a = read_network_checkpoint("lite", tmp_path / "full" / "latest.pt")[0]
+    b = read_network_checkpoint("lite", tmp_path / "part" / "latest.pt")[0]
     assert all(torch.equal(a[k], b[k]) for k in a)
     la = [r["loss"] for r in read_jsonl(tmp_path / "full" / "log.jsonl") if r["kind"] == "train"]
     lb = [r["loss"] for r in read_jsonl(tmp_path / "part" / "log.jsonl") if r["kind"] == "train"]

@@ -281,7 +281,8 @@ class ShardStream(IterableDataset):
     def _read(self, order: list[int]) -> Iterator[dict[str, Any]]:
         ss = self.plan.shard_set
         offsets = ss.offsets
-        shard_of = np.searchsorted(np.asarray(offsets), np.asarray(order, dtype=np.int64), side="right") - 1
+        starts = np.asarray(offsets, dtype=np.int64)
+        shard_of = np.searchsorted(starts, np.asarray(order, dtype=np.int64), side="right") - 1
         holding = set(shard_of.tolist())
         needed_shards = [s for s in self.plan.shard_order(self.epoch) if s in holding]  # in the stream's read order
         wanted = set(order)
@@ -300,15 +301,13 @@ class ShardStream(IterableDataset):
                     return None
                 current = self._shard_samples(s, offsets[s], wanted)
 
-        for gid in order:
+        for gid, s in zip(order, shard_of.tolist(), strict=True):
             while gid not in pending:
                 item = next_sample()
-                url = ss.urls[int(np.searchsorted(np.asarray(offsets), gid, side="right") - 1)]
                 if item is None:
-                    raise InputFileError(url, f"sample id {gid} not found: the shard changed after it was indexed")
+                    raise InputFileError(ss.urls[s], f"sample id {gid} not found: the shard changed after indexing")
                 pending[item[0]] = item[1]
-            url = ss.urls[int(np.searchsorted(np.asarray(offsets), gid, side="right") - 1)]
-            yield decode_sample(pending.pop(gid), self.size_hw, gid, url)
+            yield decode_sample(pending.pop(gid), self.size_hw, gid, ss.urls[s])
 
     def _shard_samples(self, s: int, offset: int, wanted: set[int]) -> Iterator[tuple[int, dict[str, Any]]]:
         url = self.plan.shard_set.urls[s]
