@@ -116,21 +116,16 @@ def main() -> None:
               f"shards x{wr[('shards', 2)] / wr[('shards', 1)]:.2f}")  # fmt: skip
         print(f"write  2-worker pool start-up (a {len(sources)}-sample run): loose {start_s['files']:.1f} s   "
               f"shards {start_s['shards']:.1f} s")  # fmt: skip
-        for k in ("files", "shards"):
-            left = n / wr[(k, 2)] - start_s[k]
-            print(
-                f"write  2 workers net of start-up, {k}: "
-                + (
-                    f"{n / left:.1f} samples/s (x{n / left / wr[(k, 1)]:.2f} vs 1)"
-                    if left > 0
-                    else "n/a (start-up dominates)"
-                )
-            )
+        folders = {"files": tmp / "w-files-1", "shards": tmp / "w-shards-1"}
+        sizes = {k: sum(p.stat().st_size for p in v.rglob("*") if p.is_file()) for k, v in folders.items()}
+        files = {k: sum(1 for p in v.rglob("*") if p.is_file()) for k, v in folders.items()}
+        print(f"disk   per sample: shards {sizes['shards'] / n / 1e6:.3f} MB, loose {sizes['files'] / n / 1e6:.3f} MB")
+        print(f"disk   loose: {files['files']} files, {sizes['files'] / 1e6:.1f} MB   "
+              f"shards: {files['shards']} files, {sizes['shards'] / 1e6:.1f} MB")  # fmt: skip
         if args.write_only:
             return
         crop = ((h // 32) * 32, (w // 32) * 32)
         reads: dict[tuple[str, int], list[float]] = {}
-        folders = {"files": tmp / "w-files-1", "shards": tmp / "w-shards-1"}
         for _ in range(args.rounds):
             for kind in ("files", "shards"):
                 for workers in (1, 2):
@@ -144,10 +139,6 @@ def main() -> None:
             )
         print(f"load   2 vs 1 worker: folders x{rr[('files', 2)] / rr[('files', 1)]:.2f}   "
               f"shards x{rr[('shards', 2)] / rr[('shards', 1)]:.2f}")  # fmt: skip
-        sizes = {k: sum(p.stat().st_size for p in v.rglob("*") if p.is_file()) for k, v in folders.items()}
-        files = {k: sum(1 for p in v.rglob("*") if p.is_file()) for k, v in folders.items()}
-        print(f"disk   loose: {files['files']} files, {sizes['files'] / 1e6:.1f} MB   "
-              f"shards: {files['shards']} files, {sizes['shards'] / 1e6:.1f} MB")  # fmt: skip
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
