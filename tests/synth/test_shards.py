@@ -185,3 +185,40 @@ def test_cli_writes_shards_and_refuses_ray_for_files(small_rgbd: Path, tmp_path:
     assert read_jsonl(next((out / ".murk").glob("shards-all.jsonl")))[0]["shard"] == "000000.tar"
     r = runner.invoke(app, ["synth", str(small_rgbd), str(tmp_path / "o2"), "--backend", "ray"])
     assert r.exit_code == 2 and "need --format webdataset" in r.output
+
+
+def test_full_disk_stops_with_the_shard_named_and_nothing_partial(
+    small_rgbd: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import errno
+
+    import webdataset as wds
+
+    from murk.errors import OutputError
+
+    sources, _ = discover(small_rgbd)
+    real = wds.TarWriter.write
+    calls = {"n": 0}
+
+    def full_after_five_samples(self, obj):
+        calls["n"] += 1
+        if calls["n"] > 5:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(self, obj)
+
+    monkeypatch.setattr(wds.TarWriter, "write", full_after_five_samples)
+    with pytest.raises(OutputError, match=r"000001\.tar: no space left on device"):
+        write_shards(sources, tmp_path / "out", CFG, samples_per_shard=4)
+    monkeypatch.setattr(wds.TarWriter, "write", real)
+    assert [p.name for p in (tmp_path / "out" / "shards").iterdir()] == ["000000.tar"]
+    job = write_shards(sources, tmp_path / "out", CFG, samples_per_shard=4)
+    assert (job.processed, job.skipped) == (2, 4)
+
+
+def test_slurm_array_variables_pick_the_shards(small_rgbd: Path, tmp_path: Path) -> None:
+    env = {"SLURM_ARRAY_TASK_ID": "11", "SLURM_ARRAY_TASK_MIN": "10", "SLURM_ARRAY_TASK_COUNT": "3"}
+    out = tmp_path / "out"
+    args = ["synth", str(small_rgbd), str(out), "--variants", "3", "--format", "webdataset", "--samples-per-shard"]
+    r = CliRunner().invoke(app, [*args, "1"], env=env)
+    assert r.exit_code == 0 and "shard 1/3" in r.output, r.output
+    assert [p.name for p in sorted((out / "shards").iterdir())] == ["000001.tar", "000004.tar"]

@@ -27,6 +27,7 @@ variables) selects the shards ``j`` with ``j % N == i``.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import re
@@ -211,8 +212,13 @@ def _write_tar(path: Path, samples: Sequence[dict[str, Any]]) -> tuple[int, str]
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
             writer = wds.TarWriter(f, user="murk", group="murk", mode=0o444, encoder=False, mtime=TAR_MTIME)
-            for sample in samples:
-                writer.write(sample)
+            try:
+                for sample in samples:
+                    writer.write(sample)
+            except BaseException:
+                with contextlib.suppress(Exception):  # the temporary file is deleted; the first error is raised
+                    writer.close()
+                raise
             writer.close()
         data = tmp.read_bytes()
     return len(data), hashlib.sha256(data).hexdigest()
@@ -380,6 +386,12 @@ def write_shards(
     from murk.io.paths import check_output_location
     from murk.synth.runner import _OVERLAP_WHY, input_locations
 
+    try:
+        import webdataset  # noqa: F401
+    except ImportError:
+        raise ValueError(
+            "--format webdataset: the webdataset package is not installed; pip install 'murk[webdataset]'"
+        ) from None
     summary = JobSummary("synth")
     shard = Shard() if shard is None else shard
     if backend not in ("local", "ray"):
