@@ -149,3 +149,28 @@ def test_train_on_shards_resumes_exactly(shard_folder: Path, tmp_path: Path) -> 
     assert la == lb and len(la) == 5  # 12 training samples, batch 2: 6 steps per epoch
     ev = [r for r in read_jsonl(tmp_path / "full" / "log.jsonl") if r["kind"] == "eval"]
     assert ev and np.isfinite(ev[-1]["val_psnr"])  # the held-out stem (4 samples) is read by random access
+
+
+def test_torchrun_two_gloo_ranks_stream_shards(shard_folder: Path, tmp_path: Path) -> None:
+    import json
+    import os
+    import socket
+    import subprocess
+    import sys
+
+    from murk._config import dump_yaml
+
+    cfg = _config(str(shard_folder), tmp_path / "ddp", steps=3, data={"workers": 1})
+    (tmp_path / "c.yaml").write_text(dump_yaml(cfg))
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    cmd = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2", "--master_port", str(port)]
+    cmd += ["-m", "murk", "train", "--config", str(tmp_path / "c.yaml"), "-q"]
+    src = str(Path(__file__).resolve().parents[2] / "src")
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": os.pathsep.join([src, os.environ.get("PYTHONPATH", "")])}
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env)
+    assert r.returncode == 0, r.stderr[-3000:]
+    doc = json.loads((tmp_path / "ddp" / "summary.json").read_text())
+    assert doc["steps_done"] == 3 and len(doc["replica_checksums"]) == 2
+    assert doc["replica_checksums"][0] == doc["replica_checksums"][1]
