@@ -18,6 +18,7 @@ from murk.synth.config import SynthConfig
 from murk.synth.runner import Shard
 from murk.synth.shards import write_shards
 
+pytest.importorskip("webdataset", reason="the webdataset package is needed for --format webdataset")
 ray = pytest.importorskip("ray", reason="Ray is not installed (pip install 'murk[ray]'); the Ray backend is untested")
 
 
