@@ -68,6 +68,14 @@ def sample_key(stem: str, variant: int) -> str:
     return f"{stem.replace('.', '_')}_v{variant}"
 
 
+_KEY_RE = re.compile(r"_v\d+$")
+
+
+def stem_of_key(key: str) -> str:
+    """The (key-safe) stem of a sample key: ``<stem>_v<k>`` -> ``<stem>``."""
+    return _KEY_RE.sub("", key)
+
+
 @dataclass(frozen=True)
 class ShardPlan:
     """One shard: its index and its samples (source, variant), in tar order."""
@@ -469,11 +477,3 @@ def describe(summary: JobSummary, shard: Shard) -> str:
     where = f" (shard {shard.index}/{shard.count})" if shard.count > 1 else ""
     rate = summary.processed / summary.wall_s if summary.wall_s > 0 else 0.0
     return summary_line(summary, "sample") + f", {rate:.1f} samples/s{where} -> {summary.out}"
-
-
-_KEY_RE = re.compile(r"_v\d+$")
-
-
-def stem_of_key(key: str) -> str:
-    """The (key-safe) stem of a sample key: ``<stem>_v<k>`` -> ``<stem>``."""
-    return _KEY_RE.sub("", key)
