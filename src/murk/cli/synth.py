@@ -82,6 +82,22 @@ def synth(
         Path | None,
         typer.Option("--snow-bank", help="Particle bank from 'murk snow extract' (default: the shipped one)."),
     ] = None,
+    data_format: Annotated[
+        str,
+        typer.Option(
+            "--format",
+            help="files (loose PNG folders, default) or webdataset (tar shards + index.json; docs/scale.md).",
+        ),
+    ] = "files",
+    samples_per_shard: Annotated[
+        int, typer.Option("--samples-per-shard", min=1, help="Samples per tar shard (--format webdataset).")
+    ] = 256,
+    backend: Annotated[
+        str, typer.Option("--backend", help="local (worker processes) or ray (Ray tasks; --format webdataset).")
+    ] = "local",
+    ray_address: Annotated[
+        str | None, typer.Option("--ray-address", help="Ray cluster to join (e.g. auto); default: a local Ray.")
+    ] = None,
     quiet: QuietOpt = False,
 ) -> None:
     """Turn clean RGB-D images into a synthetic underwater training set.
@@ -152,6 +168,28 @@ def synth(
         raise ValueError(
             f"{paths[0] if list_file is None else list_file}: no RGB-D pairs found" + (f" ({why})" if why else "")
         )
+
+    if data_format not in ("files", "webdataset"):
+        raise ValueError(f"--format: expected files or webdataset, got {data_format!r}")
+    if data_format == "files" and (backend != "local" or ray_address):
+        raise ValueError("--backend ray and --ray-address need --format webdataset")
+    if data_format == "webdataset":
+        from murk.synth.shards import describe, write_shards
+
+        with Progress(TextColumn("[bold]synth[/]"), BarColumn(), MofNCompleteColumn(), TextColumn("shards"),
+                      TimeRemainingColumn(), console=console, transient=True) as progress:  # fmt: skip
+            bar = progress.add_task("synth", total=None)
+            job = write_shards(
+                sources, out_dir, config, samples_per_shard=samples_per_shard, shard=shard_obj, bank_path=bank_path,
+                problems=problems, backend=backend,  # type: ignore[arg-type]
+                ray_address=ray_address, on_progress=lambda d, t: progress.update(bar, completed=d, total=t),
+            )  # fmt: skip
+        make_console().print(describe(job, shard_obj), soft_wrap=True)
+        for note in job.notes[:10]:
+            make_console().print(f"  [yellow]warning:[/] {note}", soft_wrap=True)
+        if job.failed:
+            raise typer.Exit(EXIT_PARTIAL)
+        return
 
     with Progress(
         TextColumn("[bold]synth[/]"),

@@ -18,7 +18,9 @@ def train(
     data: Annotated[
         str | None,
         typer.Option(
-            "--data", help="murk synth folder, Joint-ID list, clean RGB-D folder (online synthesis) or 'scenes'."
+            "--data",
+            help="murk synth folder, Joint-ID list, clean RGB-D folder (online synthesis), 'scenes', or tar shards "
+            "('out/shards/{000000..000199}.tar', or the index.json of 'murk synth --format webdataset').",
         ),
     ] = None,
     eval_real: Annotated[

@@ -10,7 +10,7 @@ from murk.synth.config import SynthConfig
 from murk.train.augment import AugmentConfig
 from murk.train.losses import LossWeights
 
-DataKind = Literal["auto", "synth", "list", "rgbd", "scenes"]
+DataKind = Literal["auto", "synth", "list", "rgbd", "scenes", "shards"]
 
 
 @dataclass(frozen=True)
@@ -42,8 +42,9 @@ class DataConfig:
     """Where samples come from.
 
     ``source`` is a ``murk synth`` output folder, a Joint-ID list file, a clean RGB-D folder (``rgb/`` +
-    ``depth/``; degraded online) or ``scenes`` (procedural construction-site scenes, degraded online);
-    ``kind: auto`` tells them apart.
+    ``depth/``; degraded online), ``scenes`` (procedural construction-site scenes, degraded online) or tar shards
+    of ``murk synth --format webdataset`` (``'out/shards/{000000..000199}.tar'``, its ``index.json`` or folder;
+    streamed: :mod:`murk.train.shard_data`); ``kind: auto`` tells them apart.
     """
 
     source: str = ""
@@ -58,6 +59,9 @@ class DataConfig:
     """A separate validation source instead of the split."""
     workers: int = 2
     """DataLoader worker processes per training process."""
+    shuffle_buffer: int = 256
+    """Tar shards (``kind: shards``): samples each stream holds to shuffle across shards (compressed bytes,
+    about 1 MB per 640x480 sample; :mod:`murk.train.shard_data`)."""
     depth_scale: float = 1000.0
     depth_encoding: Literal["linear", "sun", "kinect-disparity"] = "linear"
     invalid_depth: Literal["fill", "far", "fail"] = "fill"
@@ -83,6 +87,8 @@ class DataConfig:
         check_range("val_fraction", self.val_fraction, 0.0, 0.9)
         if self.workers < 0:
             raise ValueError(f"workers: expected >= 0, got {self.workers}")
+        if self.shuffle_buffer < 1:
+            raise ValueError(f"shuffle_buffer: expected >= 1, got {self.shuffle_buffer}")
         check_positive("depth_scale", self.depth_scale)
         if self.scenes_count < 1:
             raise ValueError(f"scenes_count: expected >= 1, got {self.scenes_count}")

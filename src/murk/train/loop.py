@@ -82,6 +82,10 @@ def detect_kind(source: str) -> str:
     p = Path(source)
     if source == "scenes" or source.startswith("scenes:"):
         return "scenes"
+    from murk.train.shard_data import is_shard_source
+
+    if is_shard_source(source):
+        return "shards"
     if p.is_file():
         return "list"
     if (p / "manifest.jsonl").is_file():
@@ -90,7 +94,7 @@ def detect_kind(source: str) -> str:
         return "rgbd"
     raise ValueError(
         f"data.source: {source or '(empty)'} is neither a 'murk synth' folder, a Joint-ID list file, a folder with "
-        "rgb/ and depth/, nor 'scenes'"
+        "rgb/ and depth/, 'scenes', nor tar shards (a .tar pattern or an index.json)"
     )
 
 
@@ -117,6 +121,11 @@ def build_data(config: TrainConfig) -> DataSetup:
         train = CleanRGBDDataset([sources[i] for i in ti], crop, opts)
         val = CleanRGBDDataset([sources[i] for i in vi], crop, opts) if vi else None
         return DataSetup(train, val, online, kind)
+    if kind == "shards":  # streamed tar shards (murk.train.shard_data): split by rank and worker per epoch
+        from murk.train.shard_data import build_shard_data
+
+        train_stream, val_shards = build_shard_data(config, _dist_info()[1])
+        return DataSetup(train_stream, val_shards, None, kind)  # type: ignore[arg-type]
     if kind == "scenes":
         from murk.train.scenes_source import SceneDataset
 
@@ -128,7 +137,7 @@ def build_data(config: TrainConfig) -> DataSetup:
         train = SceneDataset(range(n_val, count), crop, seed=config.seed, cache=cache, scale=scale)
         val = SceneDataset(range(n_val), crop, seed=config.seed, cache=cache, scale=scale) if n_val else None
         return DataSetup(train, val, online, kind)
-    raise ValueError(f"data.kind: expected auto, synth, list, rgbd or scenes, got {kind!r}")
+    raise ValueError(f"data.kind: expected auto, synth, list, rgbd, scenes or shards, got {kind!r}")
 
 
 def epoch_batches(n: int, batch: int, epoch: int, seed: int, rank: int, world: int) -> list[list[int]]:
@@ -296,14 +305,17 @@ def train(
     def batches_from(step: int) -> Iterator[tuple[int, dict[str, Any]]]:
         epoch, offset = divmod(step, spe)
         while True:
-            idx = epoch_batches(n_train, config.batch, epoch, config.seed, rank, world)[offset:]
-            loader = DataLoader(
-                data.train,
-                batch_sampler=idx,
-                num_workers=config.data.workers,
-                pin_memory=device.type == "cuda",
-                persistent_workers=False,
-            )
+            if hasattr(data.train, "epoch_loader"):  # tar shards: this rank's stream of the epoch, from a batch on
+                loader = data.train.epoch_loader(epoch, offset, rank=rank, pin_memory=device.type == "cuda")
+            else:
+                idx = epoch_batches(n_train, config.batch, epoch, config.seed, rank, world)[offset:]
+                loader = DataLoader(
+                    data.train,
+                    batch_sampler=idx,
+                    num_workers=config.data.workers,
+                    pin_memory=device.type == "cuda",
+                    persistent_workers=False,
+                )
             for b in loader:
                 yield epoch, b
             epoch, offset = epoch + 1, 0
