@@ -253,18 +253,25 @@ def process_source(
             write_rgb(out / files["transmission"], res.transmission, png_compression=png)  # type: ignore[arg-type]
             keep.update(basic=files["basic"], transmission=files["transmission"])
         write_rgb(out / files["degraded"], res.degraded, png_compression=png)  # last: its presence marks done
-        info = {
-            "width": w,
-            "height": h,
-            "dist_min_m": float(res.dist_m.min()),
-            "dist_max_m": float(res.dist_m.max()),
-            "sigma_max": res.sigma_max_px,
-            "valid_depth_fraction": float(valid.mean()),
-        }
-        if note:
-            info["depth_warning"] = note
+        info = variant_info(res, w, h, valid, note)
         records.append(manifest_record(source, k, seed, params, info, keep))
     return records, []
+
+
+def variant_info(res: Any, w: int, h: int, valid: np.ndarray, note: str | None) -> dict[str, Any]:
+    """The manifest's per-variant figures: size, distance range, largest blur, valid depth fraction and the
+    depth warning (if any); the same for loose files and shards."""
+    info: dict[str, Any] = {
+        "width": w,
+        "height": h,
+        "dist_min_m": float(res.dist_m.min()),
+        "dist_max_m": float(res.dist_m.max()),
+        "sigma_max": res.sigma_max_px,
+        "valid_depth_fraction": float(valid.mean()),
+    }
+    if note:
+        info["depth_warning"] = note
+    return info
 
 
 def depth_range_note(source: RGBDSource, valid_depth_m: np.ndarray) -> str | None:

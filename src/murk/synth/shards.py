@@ -48,7 +48,7 @@ from murk.io.jsonl import append_jsonl, read_jsonl
 from murk.io.pairs import DepthOptions, Problem, RGBDSource, load_pair
 from murk.rng import derive_seed
 from murk.synth.config import SynthConfig
-from murk.synth.runner import DEPTH_SCALE_OUT, Shard, depth_range_note, fit_size, manifest_record
+from murk.synth.runner import DEPTH_SCALE_OUT, Shard, depth_range_note, fit_size, manifest_record, variant_info
 
 Backend = Literal["local", "ray"]
 SHARDS_DIR = "shards"
@@ -197,16 +197,7 @@ def render_source_samples(
             sample["basic.png"] = _png(to_uint(res.basic, 8), level)  # type: ignore[arg-type]
             sample["transmission.png"] = _png(to_uint(res.transmission, 8), level)  # type: ignore[arg-type]
         files = {m: f"{key}.{m}.png" for m in MEMBERS if f"{m}.png" in sample}
-        info = {
-            "width": w,
-            "height": h,
-            "dist_min_m": float(res.dist_m.min()),
-            "dist_max_m": float(res.dist_m.max()),
-            "sigma_max": res.sigma_max_px,
-            "valid_depth_fraction": float(valid.mean()),
-        }
-        if note:
-            info["depth_warning"] = note
+        info = variant_info(res, w, h, valid, note)
         record = manifest_record(source, k, seed, params, info, files)
         sample["json"] = json.dumps(record, sort_keys=True, separators=(",", ":")).encode("utf-8")
         samples.append(sample)
