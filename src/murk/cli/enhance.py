@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 import signal
 import threading
-import time
 from collections.abc import Iterator
 from enum import Enum
 from pathlib import Path
@@ -15,6 +14,7 @@ import typer
 from rich.markup import escape
 
 from murk.cli._common import EXIT_OK, EXIT_PARTIAL, DeviceOpt, QuietOpt, make_console, resolve_device
+from murk.cli._jobs import JobProgress, print_summary
 
 EXIT_INTERRUPTED = 130
 
@@ -237,14 +237,24 @@ def enhance(
         if inp.kind == "images":
             jobs, out_dir = plan_images(inp, out, options.format)
             jobs = jobs[:max_frames] if max_frames else jobs
-            with _Display(console, f"{restorer.name}: {inp.label}", total=len(jobs), live=False) as display:
+            title = f"{restorer.name}: {inp.label}"
+            with JobProgress(console, title, total=len(jobs), unit="images", status=_status_line) as display:
                 report = enhance_images(
-                    jobs, restorer, out_dir, options, batch=batch, on_progress=display.update, should_stop=stop
+                    jobs,
+                    restorer,
+                    out_dir,
+                    options,
+                    batch=batch,
+                    on_progress=lambda r: display.update(r, rate=f"{r.fps:.1f} f/s"),
+                    should_stop=stop,
                 )
         else:
             with CaptureSource(inp.target) as source:  # type: ignore[arg-type]
                 total = source.frame_count if max_frames is None else min(source.frame_count or max_frames, max_frames)
-                with _Display(console, f"{restorer.name}: {inp.label}", total=total, live=source.live) as display:
+                title = f"{restorer.name}: {inp.label}"
+                with JobProgress(
+                    console, title, total=total, unit="frames", live=source.live, status=_status_line
+                ) as display:
                     report = enhance_frames(
                         source,
                         restorer,
@@ -252,10 +262,10 @@ def enhance(
                         options,
                         batch=batch,
                         max_frames=max_frames,
-                        on_progress=display.update,
+                        on_progress=lambda r: display.update(r, rate=f"{r.fps:.1f} f/s"),
                         should_stop=stop,
                     )
-    _print_summary(summary, report)
+    _print_summary(summary, report, "image" if inp.kind == "images" else "frame")
     live = inp.kind == "stream"
     if report.failed:
         raise typer.Exit(EXIT_PARTIAL)
@@ -265,86 +275,25 @@ def enhance(
     raise typer.Exit(EXIT_OK)
 
 
-def _print_summary(console: Any, report: Any) -> None:
+def _print_summary(console: Any, report: Any, unit: str) -> int:
     ms = report.stage_ms()
-    parts = [f"{report.processed} processed"]
-    if report.skipped:
-        parts.append(f"{report.skipped} skipped (output exists)")
-    if report.failed:
-        parts.append(f"[red]{report.failed} failed[/] (see {escape(str(report.errors_path))})")
-    console.print(
-        f"enhance: {', '.join(parts)} in {report.wall_s:.1f} s; {report.fps:.2f} frames/s; per frame: "
-        f"read {ms['read']:.1f} ms, restore {ms['restore']:.1f} ms, write {ms['write']:.1f} ms",
-        soft_wrap=True,
+    detail = (
+        f"{report.fps:.2f} frames/s; per frame: read {ms['read']:.1f} ms, restore {ms['restore']:.1f} ms, "
+        f"write {ms['write']:.1f} ms"
     )
+    code = print_summary(report, unit, detail=detail, console=console)
     for path in report.outputs:
         console.print(f"wrote {escape(str(path))}", soft_wrap=True)
-    for note in report.notes:
-        console.print(f"note: {escape(note)}", soft_wrap=True)
+    return code
 
 
-class _Display:
-    """A progress bar (files, on a terminal), a live line (streams, on a terminal), or a plain status line
-    every 10 s (headless logs)."""
-
-    def __init__(self, console: Any, title: str, *, total: int | None, live: bool) -> None:
-        self.console, self.title, self.total, self.live = console, title, total, live
-        self.interactive = console.is_terminal and not console.quiet
-        self._last = time.monotonic()
-        self._progress: Any = None
-        self._live: Any = None
-
-    def __enter__(self) -> _Display:
-        if self.interactive and not self.live:
-            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-
-            self._progress = Progress(
-                TextColumn("{task.description}"),
-                BarColumn(),
-                MofNCompleteColumn(),
-                TextColumn("{task.fields[rate]}"),
-                TimeRemainingColumn(),
-                console=self.console,
-            )
-            self._progress.start()
-            self._task = self._progress.add_task(escape(self.title), total=self.total, rate="")
-        elif self.interactive:
-            from rich.live import Live
-
-            self._live = Live("", console=self.console, refresh_per_second=4, transient=True)
-            self._live.start()
-        return self
-
-    def update(self, report: Any) -> None:
-        now = time.monotonic()
-        if self._progress is not None:
-            self._progress.update(
-                self._task, completed=report.processed + report.skipped + report.failed, rate=f"{report.fps:.1f} f/s"
-            )
-            return
-        line = _status_line(self.title, report)
-        if self._live is not None:
-            if now - self._last >= 0.25:
-                self._live.update(line)
-                self._last = now
-        elif not self.console.quiet and now - self._last >= 10.0:
-            self.console.print(line, soft_wrap=True)
-            self._last = now
-
-    def __exit__(self, *exc: object) -> None:
-        if self._progress is not None:
-            self._progress.stop()
-        if self._live is not None:
-            self._live.stop()
-
-
-def _status_line(title: str, report: Any) -> str:
+def _status_line(report: Any) -> str:
     ms = report.stage_ms()
     done = report.processed + report.skipped
     of = f"/{report.total}" if report.total else ""
     failed = f", {report.failed} failed" if report.failed else ""
-    return escape(
-        f"{title}: {done}{of} frames{failed} | {report.fps:.1f} f/s | read {ms['read']:.0f} ms, "
+    return (
+        f"{done}{of} frames{failed} | {report.fps:.1f} f/s | read {ms['read']:.0f} ms, "
         f"restore {ms['restore']:.0f} ms, write {ms['write']:.0f} ms"
     )
 

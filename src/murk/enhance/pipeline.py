@@ -38,7 +38,7 @@ from murk.errors import InputFileError, OutputError, ShapeError
 from murk.io.atomic import TMP_PREFIX, remove_stale_temporaries
 from murk.io.depth import write_depth_png
 from murk.io.images import IMAGE_SUFFIXES, list_images, read_image, to_float, to_uint, write_rgb, write_uint
-from murk.io.jsonl import append_jsonl
+from murk.io.jobs import ErrorLog, ErrorRecord, JobSummary
 from murk.io.listing import glob_files
 from murk.io.paths import check_output_location, output_names
 from murk.io.video import (
@@ -55,7 +55,6 @@ from murk.io.video import (
 InputKind = Literal["images", "video", "stream"]
 ImageFormat = Literal["png", "jpg"]
 VideoBackendChoice = Literal["auto", "opencv", "av"]
-ERRORS_FILE = "errors.jsonl"
 SIXTEEN_BIT_SUFFIXES = (".png", ".tif", ".tiff")
 _GLOB_CHARS = set("*?[")
 
@@ -242,22 +241,17 @@ def _suffixes(fmt: str) -> tuple[str, ...]:
 
 
 @dataclass
-class EnhanceReport:
-    """Counts and timings of a run. ``failed`` counts records written to ``errors.jsonl``."""
+class EnhanceReport(JobSummary):
+    """The job summary of an enhance run (:class:`murk.io.jobs.JobSummary`) with its timings: ``failed``
+    counts records written to ``errors.jsonl``."""
 
-    processed: int = 0
-    skipped: int = 0
-    failed: int = 0
+    command: str = "enhance"
     total: int | None = None
     read_s: float = 0.0
     restore_s: float = 0.0
     write_s: float = 0.0
-    wall_s: float = 0.0
     stopped: bool = False
-    errors_path: Path | None = None
     outputs: list[Path] = field(default_factory=list)
-    notes: list[str] = field(default_factory=list)
-    started: float = field(default_factory=time.perf_counter, repr=False)
 
     @property
     def fps(self) -> float:
@@ -270,31 +264,8 @@ class EnhanceReport:
         return {"read": 1e3 * self.read_s / n, "restore": 1e3 * self.restore_s / n, "write": 1e3 * self.write_s / n}
 
     def tick(self) -> None:
-        self.wall_s = time.perf_counter() - self.started
-
-    def note(self, text: str) -> None:
-        if text not in self.notes:
-            self.notes.append(text)
-
-
-class _ErrorLog:
-    """Appends one ``errors.jsonl`` record per failure (created only when something fails); :meth:`start`
-    removes the records of an earlier run, so the file lists the failures of the latest run only."""
-
-    def __init__(self, folder: Path, report: EnhanceReport) -> None:
-        self.path = folder / ERRORS_FILE
-        self.report = report
-
-    def start(self) -> None:
-        self.path.unlink(missing_ok=True)
-
-    def add(self, source: str, stage: str, error: str, frame: int | None = None) -> None:
-        record: dict[str, object] = {"input": source, "stage": stage, "error": error}
-        if frame is not None:
-            record["frame"] = frame
-        append_jsonl(self.path, [record])
-        self.report.failed += 1
-        self.report.errors_path = self.path
+        """Stamp the wall time so far (:meth:`JobSummary.finish`)."""
+        self.finish()
 
 
 _INPUT_ERRORS = (InputFileError, ValueError, OSError)
@@ -361,7 +332,7 @@ def enhance_images(
     if batch < 1:
         raise ValueError(f"batch: expected >= 1, got {batch}")
     report = EnhanceReport(total=len(jobs))
-    errors = _ErrorLog(out_dir, report)
+    errors = ErrorLog(out_dir, summary=report)
     out_dir.mkdir(parents=True, exist_ok=True)
     remove_stale_temporaries(out_dir)
     errors.start()
@@ -382,7 +353,7 @@ def enhance_images(
             break
         key = job.dst.resolve()
         if key in claimed:
-            errors.add(str(job.src), "plan", f"output {job.dst} is already written from {claimed[key]}")
+            errors.add(ErrorRecord(str(job.src), "plan", f"output {job.dst} is already written from {claimed[key]}"))
             continue
         claimed[key] = job.src
         if job.dst.exists() and not options.overwrite:
@@ -393,7 +364,7 @@ def enhance_images(
             raw, info = read_image(job.src)
             image = to_float(raw)
         except _INPUT_ERRORS as exc:
-            errors.add(str(job.src), "read", _message(exc, job.src))
+            errors.add(ErrorRecord(str(job.src), "read", _message(exc, job.src)))
             continue
         finally:
             report.read_s += time.perf_counter() - t0
@@ -413,14 +384,14 @@ def _restore_and_write_images(
     out_dir: Path,
     options: OutputOptions,
     report: EnhanceReport,
-    errors: _ErrorLog,
+    errors: ErrorLog,
 ) -> None:
     t0 = time.perf_counter()
     try:
         result = _restore(restorer, np.stack([it.image for it in items]))
     except _RESTORE_ERRORS as exc:
         for it in items:
-            errors.add(str(it.job.src), "restore", f"{type(exc).__name__}: {exc}")
+            errors.add(ErrorRecord(str(it.job.src), "restore", f"{type(exc).__name__}: {exc}"))
         return
     finally:
         report.restore_s += time.perf_counter() - t0
@@ -437,7 +408,7 @@ def _restore_and_write_images(
         except OutputError:  # a full disk ends the run (every later write would fail too)
             raise
         except _INPUT_ERRORS as exc:
-            errors.add(str(it.job.src), "write", _message(exc, it.job.dst))
+            errors.add(ErrorRecord(str(it.job.src), "write", _message(exc, it.job.dst)))
     report.write_s += time.perf_counter() - t0
 
 
@@ -590,7 +561,7 @@ def enhance_frames(
         )
     if writer.backend == "av" and not av_available():
         raise ValueError("--video-backend av needs PyAV: pip install 'murk[video]'")
-    errors = _ErrorLog(writer.out_dir, report)
+    errors = ErrorLog(writer.out_dir, summary=report)
     label = getattr(source, "label", source.name)
     if writer.as_video and out.exists() and not options.overwrite:
         if source.live:
@@ -629,7 +600,8 @@ def enhance_frames(
         for it in items:
             if it.index not in outputs:
                 repeated = writer.repeat_last()
-                errors.add(label, "read" if it.image is None else "restore", _frame_error(it, repeated), it.index)
+                stage = "read" if it.image is None else "restore"
+                errors.add(ErrorRecord(label, stage, _frame_error(it, repeated), frame=it.index))
                 continue
             image, depth = outputs[it.index]
             saw_depth |= depth is not None
@@ -640,7 +612,7 @@ def enhance_frames(
             except OutputError:  # a full disk ends the run; finish() discards the partial video
                 raise
             except _INPUT_ERRORS as exc:
-                errors.add(label, "write", str(exc), it.index)
+                errors.add(ErrorRecord(label, "write", str(exc), frame=it.index))
         report.write_s += time.perf_counter() - t0
         items.clear()
         report.tick()
