@@ -7,7 +7,8 @@ from typing import Annotated
 
 import typer
 
-from murk.cli._common import EXIT_PARTIAL, QuietOpt, make_console
+from murk.cli._common import QuietOpt, make_console
+from murk.cli._jobs import JobProgress, print_summary
 
 
 def compare(
@@ -75,21 +76,19 @@ def compare(
         "policy": policy,
     }
 
-    def on_image(i: int, n: int, name: str) -> None:
-        console.print(f"[{i + 1}/{n}] {name}", highlight=False)
-
-    res = run_compare(
-        images,
-        specs,
-        out,
-        boxes=boxes,
-        uiqm_preset=uiqm_preset,
-        uciqe_preset=uciqe_preset,
-        restorer_options=options,
-        save_outputs=save_outputs,
-        title=title,
-        on_image=on_image,
-    )
+    with JobProgress(console, "compare", total=len(images), unit="images") as progress:
+        res = run_compare(
+            images,
+            specs,
+            out,
+            boxes=boxes,
+            uiqm_preset=uiqm_preset,
+            uciqe_preset=uciqe_preset,
+            restorer_options=options,
+            save_outputs=save_outputs,
+            title=title,
+            on_image=lambda i, n, name: progress.update(i, n),
+        )
     summary = make_console()
     summary.print(f"{'method':<28} {'UIQM mean +- std':>18} {'UCIQE mean +- std':>18}  n", highlight=False)
     for s in specs:
@@ -98,8 +97,4 @@ def compare(
             f"{s.label:<28} {u['mean']:>9.3f} +- {u['std']:<5.3f} {c['mean']:>9.3f} +- {c['std']:<5.3f}  {u['n']}",
             highlight=False,
         )
-    summary.print(f"report: {Path(out) / 'report.html'}", soft_wrap=True, highlight=False)
-    if res.errors:
-        for e in res.errors[:10]:
-            summary.print(f"  [red]failed:[/] {e['path']}: {e['error']}", soft_wrap=True)
-        raise typer.Exit(EXIT_PARTIAL)
+    raise typer.Exit(print_summary(res, "image", detail=f"report: {Path(out) / 'report.html'}", console=summary))
