@@ -82,7 +82,7 @@ def test_eval_skips_and_records_an_unreadable_file(real: Path, unreadable: Path,
     assert res.exit_code == 1, res.output
     assert "Traceback" not in res.output
     (record,) = read_jsonl(out.parent / "errors.jsonl")
-    assert record == {"file": str(unreadable), "error": "cannot read file (Permission denied)"}
+    assert record == {"input": str(unreadable), "stage": "score", "error": "cannot read file (Permission denied)"}
     assert [r["file"] for r in json.loads(out.read_text())["images"]] == ["a.png", "c.png"]
 
 
