@@ -33,6 +33,7 @@ from torch.utils.data import DataLoader, Dataset
 from murk._config import dump_yaml, to_dict
 from murk._version import __version__
 from murk.io.atomic import write_text_atomic
+from murk.io.jobs import JobSummary
 from murk.io.jsonl import append_jsonl
 from murk.io.pairs import DepthOptions
 from murk.rng import derive_seed
@@ -52,10 +53,13 @@ from murk.train.schedule import Schedule
 
 
 @dataclass
-class TrainSummary:
-    """What a run did (also written to ``summary.json``)."""
+class TrainSummary(JobSummary):
+    """What a run did (also written to ``summary.json``): the job summary (:class:`murk.io.jobs.JobSummary`;
+    ``processed`` counts the steps run by this invocation, ``skipped`` those resumed from ``latest.pt``) and
+    the training figures."""
 
-    out_dir: str
+    command: str = "train"
+    out_dir: str = ""
     steps_done: int = 0
     total_steps: int = 0
     images_per_s: float = 0.0
@@ -285,7 +289,7 @@ def train(
     if config.compile:
         net = torch.compile(net)
 
-    summary = TrainSummary(str(out), steps_done=start, total_steps=total, best=best)
+    summary = TrainSummary(out=out, out_dir=str(out), steps_done=start, skipped=start, total_steps=total, best=best)
     autocast = (
         torch.autocast(device_type=device.type, dtype=torch.bfloat16)
         if config.precision == "bf16"
@@ -348,6 +352,7 @@ def train(
         step += 1
         imgs += inputs.shape[0] * world
         summary.steps_done = step
+        summary.processed = step - start
         if step % config.log_every == 0 or step == end:
             loss = float(terms.total.detach())
             now = time.perf_counter()
@@ -407,12 +412,14 @@ def train(
         summary.peak_memory_gib = torch.cuda.max_memory_allocated(device) / 2**30
     summary.replica_checksums = _replica_checksums(model, distributed)
     if main_rank:
-        write_text_atomic(out / "summary.json", json.dumps(to_dict(summary), indent=2, default=str) + "\n")
+        summary.finish()
+        doc = {k: v for k, v in to_dict(summary).items() if k not in ("started", "failures")}
+        write_text_atomic(out / "summary.json", json.dumps(doc, indent=2, default=str) + "\n")
     logger.close()
     if distributed:
         dist.barrier()
         dist.destroy_process_group()
-    return summary
+    return summary.finish()
 
 
 def _replica_checksums(model: torch.nn.Module, distributed: bool) -> list[float]:
