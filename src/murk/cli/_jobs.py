@@ -34,6 +34,7 @@ class JobProgress:
         unit: what is counted (``"images"``, ``"variants"``, ...).
         live: a live source (no bar; a status line).
         status: builds the status text from the object given to :meth:`update` (default: ``done/total unit``).
+        rate: builds the rate shown beside the bar from that object (e.g. ``"12.5 f/s"``).
     """
 
     def __init__(
@@ -45,9 +46,10 @@ class JobProgress:
         unit: str = "items",
         live: bool = False,
         status: Callable[[Any], str] | None = None,
+        rate: Callable[[Any], str] | None = None,
     ) -> None:
         self.console, self.title, self.total, self.unit, self.live = console, title, total, unit, live
-        self.status = status
+        self.status, self.rate = status, rate
         self.interactive = console.is_terminal and not console.quiet
         self._last = time.monotonic()
         self._progress: Any = None
@@ -82,6 +84,8 @@ class JobProgress:
         if total is not None:
             self.total = total
         count = done if isinstance(done, int) else _done_of(done)
+        if self.rate is not None and not isinstance(done, int):
+            rate = self.rate(done)
         if self._progress is not None:
             self._progress.update(self._task, completed=count, total=self.total, rate=rate)
             return

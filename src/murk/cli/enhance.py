@@ -185,15 +185,9 @@ def enhance(
     Prints processed/skipped/failed counts, frames per second and read/restore/write milliseconds per frame.
     Unreadable inputs go to errors.jsonl in the output folder (exit code 1); reruns skip finished outputs.
     """
-    from murk.enhance.pipeline import (
-        OutputOptions,
-        enhance_frames,
-        enhance_images,
-        plan_images,
-        resolve_input,
-    )
-    from murk.enhance.restorer import create, weights_of
-    from murk.io.video import CaptureSource
+    from murk.enhance.job import OutputOptions
+    from murk.enhance.restorer import create
+    from murk.enhance.run import run_enhance, weights_line
 
     dev = resolve_device(device)
     restorer = create(
@@ -226,45 +220,25 @@ def enhance(
     )
     console = make_console(quiet)
     summary = make_console(False)
-    weights = weights_of(restorer)
-    if weights:
-        stage = next(s.name for s in getattr(restorer, "stages", [restorer]) if getattr(s, "weights", None))
-        what = {"jointid": "the 'small' Joint-ID murk trained", "lite": "the 'lite' network murk trained"}.get(stage)
-        shipped = f" (shipped with murk: {what}, docs/models.md)" if checkpoint is None and what else ""
-        console.print(f"{stage} weights: {weights}{shipped}", soft_wrap=True, highlight=False)
-    inp = resolve_input(input, recursive=recursive, exclude=out)
+    line = weights_line(restorer, shipped=checkpoint is None)
+    if line:
+        console.print(line, soft_wrap=True, highlight=False)
+
+    def display(title: str, unit: str, total: int | None, live: bool) -> JobProgress:
+        return JobProgress(console, title, total=total, unit=unit, live=live, status=_status_line, rate=_rate)
+
     with _stop_on_signals() as stop:
-        if inp.kind == "images":
-            jobs, out_dir = plan_images(inp, out, options.format)
-            jobs = jobs[:max_frames] if max_frames else jobs
-            title = f"{restorer.name}: {inp.label}"
-            with JobProgress(console, title, total=len(jobs), unit="images", status=_status_line) as display:
-                report = enhance_images(
-                    jobs,
-                    restorer,
-                    out_dir,
-                    options,
-                    batch=batch,
-                    on_progress=lambda r: display.update(r, rate=f"{r.fps:.1f} f/s"),
-                    should_stop=stop,
-                )
-        else:
-            with CaptureSource(inp.target) as source:  # type: ignore[arg-type]
-                total = source.frame_count if max_frames is None else min(source.frame_count or max_frames, max_frames)
-                title = f"{restorer.name}: {inp.label}"
-                with JobProgress(
-                    console, title, total=total, unit="frames", live=source.live, status=_status_line
-                ) as display:
-                    report = enhance_frames(
-                        source,
-                        restorer,
-                        out,
-                        options,
-                        batch=batch,
-                        max_frames=max_frames,
-                        on_progress=lambda r: display.update(r, rate=f"{r.fps:.1f} f/s"),
-                        should_stop=stop,
-                    )
+        inp, report = run_enhance(
+            input,
+            out,
+            restorer,
+            options,
+            recursive=recursive,
+            batch=batch,
+            max_frames=max_frames,
+            should_stop=stop,
+            display=display,
+        )
     _print_summary(summary, report, "image" if inp.kind == "images" else "frame")
     live = inp.kind == "stream"
     if report.failed:
@@ -285,6 +259,10 @@ def _print_summary(console: Any, report: Any, unit: str) -> int:
     for path in report.outputs:
         console.print(f"wrote {escape(str(path))}", soft_wrap=True)
     return code
+
+
+def _rate(report: Any) -> str:
+    return f"{report.fps:.1f} f/s"
 
 
 def _status_line(report: Any) -> str:
