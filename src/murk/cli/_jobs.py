@@ -55,6 +55,7 @@ class JobProgress:
         self._progress: Any = None
         self._live: Any = None
         self._task: Any = None
+        self._count = 0
 
     def __enter__(self) -> JobProgress:
         if self.interactive and not self.live:
@@ -100,7 +101,7 @@ class JobProgress:
 
     def advance(self, n: int = 1) -> None:
         """Count ``n`` more items done."""
-        self._count = getattr(self, "_count", 0) + n
+        self._count += n
         self.update(self._count)
 
     def _line(self, done: Any, count: int) -> str:

@@ -98,7 +98,7 @@ def synth(
         raise ValueError("with --list give exactly one argument, OUT_DIR")
     if list_file is None and len(paths) != 2:
         raise ValueError("expected RGBD_DIR OUT_DIR (or --list FILE OUT_DIR)")
-    flags = dict(locals())
+    flags = dict(locals())  # the parameters by name; _CONFIG_PATHS says which config field each one sets
     flags["water_types"] = None if water_types is None else water_types.split(",")
     flags["stages"] = None if stages is None else stages.split(",")
     flags["size"] = None if size is None else list(parse_size(size))
