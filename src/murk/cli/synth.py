@@ -98,13 +98,13 @@ def synth(
         raise ValueError("with --list give exactly one argument, OUT_DIR")
     if list_file is None and len(paths) != 2:
         raise ValueError("expected RGBD_DIR OUT_DIR (or --list FILE OUT_DIR)")
-    flags = dict(locals())  # the parameters by name; _CONFIG_PATHS says which config field each one sets
+    flags = dict(locals())  # the parameters by name; CONFIG_PATHS says which config field each one sets
     flags["water_types"] = None if water_types is None else water_types.split(",")
     flags["stages"] = None if stages is None else stages.split(",")
     flags["size"] = None if size is None else list(parse_size(size))
     flags["snow_bank"] = None if snow_bank is None else str(snow_bank)
     config = load_yaml(SynthConfig, config_file) if config_file else SynthConfig()
-    config = merge(config, flag_overrides(_CONFIG_PATHS, flags), where="command line")
+    config = merge(config, flag_overrides(CONFIG_PATHS, flags), where="command line")
     shard_obj = Shard.parse(shard)
     where = f" (shard {shard_obj.index}/{shard_obj.count})" if shard_obj.count > 1 else ""
     with JobProgress(make_console(quiet), f"synth{where}", unit="variants") as progress:
@@ -120,7 +120,7 @@ def synth(
     raise typer.Exit(print_summary(summary, "variant", detail=detail))
 
 
-_CONFIG_PATHS = {
+CONFIG_PATHS = {
     "variants": "variants",
     "stages": "stages",
     "seed": "seed",

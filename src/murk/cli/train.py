@@ -48,7 +48,7 @@ def train(
 
     flags = {"out": None if out is None else str(out), "eval_real": None if eval_real is None else str(eval_real)}
     values = {**locals(), **flags}
-    config = merge(load_yaml(TrainConfig, config_file), flag_overrides(_CONFIG_PATHS, values), where="command line")
+    config = merge(load_yaml(TrainConfig, config_file), flag_overrides(CONFIG_PATHS, values), where="command line")
     resolved: dict[str, Any] = {"data": {"source": resolve_builtin(config.data.source)}}
     if config.eval.real:
         resolved["eval"] = {"real": resolve_builtin(config.eval.real)}
@@ -77,7 +77,7 @@ def train(
     raise typer.Exit(print_summary(summary, "step", detail=detail))
 
 
-_CONFIG_PATHS = {
+CONFIG_PATHS = {
     "steps": "steps",
     "batch": "batch",
     "epochs": "epochs",
