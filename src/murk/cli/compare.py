@@ -51,23 +51,14 @@ def compare(
     """Run every --method on every image; per-image UIQM (+ UICM/UISM/UIConM) and UCIQE, a per-method
     mean +- std table (Fig. 8), side-by-side grids with zoomed boxes (Figs. 7, 9), CSV, JSON and report.html."""
     from murk.cli._common import resolve_device
-    from murk.io.images import list_images
-    from murk.io.paths import check_output_location
-    from murk.report.compare import run_compare
+    from murk.report.compare import real_images, run_compare
     from murk.report.figures import parse_box
     from murk.report.methods import parse_method
 
     console = make_console(quiet)
     specs = [parse_method(m) for m in method]
     boxes = [parse_box(b) for b in box or []]
-    if real_dir.is_file():
-        images = [real_dir]
-    else:
-        check_output_location(out, [real_dir], inside="allow")  # an --out inside REAL_DIR is left out below
-        images = list_images(real_dir, recursive=recursive)
-        images = [p for p in images if out.resolve() not in p.resolve().parents]
-    if not images:
-        raise ValueError(f"{real_dir}: no images found")
+    images = real_images(real_dir, out, recursive=recursive)
     options = {
         "device": resolve_device(device),
         "precision": precision,

@@ -96,6 +96,25 @@ def summarise(rows: Sequence[dict[str, Any]], labels: Sequence[str]) -> dict[str
     return out
 
 
+def real_images(real_dir: Path, out: Path, *, recursive: bool = False) -> list[Path]:
+    """The images to compare: ``real_dir`` itself when it is a file, else its images (``recursive``), leaving
+    out any inside the report folder ``out``.
+
+    Raises:
+        ValueError: ``out`` is the input folder (or would mix with it); no image found.
+    """
+    from murk.io.images import list_images
+    from murk.io.paths import check_output_location
+
+    if real_dir.is_file():
+        return [real_dir]
+    check_output_location(out, [real_dir], inside="allow")  # an --out inside REAL_DIR is left out below
+    images = [p for p in list_images(real_dir, recursive=recursive) if out.resolve() not in p.resolve().parents]
+    if not images:
+        raise ValueError(f"{real_dir}: no images found")
+    return images
+
+
 def run_compare(
     images: Sequence[Path],
     methods: Sequence[MethodSpec],
