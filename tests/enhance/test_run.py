@@ -33,6 +33,7 @@ def test_folder_runs_the_image_job_and_shows_progress(tmp_path: Path) -> None:
 
     inp, report = run_enhance(str(folder), tmp_path / "out", PostRestorer(), max_frames=2, display=display)
     assert inp.kind == "images" and report.processed == 2 and report.command == "enhance"
+    assert report.to_json()["out"] == str(tmp_path / "out")
     assert seen == [("images", 2, False)] and reports[-1] == 2
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["0.png", "1.png"]
     assert weights_line(PostRestorer(), shipped=True) is None

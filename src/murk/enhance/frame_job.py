@@ -157,7 +157,7 @@ def enhance_frames(
         raise ValueError(f"batch: expected >= 1, got {batch}")
     if max_frames is not None and max_frames < 1:
         raise ValueError(f"max_frames: expected >= 1, got {max_frames}")
-    report = EnhanceReport()
+    report = EnhanceReport(out=out)
     if source.frame_count is not None:
         report.total = min(source.frame_count, max_frames) if max_frames else source.frame_count
     elif max_frames is not None:

@@ -66,7 +66,7 @@ def enhance_images(
     options = options or OutputOptions()
     if batch < 1:
         raise ValueError(f"batch: expected >= 1, got {batch}")
-    report = EnhanceReport(total=len(jobs))
+    report = EnhanceReport(total=len(jobs), out=out_dir)
     errors = ErrorLog(out_dir, summary=report)
     out_dir.mkdir(parents=True, exist_ok=True)
     remove_stale_temporaries(out_dir)
