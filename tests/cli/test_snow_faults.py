@@ -76,3 +76,25 @@ def test_errors_jsonl_lists_the_latest_run_only(tmp_path: Path) -> None:
     r = _extract(str(tmp_path / "in"), "--out", str(tmp_path / "bank.npz"))
     assert r.exit_code == 0, r.output
     assert not errors.exists()
+
+
+def test_video_footage_is_read_through_io_video_every_nth_frame(tmp_path: Path) -> None:
+    """Issue 14: snow extract decodes video with murk.io.video (one list of video suffixes: .wmv included)."""
+    from murk.io.video import VIDEO_SUFFIXES
+
+    assert ".wmv" in VIDEO_SUFFIXES and ".flv" in VIDEO_SUFFIXES
+    frames = [cv2.imread(str(_frame(tmp_path / f"f{i}.png", shift=i))) for i in range(6)]
+    video = tmp_path / "dive.avi"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10.0, (96, 64))
+    for f in frames:
+        writer.write(f)
+    writer.release()
+    r = _extract(str(video), "--out", str(tmp_path / "bank.npz"), "--every", "2")
+    assert r.exit_code == 0, r.output
+    assert [s["frame"] for s in load_bank(tmp_path / "bank.npz").meta["sources"]] == [0, 2, 4]
+    assert sorted(p.name for p in (tmp_path / "bank_preview").iterdir()) == [
+        "dive_f000000.jpg",
+        "dive_f000002.jpg",
+        "dive_f000004.jpg",
+    ]
+    assert "snow extract: 3 frames processed" in r.output

@@ -47,9 +47,9 @@ def test_synth_end_to_end_on_the_shipped_pairs(tmp_path: Path) -> None:
     for sub in ("degraded", "clean", "depth", "snow_alpha", "basic", "transmission"):
         assert any((out / sub).iterdir()), sub
     assert cv2.imread(str(out / "degraded" / "tum_fr1_v1.png")).shape == (120, 160, 3)
-    assert "synth: 3 images, 6 variants written" in r.output
+    assert "synth: 6 variants processed" in r.output and "3 clean images" in r.output
     r = runner.invoke(app, args)  # resume: nothing left to do
-    assert r.exit_code == 0 and "0 variants written, 6 already done" in r.output
+    assert r.exit_code == 0 and "0 variants processed, 6 skipped (already done)" in r.output
 
 
 def test_synth_config_file_and_cli_override(tmp_path: Path) -> None:
@@ -139,7 +139,7 @@ def test_synth_refused_inputs_fail_their_pair_only(small_rgbd: Path, tmp_path: P
     r = runner.invoke(app, ["synth", str(small_rgbd), str(out), "--variants", "1"])
     assert r.exit_code == 1, r.output
     assert "Traceback" not in r.output and isinstance(r.exception, SystemExit)
-    errors = {Path(e["path"]).name: e["error"] for e in read_jsonl(out / "errors.jsonl")}
+    errors = {Path(e["input"]).name: e["error"] for e in read_jsonl(out / "errors.jsonl")}
     assert set(errors) == {"bomb.png", "short.png", "dup.jpg"}
     assert "bomb.npy: declares float64 (100000, 100000) = 10,000,000,000 elements, over" in errors["bomb.png"]
     assert "short.npy: truncated: the header declares float32 (48, 64) = 12,288 bytes" in errors["short.png"]

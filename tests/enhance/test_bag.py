@@ -151,17 +151,17 @@ def test_rerun_skips_a_finished_bag_and_a_killed_run_leaves_no_bag(
     assert [p.name.startswith(TMP_PREFIX) for p in out.parent.iterdir()] == [True]  # only the temporary bag
     monkeypatch.undo()
     res = _enhance(bag, "--topic", "/cam/bgr", "--out", out)
-    assert res.exit_code == 0 and "3 processed" in res.output
+    assert res.exit_code == 0 and "3 frames processed" in res.output
     assert [p.name for p in out.parent.iterdir()] == ["restored.bag"]  # the stale temporary was removed
     assert [m.data.tobytes() for _, m in read_topic(out, "/cam/bgr/restored")] == [
         m.data.tobytes() for _, m in read_topic(ref, "/cam/bgr/restored")
     ]
     before = out.stat().st_mtime_ns
     res = _enhance(bag, "--topic", "/cam/bgr", "--out", out)
-    assert res.exit_code == 0 and "0 processed, 1 skipped" in " ".join(res.output.split())
+    assert res.exit_code == 0 and "0 frames processed, 1 skipped" in " ".join(res.output.split())
     assert out.stat().st_mtime_ns == before
     res = _enhance(bag, "--topic", "/cam/bgr", "--out", out, "--overwrite")
-    assert res.exit_code == 0 and "3 processed" in res.output and len(read_topic(out, "/cam/bgr/restored")) == N
+    assert res.exit_code == 0 and "3 frames processed" in res.output and len(read_topic(out, "/cam/bgr/restored")) == N
 
 
 def test_undecodable_frames_go_to_errors_jsonl_and_the_run_continues(tmp_path: Path) -> None:
@@ -189,7 +189,7 @@ def test_numbered_frames_with_stamps_resume(tmp_path: Path) -> None:
     (out / "dive_mcap_000001.png").unlink()
     (out / "frames.jsonl").unlink()
     res = _enhance(bag, "--topic", "/cam/bgr", "--out", out, "--format", "png", "--every", "2")
-    assert res.exit_code == 0 and "1 processed, 1 skipped" in " ".join(res.output.split())
+    assert res.exit_code == 0 and "1 frame processed, 1 skipped" in " ".join(res.output.split())
     assert read_jsonl(out / "frames.jsonl") == rows
     ros1 = _make(tmp_path, "ros1", None)  # ROS 1: any name without .bag is a folder of frames
     res = _enhance(ros1, "--topic", "/cam/rgb", "--out", tmp_path / "f1")

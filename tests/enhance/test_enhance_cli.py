@@ -42,7 +42,7 @@ def folder(tmp_path: Path, rng: np.random.Generator) -> Path:
 def test_folder_run_reports_counts_rate_and_stage_latency(folder: Path, tmp_path: Path) -> None:
     res = runner.invoke(app, ["enhance", str(folder), "--out", str(tmp_path / "out"), "--recursive"])
     assert res.exit_code == 0, res.output
-    assert "2 processed" in _out(res) and "frames/s" in _out(res)
+    assert "2 images processed" in _out(res) and "frames/s" in _out(res)
     assert "read" in _out(res) and "restore" in _out(res) and "write" in _out(res)
     assert (tmp_path / "out" / "sub" / "b.png").is_file()
     res = runner.invoke(app, ["enhance", str(folder), "--out", str(tmp_path / "out"), "-r"])
@@ -63,7 +63,7 @@ def test_video_to_video_and_to_frames(tmp_path: Path) -> None:
     video = make_video(tmp_path / "clip.avi", 6, fps=8.0)
     res = runner.invoke(app, ["enhance", str(video), "--out", str(tmp_path / "enh.mp4"), "--batch", "4"])
     assert res.exit_code == 0, res.output
-    assert "6 processed" in _out(res) and "wrote" in _out(res)
+    assert "6 frames processed" in _out(res) and "wrote" in _out(res)
     frames = read_video(tmp_path / "enh.mp4")
     assert len(frames) == 6 and frames[0].shape == (48, 64, 3)
     res = runner.invoke(
@@ -78,7 +78,7 @@ def test_live_http_stream_is_recorded_headless(mjpeg_url: str, tmp_path: Path, b
     out = tmp_path / "rov.mp4"
     res = runner.invoke(app, ["enhance", mjpeg_url, "--out", str(out), "--video-backend", backend, "--fps", "10"])
     assert res.exit_code == 0, res.output
-    assert "15 processed" in _out(res) and "disconnected" in _out(res)
+    assert "15 frames processed" in _out(res) and "disconnected" in _out(res)
     frames = read_video(out)
     assert len(frames) == 15 and frames[0].shape == (48, 64, 3)
 
@@ -145,7 +145,7 @@ def test_video_with_a_broken_frame_continues_and_exits_1(tmp_path: Path) -> None
     video.write_bytes(bytes(data))
     res = runner.invoke(app, ["enhance", str(video), "--out", str(tmp_path / "out" / "enh.avi")])
     assert res.exit_code == 1, res.output
-    assert "9 processed" in _out(res) and "1 failed" in _out(res)
+    assert "9 frames processed" in _out(res) and "1 failed" in _out(res)
     assert len(read_video(tmp_path / "out" / "enh.avi")) == 10  # the broken frame is replaced, timing kept
     (record,) = read_jsonl(tmp_path / "out" / "errors.jsonl")
     assert record["frame"] == 4 and record["stage"] == "read" and record["input"] == str(video)

@@ -42,7 +42,7 @@ def test_full_disk_on_images_stops_with_one_line(folder: Path, tmp_path: Path, m
     assert not (out / "errors.jsonl").exists()  # a full disk is not a bad input
     monkeypatch.undo()
     res = runner.invoke(app, ["enhance", str(folder), "--out", str(out), "-r"])
-    assert res.exit_code == 0 and "1 processed, 1 skipped" in " ".join(res.output.split())
+    assert res.exit_code == 0 and "1 image processed, 1 skipped" in " ".join(res.output.split())
 
 
 def test_full_disk_on_frames_stops_with_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

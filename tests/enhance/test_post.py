@@ -261,9 +261,7 @@ def test_half_way_luma_values_fall_in_the_even_bin_as_in_the_torch_twin() -> Non
     # Grey pixels whose 255 * value lies exactly half-way between two bins exercise the tie.
     levels = np.array([0.5, 1.5, 2.5, 100.5, 127.5, 128.5, 253.5, 254.5], np.float32) / np.float32(255.0)
     grey = np.repeat(np.tile(levels, 4)[None, :, None], 3, axis=2).astype(np.float32)
-    y255 = (grey[:, :, 0] * np.float32(0.299) + grey[:, :, 1] * np.float32(0.587)) + grey[:, :, 2] * np.float32(
-        0.114
-    )
+    y255 = (grey[:, :, 0] * np.float32(0.299) + grey[:, :, 1] * np.float32(0.587)) + grey[:, :, 2] * np.float32(0.114)
     assert np.any(np.abs(y255 * 255 - np.floor(y255 * 255) - 0.5) < 1e-4)  # the ties are really there
     np.testing.assert_array_equal(equalize(grey, "y"), _n(equalize_torch(_t(grey), "y")))
     np.testing.assert_array_equal(equalize(grey, "rgb"), _n(equalize_torch(_t(grey), "rgb")))

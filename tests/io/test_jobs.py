@@ -54,3 +54,25 @@ def test_summary_exit_code_and_line():
     line = summary_line(s, "image")
     assert line.startswith("enhance: 3 images processed, 1 skipped") and "2 failed" in line
     assert s.to_json()["failed"] == 2
+
+
+def test_summary_collects_failures_and_writes_them_once(tmp_path):
+    s = JobSummary("synth")
+    s.add_failure(ErrorRecord("a.png", "read", "broken"))
+    s.add_failure(ErrorRecord("b.png", "render", "nan", variant=2))
+    assert s.failed == 2 and s.write_errors(tmp_path) == tmp_path / "errors.jsonl"
+    assert read_errors(tmp_path / "errors.jsonl")[1].variant == 2 and s.errors_path == tmp_path / "errors.jsonl"
+    s.failures.clear()
+    assert s.write_errors(tmp_path) is None and s.failed == 0 and not (tmp_path / "errors.jsonl").exists()
+
+
+def test_error_log_counts_into_a_summary(tmp_path):
+    s = JobSummary("enhance")
+    log = ErrorLog(tmp_path, summary=s).start()
+    log.add(ErrorRecord("v.mp4", "read", "bad frame", frame=4))
+    assert s.failed == 1 and s.failures[0].frame == 4 and s.errors_path == tmp_path / "errors.jsonl"
+
+
+def test_summary_line_singular_and_detail():
+    s = JobSummary("scenes", processed=1, wall_s=2.0)
+    assert summary_line(s, "scenes", "5.0 scenes/s") == "scenes: 1 scene processed in 2.0 s; 5.0 scenes/s"

@@ -18,7 +18,7 @@ def test_discover_matches_by_stem_and_reports_orphans(small_rgbd: Path) -> None:
     cv2.imwrite(str(small_rgbd / "depth" / "nodepth_rgb.png"), np.ones((4, 4), np.uint16))
     sources, problems = discover(small_rgbd)
     assert [s.stem for s in sources] == ["a", "b"]
-    assert {Path(p.path).name for p in problems} == {"lonely.png", "nodepth_rgb.png"}
+    assert {Path(p.input).name for p in problems} == {"lonely.png", "nodepth_rgb.png"}
 
 
 def test_discover_errors(tmp_path: Path) -> None:
@@ -75,8 +75,8 @@ def test_same_stem_twice_is_reported_as_ambiguous_and_the_rest_still_loads(small
     cv2.imwrite(str(depth / "x.png"), np.ones((48, 64), np.uint16))
     sources, problems = discover(small_rgbd)
     assert [s.stem for s in sources] == ["a", "b"]
-    by_stem = {Path(p.path).stem: p.error for p in problems}
-    assert set(by_stem) == {"dup", "x"} and {Path(p.path).name for p in problems} == {"dup.jpg", "x.npy"}
+    by_stem = {Path(p.input).stem: p.error for p in problems}
+    assert set(by_stem) == {"dup", "x"} and {Path(p.input).name for p in problems} == {"dup.jpg", "x.npy"}
     assert by_stem["dup"].startswith(f"ambiguous stem 'dup': {rgb / 'dup.jpg'}, {rgb / 'dup.png'} share it; ")
     assert by_stem["x"].startswith(f"ambiguous stem 'x': {depth / 'x.npy'}, {depth / 'x.png'} share it; ")
     for s in sources:
@@ -88,7 +88,7 @@ def test_ambiguous_depth_without_rgb_is_an_orphan(small_rgbd: Path) -> None:
     cv2.imwrite(str(small_rgbd / "depth" / "z.png"), np.ones((4, 4), np.uint16))
     sources, problems = discover(small_rgbd)
     assert len(sources) == 2
-    assert [(Path(p.path).name, p.error) for p in problems] == [
+    assert [(Path(p.input).name, p.error) for p in problems] == [
         ("z.npy", f"no RGB image with stem 'z' in {small_rgbd / 'rgb'}")
     ]
 

@@ -187,7 +187,7 @@ def test_failed_files_exit_1_with_errors_jsonl(folder: Path, tmp_path: Path) -> 
     assert res.exit_code == 1
     assert "broken.png" in _err(res) and "cannot decode" in _err(res)
     errors = [json.loads(line) for line in (out / "errors.jsonl").read_text().splitlines()]
-    assert [Path(e["file"]).name for e in errors] == ["broken.png"]
+    assert [(Path(e["input"]).name, e["stage"]) for e in errors] == [("broken.png", "score")]
     doc = json.loads((out / "r.json").read_text())
     assert len(doc["images"]) == 2 and len(doc["errors"]) == 1
 

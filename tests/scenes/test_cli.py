@@ -33,7 +33,7 @@ def test_writes_the_synth_layout(tmp_path: Path) -> None:
     out = tmp_path / "sc"
     res = _run(str(out), "--count", "3", "--size", "64x48", "--seed", "7", "-q")
     assert res.exit_code == 0, res.output
-    assert "3 rendered" in res.output
+    assert "3 scenes processed" in res.output
     assert sorted(p.name for p in (out / "rgb").iterdir()) == [f"scene_00000{i}.png" for i in range(3)]
     lines = [json.loads(x) for x in (out / "scenes.jsonl").read_text().splitlines()]
     assert [x["index"] for x in lines] == [0, 1, 2]
@@ -69,12 +69,12 @@ def test_workers_do_not_change_the_bytes_and_resume_skips(tmp_path: Path) -> Non
     (b / "depth" / "scene_000002.png").unlink()
     (b / "rgb" / "scene_000003.png").write_bytes(b"stale but present")
     res = _run(str(b), "-n", "4", "--size", "40x30", "--seed", "3", "-q")
-    assert res.exit_code == 0 and "1 rendered, 3 already present" in res.output
+    assert res.exit_code == 0 and "1 scene processed, 3 skipped (already done)" in res.output
     assert (b / "rgb" / "scene_000003.png").read_bytes() == b"stale but present"  # skipped, not re-rendered
     assert (b / "depth" / "scene_000002.png").read_bytes() == (a / "depth" / "scene_000002.png").read_bytes()
     # Growing the dataset keeps the first scenes and appends consistent lines.
     res = _run(str(a), "-n", "6", "--size", "40x30", "--seed", "3", "-q")
-    assert res.exit_code == 0 and "2 rendered, 4 already present" in res.output
+    assert res.exit_code == 0 and "2 scenes processed, 4 skipped (already done)" in res.output
     assert len((a / "scenes.jsonl").read_text().splitlines()) == 6
 
 

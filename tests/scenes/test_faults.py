@@ -33,11 +33,13 @@ def test_errors_jsonl_lists_the_latest_run_only(tmp_path: Path, monkeypatch: pyt
     monkeypatch.setattr(murk.scenes, "render_scene", flaky)
     out = tmp_path / "sc"
     assert _run(out).exit_code == 1
-    assert [r["index"] for r in read_jsonl(out / "errors.jsonl")] == [1]
+    assert [(r["index"], r["stage"], r["input"]) for r in read_jsonl(out / "errors.jsonl")] == [
+        (1, "render", "rgb/scene_000001.png")
+    ]
     monkeypatch.undo()
     res = _run(out)
     assert res.exit_code == 0, res.output
-    assert "1 rendered, 1 already present, 0 failed" in res.output
+    assert "1 scene processed, 1 skipped (already done) in" in res.output and "failed" not in res.output
     assert not (out / "errors.jsonl").exists()
 
 

@@ -67,7 +67,7 @@ def test_zero_particles_error_names_the_inputs() -> None:
 def test_extract_bank_reports_rejected_frames_and_keeps_the_rest() -> None:
     frames = [({"path": "good.png"}, _dots()), ({"path": "bright.png"}, _dots(background=150))]
     rep = extract_bank(frames, ExtractConfig(open_px=0, close_px=0))
-    assert len(rep.bank) == 12 and rep.problems[0][0] == "bright.png"
+    assert len(rep.bank) == 12 and (rep.problems[0].input, rep.problems[0].stage) == ("bright.png", "extract")
     assert rep.bank.meta["sources"][0]["particles"] == 12 and rep.bank.meta["extract"]["method"] == "threshold"
 
 

@@ -77,7 +77,7 @@ def test_errors_jsonl_lists_the_latest_run_only(small_rgbd: Path, tmp_path: Path
     cv2.imwrite(str(small_rgbd / "depth" / "broken.png"), np.ones((4, 4), np.uint16))
     out = tmp_path / "out"
     assert _synth(str(small_rgbd), str(out)).exit_code == 1
-    assert [Path(e["path"]).name for e in read_jsonl(out / "errors.jsonl")] == ["broken.png"]
+    assert [Path(e["input"]).name for e in read_jsonl(out / "errors.jsonl")] == ["broken.png"]
     for sub in ("rgb", "depth"):
         (small_rgbd / sub / "broken.png").unlink()
     r = _synth(str(small_rgbd), str(out))

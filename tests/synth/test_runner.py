@@ -110,7 +110,7 @@ def test_bad_inputs_are_recorded_and_the_rest_continues(small_rgbd: Path, tmp_pa
     sources, problems = discover(small_rgbd)
     s = run_synthesis(sources, tmp_path, CFG, problems=problems)
     assert s.variants_written == 6 and len(s.failures) == 3
-    errs = {Path(e["path"]).name: e["error"] for e in read_jsonl(tmp_path / "errors.jsonl")}
+    errs = {Path(e["input"]).name: e["error"] for e in read_jsonl(tmp_path / "errors.jsonl")}
     assert "cannot decode image" in errs["c.png"]
     assert "does not match depth" in errs["d.png"]
     assert "no depth file with stem 'e'" in errs["e.png"]

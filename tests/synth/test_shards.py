@@ -177,7 +177,7 @@ def test_cli_writes_shards_and_refuses_ray_for_files(small_rgbd: Path, tmp_path:
     args = ["synth", str(small_rgbd), str(out), "--variants", "2", "--format", "webdataset"]
     r = runner.invoke(app, [*args, "--samples-per-shard", "3", "--shard", "1/2"])
     assert r.exit_code == 0, r.output
-    assert "1 samples processed" in r.output and "shard 1/2" in r.output  # 4 samples: shard 1 holds the last
+    assert "1 sample processed" in r.output and "shard 1/2" in r.output  # 4 samples: shard 1 holds the last
     assert [p.name for p in (out / "shards").iterdir()] == ["000001.tar"]
     r = runner.invoke(app, [*args, "--samples-per-shard", "3"])
     assert r.exit_code == 0 and "3 samples processed, 1 skipped" in r.output, r.output

@@ -114,6 +114,7 @@ def test_checkpoint_loads_for_inference_and_eval_metrics(synth_folder: Path, tmp
     assert out.depth_m.shape == (1, 1, 32, 64)
     doc = json.loads((tmp_path / "summary.json").read_text())
     assert doc["steps_done"] == 2 and "variant: tiny" in (tmp_path / "config.yaml").read_text()
+    assert (doc["command"], doc["processed"], doc["skipped"], doc["failed"]) == ("train", 2, 0, 0)
     from murk._config import load_yaml
 
     assert load_yaml(TrainConfig, tmp_path / "config.yaml") == cfg  # the run's config.yaml reproduces it

@@ -175,3 +175,19 @@ def _alive(pid: int) -> bool:
             return f.read().split()[2] != "Z"  # a zombie waiting for its (dead) parent is not running
     except FileNotFoundError:
         return False
+
+
+def test_study_result_is_a_job_summary_with_failed_arms_in_errors_jsonl(tmp_path: Path, monkeypatch) -> None:
+    """Issue 14: murk study returns the job summary; a failed arm is an errors.jsonl record (stage train)."""
+    import murk.report.study as report_study
+    from murk.io.jobs import read_errors
+    from murk.train.study import ArmRun
+
+    runs = [ArmRun("basic", "done"), ArmRun("basic_fs", "trained", 1.0), ArmRun("proposed", "failed", 1.0, "exit 1")]
+    monkeypatch.setattr(report_study, "train_arms", lambda *a, **k: runs)
+    root = Path(__file__).resolve().parents[2] / "configs"
+    res = report_study.run_study(root / "study-paper-cpu.yaml", tmp_path, train_only=True)
+    assert (res.processed, res.skipped, res.failed, res.ok) == (1, 1, 1, False)
+    (rec,) = read_errors(tmp_path / "errors.jsonl")
+    assert (rec.stage, rec.index, rec.error) == ("train", 2, "arm proposed: exit 1")
+    assert rec.input == str(tmp_path / "models" / "proposed")

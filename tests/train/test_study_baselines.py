@@ -41,7 +41,7 @@ def test_study_eval_scores_the_baseline_specs(tmp_path: Path, monkeypatch: pytes
 
     def fake_run_compare(images, methods, out_dir, **kwargs):
         seen.extend(methods)
-        return CompareResult(Path(out_dir), summary=summarise([], [m.label for m in methods]))
+        return CompareResult(out=Path(out_dir), summary=summarise([], [m.label for m in methods]))
 
     monkeypatch.setattr(compare_module, "run_compare", fake_run_compare)
     report = evaluate_study(cfg, base, out)

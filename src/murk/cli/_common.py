@@ -78,3 +78,19 @@ def resolve_device(device: str) -> str:
             raise ValueError(f"--device {device}: CUDA is not available on this machine (torch {torch.__version__})")
         return dev
     raise ValueError(f"--device: expected cpu, cuda or cuda:N, got {device!r}")
+
+
+def flag_overrides(table: dict[str, str], values: dict[str, Any]) -> dict[str, Any]:
+    """Nested config overrides from command-line flags: ``table`` maps a flag's parameter name to its dotted
+    config path (``{"fs_mode": "forward_scatter.mode"}``); flags left at None are not overrides."""
+    out: dict[str, Any] = {}
+    for name, path in table.items():
+        value = values.get(name)
+        if value is None:
+            continue
+        *parents, leaf = path.split(".")
+        node = out
+        for key in parents:
+            node = node.setdefault(key, {})
+        node[leaf] = value
+    return out

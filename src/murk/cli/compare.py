@@ -7,7 +7,8 @@ from typing import Annotated
 
 import typer
 
-from murk.cli._common import EXIT_PARTIAL, QuietOpt, make_console
+from murk.cli._common import QuietOpt, make_console
+from murk.cli._jobs import JobProgress, print_summary
 
 
 def compare(
@@ -56,31 +57,14 @@ def compare(
     """Run every --method on every image; per-image UIQM (+ UICM/UISM/UIConM) and UCIQE, a per-method
     mean +- std table (Fig. 8), side-by-side grids with zoomed boxes (Figs. 7, 9), CSV, JSON and report.html."""
     from murk.cli._common import resolve_device
-    from murk.io.images import list_images
-    from murk.io.paths import check_output_location
-    from murk.io.rosbag import export_bag_frames, is_bag
-    from murk.report.compare import run_compare
+    from murk.report.compare import real_images, run_compare
     from murk.report.figures import parse_box
     from murk.report.methods import parse_method
 
     console = make_console(quiet)
     specs = [parse_method(m) for m in method]
     boxes = [parse_box(b) for b in box or []]
-    bag_errors: list = []
-    if is_bag(real_dir):  # issue 17: the frames of --topic, exported to a temporary folder for the run
-        bags = export_bag_frames([real_dir], topic, every=every)  # deleted with `bags` when the command returns
-        images = list_images(bags.paths[0])
-        bag_errors = bags.errors
-        for e in bags.errors:
-            console.print(f"  [red]skipped:[/] {e.input}: frame {e.frame}: {e.error}", soft_wrap=True)
-    elif real_dir.is_file():
-        images = [real_dir]
-    else:
-        check_output_location(out, [real_dir], inside="allow")  # an --out inside REAL_DIR is left out below
-        images = list_images(real_dir, recursive=recursive)
-        images = [p for p in images if out.resolve() not in p.resolve().parents]
-    if not images:
-        raise ValueError(f"{real_dir}: no images found")
+    images = real_images(real_dir, out, recursive=recursive)
     options = {
         "device": resolve_device(device),
         "precision": precision,
@@ -89,21 +73,21 @@ def compare(
         "policy": policy,
     }
 
-    def on_image(i: int, n: int, name: str) -> None:
-        console.print(f"[{i + 1}/{n}] {name}", highlight=False)
-
-    res = run_compare(
-        images,
-        specs,
-        out,
-        boxes=boxes,
-        uiqm_preset=uiqm_preset,
-        uciqe_preset=uciqe_preset,
-        restorer_options=options,
-        save_outputs=save_outputs,
-        title=title,
-        on_image=on_image,
-    )
+    with JobProgress(console, "compare", total=len(images), unit="images") as progress:
+        res = run_compare(
+            images,
+            specs,
+            out,
+            boxes=boxes,
+            uiqm_preset=uiqm_preset,
+            uciqe_preset=uciqe_preset,
+            restorer_options=options,
+            save_outputs=save_outputs,
+            title=title,
+            topic=topic,
+            every=every,
+            on_image=lambda i, n, name: progress.update(i, n),
+        )
     summary = make_console()
     summary.print(f"{'method':<28} {'UIQM mean +- std':>18} {'UCIQE mean +- std':>18}  n", highlight=False)
     for s in specs:
@@ -112,8 +96,4 @@ def compare(
             f"{s.label:<28} {u['mean']:>9.3f} +- {u['std']:<5.3f} {c['mean']:>9.3f} +- {c['std']:<5.3f}  {u['n']}",
             highlight=False,
         )
-    summary.print(f"report: {Path(out) / 'report.html'}", soft_wrap=True, highlight=False)
-    if res.errors or bag_errors:
-        for e in res.errors[:10]:
-            summary.print(f"  [red]failed:[/] {e['path']}: {e['error']}", soft_wrap=True)
-        raise typer.Exit(EXIT_PARTIAL)
+    raise typer.Exit(print_summary(res, "image", detail=f"report: {Path(out) / 'report.html'}", console=summary))

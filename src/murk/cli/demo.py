@@ -20,7 +20,7 @@ def demo(
     illustration of murk train -> restoration of real underwater images with the SHIPPED murk-trained Joint-ID
     -> compare -> report.html.
     """
-    from murk.report.demo import run_demo
+    from murk.workflows.demo import run_demo
 
     console = make_console(quiet)
     res = run_demo(out, quick=quick, seed=seed, log=lambda m: console.print(m, highlight=False, soft_wrap=True))

@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 import signal
 import threading
-import time
 from collections.abc import Iterator
 from enum import Enum
 from pathlib import Path
@@ -15,6 +14,7 @@ import typer
 from rich.markup import escape
 
 from murk.cli._common import EXIT_OK, EXIT_PARTIAL, DeviceOpt, QuietOpt, make_console, resolve_device
+from murk.cli._jobs import JobProgress, print_summary
 
 EXIT_INTERRUPTED = 130
 
@@ -210,16 +210,9 @@ def enhance(
     Prints processed/skipped/failed counts, frames per second and read/restore/write milliseconds per frame.
     Unreadable inputs go to errors.jsonl in the output folder (exit code 1); reruns skip finished outputs.
     """
-    from murk.enhance.pipeline import (
-        OutputOptions,
-        enhance_frames,
-        enhance_images,
-        plan_images,
-        resolve_input,
-    )
-    from murk.enhance.restorer import create, weights_of
-    from murk.io.rosbag import is_bag
-    from murk.io.video import CaptureSource
+    from murk.enhance.job import OutputOptions
+    from murk.enhance.restorer import create
+    from murk.enhance.run import BagOptions, run_enhance, weights_line
 
     dev = resolve_device(device)
     restorer = create(
@@ -252,50 +245,35 @@ def enhance(
     )
     console = make_console(quiet)
     summary = make_console(False)
-    weights = weights_of(restorer)
-    if weights:
-        stage = next(s.name for s in getattr(restorer, "stages", [restorer]) if getattr(s, "weights", None))
-        what = {"jointid": "the 'small' Joint-ID murk trained", "lite": "the 'lite' network murk trained"}.get(stage)
-        shipped = f" (shipped with murk: {what}, docs/models.md)" if checkpoint is None and what else ""
-        console.print(f"{stage} weights: {weights}{shipped}", soft_wrap=True, highlight=False)
-    bag_options = {"out_topic": out_topic, "depth_topic": depth_topic, "copy_topics": copy_topics or []}
-    if is_bag(input):  # ROS bags (issue 17): murk.enhance.bag does the work
-        report = _enhance_bag(
-            input, topic, every, restorer, out, options, bag_options, storage, batch, max_frames, console
-        )
-        inp = None
-    elif topic is not None or every != 1 or storage is not None or any(bag_options.values()):
-        raise ValueError(
-            f"{input}: --topic, --every, --out-topic, --depth-topic, --storage, --copy-topics need a ROS bag"
-        )
-    else:
-        inp = resolve_input(input, recursive=recursive, exclude=out)
+    line = weights_line(restorer, shipped=checkpoint is None)
+    if line:
+        console.print(line, soft_wrap=True, highlight=False)
+
+    def display(title: str, unit: str, total: int | None, live: bool) -> JobProgress:
+        return JobProgress(console, title, total=total, unit=unit, live=live, status=_status_line, rate=_rate)
+
     with _stop_on_signals() as stop:
-        if inp is None:  # (the bag branch ran above)
-            pass
-        elif inp.kind == "images":
-            jobs, out_dir = plan_images(inp, out, options.format)
-            jobs = jobs[:max_frames] if max_frames else jobs
-            with _Display(console, f"{restorer.name}: {inp.label}", total=len(jobs), live=False) as display:
-                report = enhance_images(
-                    jobs, restorer, out_dir, options, batch=batch, on_progress=display.update, should_stop=stop
-                )
-        else:
-            with CaptureSource(inp.target) as source:  # type: ignore[arg-type]
-                total = source.frame_count if max_frames is None else min(source.frame_count or max_frames, max_frames)
-                with _Display(console, f"{restorer.name}: {inp.label}", total=total, live=source.live) as display:
-                    report = enhance_frames(
-                        source,
-                        restorer,
-                        out,
-                        options,
-                        batch=batch,
-                        max_frames=max_frames,
-                        on_progress=display.update,
-                        should_stop=stop,
-                    )
-    _print_summary(summary, report)
-    live = inp is not None and inp.kind == "stream"
+        inp, report = run_enhance(
+            input,
+            out,
+            restorer,
+            options,
+            recursive=recursive,
+            batch=batch,
+            max_frames=max_frames,
+            should_stop=stop,
+            display=display,
+            bag=BagOptions(
+                topic=topic,
+                every=every,
+                out_topic=out_topic,
+                depth_topic=depth_topic,
+                storage=None if storage is None else storage.value,  # type: ignore[arg-type]
+                copy_topics=tuple(copy_topics or ()),
+            ),
+        )
+    _print_summary(summary, report, "image" if inp.kind == "images" else "frame")
+    live = inp.kind == "stream"
     if report.failed:
         raise typer.Exit(EXIT_PARTIAL)
     if report.stopped and not live:
@@ -304,120 +282,29 @@ def enhance(
     raise typer.Exit(EXIT_OK)
 
 
-def _enhance_bag(
-    input: str,
-    topic: str | None,
-    every: int,
-    restorer: Any,
-    out: Path,
-    options: Any,
-    bag_options: dict[str, Any],
-    storage: StorageChoice | None,
-    batch: int,
-    max_frames: int | None,
-    console: Any,
-) -> Any:
-    """The ROS bag branch of :func:`enhance` (opens the topic, shows progress, delegates to enhance_bag)."""
-    from murk.enhance.bag import enhance_bag
-    from murk.io.rosbag import BagSource
-
-    with _stop_on_signals() as stop, BagSource(input, topic, every=every) as source:
-        total = source.frame_count if max_frames is None else min(source.frame_count or max_frames, max_frames)
-        with _Display(console, f"{restorer.name}: {source.label}", total=total, live=False) as display:
-            return enhance_bag(
-                source,
-                restorer,
-                out,
-                options,
-                storage=None if storage is None else storage.value,  # type: ignore[arg-type]
-                batch=batch,
-                max_frames=max_frames,
-                on_progress=display.update,
-                should_stop=stop,
-                **bag_options,
-            )
-
-
-def _print_summary(console: Any, report: Any) -> None:
+def _print_summary(console: Any, report: Any, unit: str) -> int:
     ms = report.stage_ms()
-    parts = [f"{report.processed} processed"]
-    if report.skipped:
-        parts.append(f"{report.skipped} skipped (output exists)")
-    if report.failed:
-        parts.append(f"[red]{report.failed} failed[/] (see {escape(str(report.errors_path))})")
-    console.print(
-        f"enhance: {', '.join(parts)} in {report.wall_s:.1f} s; {report.fps:.2f} frames/s; per frame: "
-        f"read {ms['read']:.1f} ms, restore {ms['restore']:.1f} ms, write {ms['write']:.1f} ms",
-        soft_wrap=True,
+    detail = (
+        f"{report.fps:.2f} frames/s; per frame: read {ms['read']:.1f} ms, restore {ms['restore']:.1f} ms, "
+        f"write {ms['write']:.1f} ms"
     )
+    code = print_summary(report, unit, detail=detail, console=console)
     for path in report.outputs:
         console.print(f"wrote {escape(str(path))}", soft_wrap=True)
-    for note in report.notes:
-        console.print(f"note: {escape(note)}", soft_wrap=True)
+    return code
 
 
-class _Display:
-    """A progress bar (files, on a terminal), a live line (streams, on a terminal), or a plain status line
-    every 10 s (headless logs)."""
-
-    def __init__(self, console: Any, title: str, *, total: int | None, live: bool) -> None:
-        self.console, self.title, self.total, self.live = console, title, total, live
-        self.interactive = console.is_terminal and not console.quiet
-        self._last = time.monotonic()
-        self._progress: Any = None
-        self._live: Any = None
-
-    def __enter__(self) -> _Display:
-        if self.interactive and not self.live:
-            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-
-            self._progress = Progress(
-                TextColumn("{task.description}"),
-                BarColumn(),
-                MofNCompleteColumn(),
-                TextColumn("{task.fields[rate]}"),
-                TimeRemainingColumn(),
-                console=self.console,
-            )
-            self._progress.start()
-            self._task = self._progress.add_task(escape(self.title), total=self.total, rate="")
-        elif self.interactive:
-            from rich.live import Live
-
-            self._live = Live("", console=self.console, refresh_per_second=4, transient=True)
-            self._live.start()
-        return self
-
-    def update(self, report: Any) -> None:
-        now = time.monotonic()
-        if self._progress is not None:
-            self._progress.update(
-                self._task, completed=report.processed + report.skipped + report.failed, rate=f"{report.fps:.1f} f/s"
-            )
-            return
-        line = _status_line(self.title, report)
-        if self._live is not None:
-            if now - self._last >= 0.25:
-                self._live.update(line)
-                self._last = now
-        elif not self.console.quiet and now - self._last >= 10.0:
-            self.console.print(line, soft_wrap=True)
-            self._last = now
-
-    def __exit__(self, *exc: object) -> None:
-        if self._progress is not None:
-            self._progress.stop()
-        if self._live is not None:
-            self._live.stop()
+def _rate(report: Any) -> str:
+    return f"{report.fps:.1f} f/s"
 
 
-def _status_line(title: str, report: Any) -> str:
+def _status_line(report: Any) -> str:
     ms = report.stage_ms()
     done = report.processed + report.skipped
     of = f"/{report.total}" if report.total else ""
     failed = f", {report.failed} failed" if report.failed else ""
-    return escape(
-        f"{title}: {done}{of} frames{failed} | {report.fps:.1f} f/s | read {ms['read']:.0f} ms, "
+    return (
+        f"{done}{of} frames{failed} | {report.fps:.1f} f/s | read {ms['read']:.0f} ms, "
         f"restore {ms['restore']:.0f} ms, write {ms['write']:.0f} ms"
     )
 

@@ -8,7 +8,8 @@ from typing import Annotated, Any
 
 import typer
 
-from murk.cli._common import EXIT_PARTIAL, QuietOpt, make_console, parse_size
+from murk.cli._common import QuietOpt, make_console, parse_size
+from murk.cli._jobs import JobProgress, print_summary
 
 
 def scenes(
@@ -62,13 +63,9 @@ def scenes(
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{config}: {exc}" if config is not None else str(exc)) from None
 
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+    from murk.scenes.dataset import write_scenes
 
-    from murk.scenes.dataset import ERRORS_NAME, write_scenes
-
-    columns = (TextColumn("scenes"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
-    with Progress(*columns, console=console, disable=quiet) as progress:
-        task = progress.add_task("scenes", total=count)
+    with JobProgress(console, "scenes", total=count, unit="scenes") as progress:
         result = write_scenes(
             out_dir,
             count=count,
@@ -78,12 +75,6 @@ def scenes(
             config=cfg,
             textures=tex,
             rgb_format=fmt,
-            on_progress=lambda done, total: progress.update(task, completed=done),
+            on_progress=lambda done, total: progress.update(done, total),
         )
-    summary = make_console(False)  # the final summary is printed even with --quiet
-    summary.print(
-        f"scenes: {result.rendered} rendered, {result.skipped} already present, {result.failed} failed -> {out_dir}"
-    )
-    if result.errors:
-        summary.print(f"errors: see {out_dir / ERRORS_NAME}")
-        raise typer.Exit(EXIT_PARTIAL)
+    raise typer.Exit(print_summary(result, "scene", detail=f"-> {out_dir}"))

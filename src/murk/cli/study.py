@@ -9,6 +9,7 @@ from typing import Annotated
 import typer
 
 from murk.cli._common import QuietOpt, make_console
+from murk.cli._jobs import print_summary
 
 
 def study(
@@ -27,6 +28,4 @@ def study(
 
     console = make_console(quiet)
     result = run_study(config_file, out, train_only=train_only, on_event=lambda m: console.print(m, highlight=False))
-    make_console().print(result.message, soft_wrap=True, highlight=False)
-    if not result.ok:
-        raise typer.Exit(1)
+    raise typer.Exit(print_summary(result, "arm", detail=result.message.removeprefix("study: ")))

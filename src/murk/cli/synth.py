@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated
 
 import typer
 
-from murk.cli._common import EXIT_PARTIAL, QuietOpt, make_console, parse_size
+from murk.cli._common import QuietOpt, flag_overrides, make_console, parse_size
+from murk.cli._jobs import JobProgress, print_summary
 
 
 def synth(
@@ -105,121 +106,60 @@ def synth(
     Writes degraded/, clean/, depth/ (uint16 mm), manifest.jsonl, train.txt (Joint-ID list), metadata.jsonl
     and config.yaml into OUT_DIR. Rerunning the same command resumes; results do not depend on --workers.
     """
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-
     from murk._config import load_yaml, merge
-    from murk.data import default_snow_bank
-    from murk.io.pairs import discover, read_list
     from murk.synth.config import SynthConfig
-    from murk.synth.runner import Shard, run_synthesis
+    from murk.synth.runner import Shard, synthesize
 
-    console = make_console(quiet)
-    if list_file is not None:
-        if len(paths) != 1:
-            raise ValueError("with --list give exactly one argument, OUT_DIR")
-        out_dir = paths[0]
-        sources, problems = read_list(list_file), []
-    else:
-        if len(paths) != 2:
-            raise ValueError("expected RGBD_DIR OUT_DIR (or --list FILE OUT_DIR)")
-        sources, problems = discover(paths[0])
-        out_dir = paths[1]
+    if list_file is not None and len(paths) != 1:
+        raise ValueError("with --list give exactly one argument, OUT_DIR")
+    if list_file is None and len(paths) != 2:
+        raise ValueError("expected RGBD_DIR OUT_DIR (or --list FILE OUT_DIR)")
+    flags = dict(locals())  # the parameters by name; CONFIG_PATHS says which config field each one sets
+    flags["water_types"] = None if water_types is None else water_types.split(",")
+    flags["stages"] = None if stages is None else stages.split(",")
+    flags["size"] = None if size is None else list(parse_size(size))
+    flags["snow_bank"] = None if snow_bank is None else str(snow_bank)
     config = load_yaml(SynthConfig, config_file) if config_file else SynthConfig()
-    overrides: dict[str, Any] = {}
-    medium: dict[str, Any] = {}
-    inp: dict[str, Any] = {}
-    for key, value in (("variants", variants), ("stages", stages), ("seed", seed), ("workers", workers)):
-        if value is not None:
-            overrides[key] = value
-    if water_types is not None:
-        medium["water_types"] = water_types.split(",")
-    if distance_mode is not None:
-        medium["distance_mode"] = distance_mode
-    if fs_mode is not None:
-        overrides["forward_scatter"] = {"mode": fs_mode}
-    if save_intermediate is not None:
-        overrides["output"] = {"save_intermediate": save_intermediate}
-    for key, value in (
-        ("depth_scale", depth_scale),
-        ("depth_encoding", depth_encoding),
-        ("depth_relative", depth_relative),
-        ("invalid_depth", invalid_depth),
-        ("crop_px", crop),
-    ):
-        if value is not None:
-            inp[key] = value
-    if size is not None:
-        inp["size"] = list(parse_size(size))
-    if snow_bank is not None:
-        overrides["marine_snow"] = {"bank": str(snow_bank)}
-    if medium:
-        overrides["medium"] = medium
-    if inp:
-        overrides["input"] = inp
-    if isinstance(overrides.get("stages"), str):
-        overrides["stages"] = overrides["stages"].split(",")
-    config = merge(config, overrides, where="command line")
-    bank_path = None
-    if "marine_snow" in config.stages:
-        bank_path = config.marine_snow.bank or str(default_snow_bank())
+    config = merge(config, flag_overrides(CONFIG_PATHS, flags), where="command line")
     shard_obj = Shard.parse(shard)
-    if not sources:
-        why = "; ".join(f"{p.path}: {p.error}" for p in problems[:3])
-        raise ValueError(
-            f"{paths[0] if list_file is None else list_file}: no RGB-D pairs found" + (f" ({why})" if why else "")
-        )
-
-    if data_format not in ("files", "webdataset"):
-        raise ValueError(f"--format: expected files or webdataset, got {data_format!r}")
-    if data_format == "files" and (backend != "local" or ray_address):
-        raise ValueError("--backend ray and --ray-address need --format webdataset")
-    if data_format == "webdataset":
-        from murk.synth.shards import describe, write_shards
-
-        with Progress(TextColumn("[bold]synth[/]"), BarColumn(), MofNCompleteColumn(), TextColumn("shards"),
-                      TimeRemainingColumn(), console=console, transient=True) as progress:  # fmt: skip
-            bar = progress.add_task("synth", total=None)
-            job = write_shards(
-                sources, out_dir, config, samples_per_shard=samples_per_shard, shard=shard_obj, bank_path=bank_path,
-                problems=problems, backend=backend,  # type: ignore[arg-type]
-                ray_address=ray_address, on_progress=lambda d, t: progress.update(bar, completed=d, total=t),
-            )  # fmt: skip
-        make_console().print(describe(job, shard_obj), soft_wrap=True)
-        for note in job.notes[:10]:
-            make_console().print(f"  [yellow]warning:[/] {note}", soft_wrap=True)
-        if job.failed:
-            raise typer.Exit(EXIT_PARTIAL)
-        return
-
-    with Progress(
-        TextColumn("[bold]synth[/]"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("variants"),
-        TimeRemainingColumn(),
-        console=console,
-        transient=True,
-    ) as progress:
-        task = progress.add_task("synth", total=None)
-
-        def on_progress(done: int, total: int) -> None:
-            progress.update(task, completed=done, total=total)
-
-        summary = run_synthesis(
-            sources, out_dir, config, shard=shard_obj, bank_path=bank_path, problems=problems, on_progress=on_progress
-        )
     where = f" (shard {shard_obj.index}/{shard_obj.count})" if shard_obj.count > 1 else ""
-    console = make_console()  # the summary prints even with --quiet
-    console.print(
-        f"synth{where}: {summary.images} images, {summary.variants_written} variants written, "
-        f"{summary.variants_skipped} already done, {len(summary.failures)} failed, "
-        f"{summary.variants_per_s:.1f} variants/s -> {summary.out_dir}",
-        soft_wrap=True,
-    )
-    for note in summary.notes[:10]:
-        console.print(f"  [yellow]warning:[/] {note}", soft_wrap=True)
-    if summary.failures:
-        for p in summary.failures[:10]:
-            console.print(f"  [red]failed:[/] {p.path}: {p.error}", markup=True, soft_wrap=True)
-        console.print(f"  all failures: {Path(summary.out_dir) / 'errors.jsonl'}", soft_wrap=True)
-        raise typer.Exit(EXIT_PARTIAL)
+    shards = data_format == "webdataset"
+    with JobProgress(make_console(quiet), f"synth{where}", unit="shards" if shards else "variants") as progress:
+        summary = synthesize(
+            paths[-1],
+            config,
+            rgbd=None if list_file is not None else paths[0],
+            list_file=list_file,
+            shard=shard_obj,
+            data_format=data_format,  # type: ignore[arg-type]
+            samples_per_shard=samples_per_shard,
+            backend=backend,  # type: ignore[arg-type]
+            ray_address=ray_address,
+            on_progress=lambda done, total: progress.update(done, total),
+        )
+    rate = summary.processed / summary.wall_s if summary.wall_s > 0 else 0.0
+    if shards:
+        detail = f"{rate:.1f} samples/s{where} -> {summary.out}"
+        raise typer.Exit(print_summary(summary, "sample", detail=detail))
+    detail = f"{summary.images} clean images, {summary.variants_per_s:.1f} variants/s -> {summary.out_dir}"  # type: ignore[attr-defined]
+    raise typer.Exit(print_summary(summary, "variant", detail=detail))
+
+
+CONFIG_PATHS = {
+    "variants": "variants",
+    "stages": "stages",
+    "seed": "seed",
+    "workers": "workers",
+    "water_types": "medium.water_types",
+    "distance_mode": "medium.distance_mode",
+    "fs_mode": "forward_scatter.mode",
+    "save_intermediate": "output.save_intermediate",
+    "depth_scale": "input.depth_scale",
+    "depth_encoding": "input.depth_encoding",
+    "depth_relative": "input.depth_relative",
+    "invalid_depth": "input.invalid_depth",
+    "crop": "input.crop_px",
+    "size": "input.size",
+    "snow_bank": "marine_snow.bank",
+}
+"""Each flag's path in :class:`murk.synth.config.SynthConfig` (flags override the --config file)."""

@@ -7,7 +7,8 @@ from typing import Annotated, Any
 
 import typer
 
-from murk.cli._common import QuietOpt, make_console
+from murk.cli._common import QuietOpt, flag_overrides, make_console
+from murk.cli._jobs import print_summary
 
 
 def train(
@@ -47,30 +48,9 @@ def train(
     from murk.train.config import TrainConfig
     from murk.train.loop import train as run_train
 
-    config = load_yaml(TrainConfig, config_file)
-    overrides: dict[str, Any] = {}
-    for key, value in (
-        ("steps", steps),
-        ("batch", batch),
-        ("epochs", epochs),
-        ("precision", precision),
-        ("seed", seed),
-        ("device", device),
-    ):
-        if value is not None:
-            overrides[key] = value
-    if out is not None:
-        overrides["out"] = str(out)
-    data_over: dict[str, Any] = {}
-    if data is not None:
-        data_over["source"] = data
-    if workers is not None:
-        data_over["workers"] = workers
-    if data_over:
-        overrides["data"] = data_over
-    if eval_real is not None:
-        overrides["eval"] = {"real": str(eval_real)}
-    config = merge(config, overrides, where="command line")
+    flags = {"out": None if out is None else str(out), "eval_real": None if eval_real is None else str(eval_real)}
+    values = {**locals(), **flags}
+    config = merge(load_yaml(TrainConfig, config_file), flag_overrides(CONFIG_PATHS, values), where="command line")
     resolved: dict[str, Any] = {"data": {"source": resolve_builtin(config.data.source)}}
     if config.eval.real:
         resolved["eval"] = {"real": resolve_builtin(config.eval.real)}
@@ -78,11 +58,12 @@ def train(
         resolved["data"]["val_source"] = resolve_builtin(config.data.val_source)
     config = merge(config, resolved, where="config")
     console = make_console(quiet)
+    total = config.steps if config.steps is not None else "?"
 
     def on_log(rec: dict[str, Any]) -> None:
         if rec["kind"] == "train":
             console.print(
-                f"step {rec['step']}/{total['n']}  loss {rec['loss']:.4f}  lr {rec['lr']:.2e}  "
+                f"step {rec['step']}/{total}  loss {rec['loss']:.4f}  lr {rec['lr']:.2e}  "
                 f"{rec['images_per_s']:.1f} img/s",
                 highlight=False,
             )
@@ -90,11 +71,24 @@ def train(
             shown = "  ".join(f"{k} {v:.4g}" for k, v in rec.items() if k not in ("kind", "step") and v is not None)
             console.print(f"eval @ {rec['step']}: {shown}", highlight=False)
 
-    total = {"n": config.steps if config.steps is not None else "?"}
     summary = run_train(config, resume=resume, stop_after=stop_after, on_log=on_log)
-    make_console().print(
-        f"train: {summary.steps_done}/{summary.total_steps} steps, last loss {summary.last_loss:.4f}, "
-        f"{summary.images_per_s:.1f} img/s, best {summary.best or '-'} -> {summary.out_dir}",
-        soft_wrap=True,
-        highlight=False,
+    detail = (
+        f"{summary.steps_done}/{summary.total_steps} steps done, last loss {summary.last_loss:.4f}, "
+        f"{summary.images_per_s:.1f} img/s, best {summary.best or '-'} -> {summary.out_dir}"
     )
+    raise typer.Exit(print_summary(summary, "step", detail=detail))
+
+
+CONFIG_PATHS = {
+    "steps": "steps",
+    "batch": "batch",
+    "epochs": "epochs",
+    "precision": "precision",
+    "seed": "seed",
+    "device": "device",
+    "out": "out",
+    "data": "data.source",
+    "workers": "data.workers",
+    "eval_real": "eval.real",
+}
+"""Each flag's path in :class:`murk.train.config.TrainConfig` (flags override the --config file)."""

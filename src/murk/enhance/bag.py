@@ -31,14 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from murk.enhance.pipeline import (
-    EnhanceReport,
-    OutputOptions,
-    ProgressFn,
-    StopFn,
-    _restore,
-    enhance_frames,
-)
+from murk.enhance.frame_job import enhance_frames
+from murk.enhance.job import EnhanceReport, OutputOptions, ProgressFn, StopFn, restore_batch
 from murk.enhance.preview import side_by_side
 from murk.enhance.restorer import Restorer
 from murk.errors import InputFileError
@@ -163,7 +157,7 @@ def enhance_bag_to_bag(
     report = EnhanceReport(
         total=source.frame_count if max_frames is None else min(source.frame_count or max_frames, max_frames)
     )
-    errors = ErrorLog(out.parent)
+    errors = ErrorLog(out.parent, summary=report)
     if out.exists() and not options.overwrite:
         report.skipped = 1
         report.note(f"{out} exists; skipped (use --overwrite to redo it)")
@@ -176,14 +170,12 @@ def enhance_bag_to_bag(
     pending: list[BagFrame] = []
 
     def record(stage: str, error: str, frame: int | None = None) -> None:
-        errors.add(ErrorRecord(label, stage, error, frame=frame))
-        report.failed = errors.count
-        report.errors_path = errors.written
+        errors.add(ErrorRecord(label, stage, error, frame=frame))  # counted in report (failed, errors_path)
 
     def flush() -> None:
         t0 = time.perf_counter()
         try:
-            result = _restore(restorer, np.stack([to_float(f.image) for f in pending]))  # type: ignore[arg-type]
+            result = restore_batch(restorer, np.stack([to_float(f.image) for f in pending]))  # type: ignore[arg-type]
         except _RESTORE_ERRORS as exc:
             for f in pending:
                 record("restore", f"{type(exc).__name__}: {exc}", f.index)

@@ -37,6 +37,9 @@ class ErrorRecord:
     variant: int | None = None
     index: int | None = None
 
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "input", str(self.input))  # a Path is fine; the record holds text
+
     def to_json(self) -> dict[str, Any]:
         """The ``errors.jsonl`` line: the three required fields plus the optional ones that are set."""
         out: dict[str, Any] = {"input": self.input, "stage": self.stage, "error": self.error}
@@ -66,11 +69,13 @@ class ErrorRecord:
 class ErrorLog:
     """Appends one record per failure to ``<folder>/errors.jsonl`` as it happens (a killed run keeps what it
     recorded). :meth:`start` removes an earlier run's file, so the file lists the latest run's failures only;
-    the file is created only when something fails."""
+    the file is created only when something fails. With ``summary``, every record is also counted there
+    (:meth:`JobSummary.add_failure`)."""
 
-    def __init__(self, folder: str | Path, name: str = ERRORS_FILE) -> None:
+    def __init__(self, folder: str | Path, name: str = ERRORS_FILE, summary: JobSummary | None = None) -> None:
         self.path = Path(folder) / name
         self.count = 0
+        self.summary = summary
 
     def start(self) -> ErrorLog:
         self.path.unlink(missing_ok=True)
@@ -80,6 +85,9 @@ class ErrorLog:
     def add(self, record: ErrorRecord) -> None:
         append_jsonl(self.path, [record.to_json()])
         self.count += 1
+        if self.summary is not None:
+            self.summary.add_failure(record)
+            self.summary.errors_path = self.path
 
     @property
     def written(self) -> Path | None:
@@ -104,9 +112,10 @@ def read_errors(path: str | Path) -> list[ErrorRecord]:
 
 @dataclass
 class JobSummary:
-    """What a batch command did. ``failed`` counts the records in ``errors_path``."""
+    """What a batch command did. ``failed`` counts the records in ``errors_path``; ``failures`` holds them
+    (in memory, for the command's printout). Commands with more to say subclass it (extra fields only)."""
 
-    command: str
+    command: str = "job"
     processed: int = 0
     skipped: int = 0
     failed: int = 0
@@ -114,7 +123,20 @@ class JobSummary:
     wall_s: float = 0.0
     out: Path | None = None
     errors_path: Path | None = None
+    failures: list[ErrorRecord] = field(default_factory=list, repr=False)
     started: float = field(default_factory=time.perf_counter, repr=False)
+
+    def add_failure(self, record: ErrorRecord) -> None:
+        """Count one failure (the caller writes it, or :meth:`write_errors` does at the end)."""
+        self.failures.append(record)
+        self.failed += 1
+
+    def write_errors(self, folder: str | Path, name: str = ERRORS_FILE) -> Path | None:
+        """Replace ``<folder>/<name>`` with this run's failures (remove it when there are none) and point
+        ``errors_path`` at it."""
+        self.failed = len(self.failures)
+        self.errors_path = write_errors(folder, self.failures, name)
+        return self.errors_path
 
     def note(self, text: str) -> None:
         """Add a note once (repeats are dropped)."""
@@ -144,13 +166,15 @@ class JobSummary:
         }
 
 
-def summary_line(summary: JobSummary, unit: str = "item") -> str:
-    """The one-line summary every command prints: ``<command>: N processed, N skipped, N failed in T s``."""
-    units = unit if unit.endswith("s") else unit + "s"
-    parts = [f"{summary.processed} {units} processed"]
+def summary_line(summary: JobSummary, unit: str = "item", detail: str = "") -> str:
+    """The one-line summary every command prints:
+    ``<command>: N <unit>s processed, N skipped (already done), N failed (see errors.jsonl) in T s[; detail]``."""
+    one = unit[:-1] if unit.endswith("s") else unit
+    parts = [f"{summary.processed} {one if summary.processed == 1 else one + 's'} processed"]
     if summary.skipped:
         parts.append(f"{summary.skipped} skipped (already done)")
     if summary.failed:
         where = f" (see {summary.errors_path})" if summary.errors_path else ""
         parts.append(f"{summary.failed} failed{where}")
-    return f"{summary.command}: " + ", ".join(parts) + f" in {summary.wall_s:.1f} s"
+    line = f"{summary.command}: " + ", ".join(parts) + f" in {summary.wall_s:.1f} s"
+    return f"{line}; {detail}" if detail else line

@@ -14,6 +14,7 @@ import numpy as np
 from murk.errors import InputFileError
 from murk.io.depth import DepthEncoding, InvalidDepthMode, nyu_mat_count, read_depth, read_nyu_mat, resolve_invalid
 from murk.io.images import IMAGE_SUFFIXES, read_image, to_float
+from murk.io.jobs import ErrorRecord
 from murk.io.listing import walk_files
 
 DEPTH_SUFFIXES = (*IMAGE_SUFFIXES, ".pgm", ".npy")
@@ -40,19 +41,11 @@ class DepthOptions:
     encoding: DepthEncoding = "linear"
 
 
-@dataclass(frozen=True)
-class Problem:
-    """An input that could not be paired or loaded; becomes a line of ``errors.jsonl``."""
-
-    path: str
-    error: str
-
-
-def discover(path: str | Path) -> tuple[list[RGBDSource], list[Problem]]:
+def discover(path: str | Path) -> tuple[list[RGBDSource], list[ErrorRecord]]:
     """Find pairs in a folder with ``rgb/`` (or ``color/``) and ``depth/`` matched by file stem, or in a
-    NYU-v2 ``.mat`` file. Unmatched files are returned as problems, not raised, and so is a stem shared by
-    several files of one folder (``rgb/x.png`` + ``rgb/x.jpg``, ``depth/x.npy`` + ``depth/x.png``): that pair
-    is left out and the problem names every file, the other pairs go on.
+    NYU-v2 ``.mat`` file. Unmatched files are returned as error records (stage ``"pair"``), not raised, and so
+    is a stem shared by several files of one folder (``rgb/x.png`` + ``rgb/x.jpg``, ``depth/x.npy`` +
+    ``depth/x.png``): that pair is left out and the record names every file, the other pairs go on.
 
     Raises:
         InputFileError: the path does not exist or has neither layout.
@@ -78,15 +71,17 @@ def discover(path: str | Path) -> tuple[list[RGBDSource], list[Problem]]:
         if clash:  # several files claim this pair: using one silently could pair the wrong data
             names = ", ".join(str(p) for p in clash)
             problems.append(
-                Problem(str(clash[0]), f"ambiguous stem '{stem}': {names} share it; rename or remove all but one")
+                ErrorRecord(
+                    str(clash[0]), "pair", f"ambiguous stem '{stem}': {names} share it; rename or remove all but one"
+                )
             )
         elif stem in depths:
             sources.append(RGBDSource(stem, str(rgbs[stem]), str(depths[stem])))
         else:
-            problems.append(Problem(str(rgbs[stem]), f"no depth file with stem '{stem}' in {depth_dir}"))
+            problems.append(ErrorRecord(str(rgbs[stem]), "pair", f"no depth file with stem '{stem}' in {depth_dir}"))
     for stem in sorted((set(depths) | set(depth_clash)) - set(rgbs) - set(rgb_clash)):
         path = depths[stem] if stem in depths else depth_clash[stem][0]
-        problems.append(Problem(str(path), f"no RGB image with stem '{stem}' in {rgb_dir}"))
+        problems.append(ErrorRecord(str(path), "pair", f"no RGB image with stem '{stem}' in {rgb_dir}"))
     return sources, problems
 
 

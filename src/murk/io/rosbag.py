@@ -459,3 +459,24 @@ def export_bag_frames(paths: Sequence[Path], topic: str | None, *, every: int = 
         out.cleanup()
         raise
     return out
+
+
+@contextlib.contextmanager
+def bag_frames_as_files(paths: Sequence[Path], topic: str | None, *, every: int = 1) -> Iterator[ExportedFrames]:
+    """:func:`export_bag_frames` for the duration of a ``with`` block (the temporary folders are deleted at its
+    end); without a bag among ``paths`` nothing is exported and ``paths`` come back unchanged.
+
+    Raises:
+        ValueError: ``topic`` given but no bag among ``paths``.
+    """
+    paths = list(paths)
+    if not any(is_bag(p) for p in paths):
+        if topic is not None:
+            raise ValueError(f"--topic {topic}: applies to ROS bags, and no input is one")
+        yield ExportedFrames(paths, [], [], [])
+        return
+    frames = export_bag_frames(paths, topic, every=every)
+    try:
+        yield frames
+    finally:
+        frames.cleanup()

@@ -16,7 +16,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-import math
 import time
 import warnings
 from collections.abc import Callable, Sequence
@@ -30,10 +29,12 @@ import numpy as np
 from murk._version import __version__
 from murk.io.atomic import write_text_atomic
 from murk.io.images import read_rgb, write_rgb, write_uint
-from murk.io.jsonl import json_safe, write_jsonl
+from murk.io.jobs import ErrorRecord, JobSummary
+from murk.io.jsonl import json_safe
 from murk.io.paths import output_names as unique_names
 from murk.metrics import fidelity
 from murk.metrics.fidelity import MEASURE_KEYS, count_flags, flags, join_flags, restoration_measures
+from murk.metrics.stats import column_stats
 from murk.report.figures import Box, auto_boxes, comparison_grid
 from murk.report.html import SUMMARY_METRICS, render_report
 from murk.report.methods import MethodSpec, build_restorer
@@ -45,13 +46,22 @@ METRIC_KEYS = (*SCORE_KEYS, *MEASURE_KEYS)
 
 
 @dataclass
-class CompareResult:
-    """Rows (one per image and method), the per-method summary, failures, and the output folder."""
+class CompareResult(JobSummary):
+    """The job summary (:class:`murk.io.jobs.JobSummary`; ``processed`` counts images scored), the rows (one
+    per image and method) and the per-method summary."""
 
-    out_dir: Path
+    command: str = "compare"
     rows: list[dict[str, Any]] = field(default_factory=list)
     summary: dict[str, dict[str, dict[str, float]]] = field(default_factory=dict)
-    errors: list[dict[str, str]] = field(default_factory=list)
+
+    @property
+    def out_dir(self) -> Path:
+        return Path(self.out or ".")
+
+    @property
+    def errors(self) -> list[dict[str, Any]]:
+        """The failures as ``errors.jsonl`` lines."""
+        return [r.to_json() for r in self.failures]
 
 
 def score(image: np.ndarray, *, uiqm_preset: str = "panetta2016", uciqe_preset: str = "uciqe_m") -> dict[str, float]:
@@ -80,14 +90,30 @@ def summarise(rows: Sequence[dict[str, Any]], labels: Sequence[str]) -> dict[str
         mine = [r for r in rows if r["method"] == lab]
         out[lab] = {}
         for k in (*METRIC_KEYS, "ms"):
-            vals = np.array([r[k] for r in mine if isinstance(r.get(k), (int, float)) and math.isfinite(r[k])])
-            out[lab][k] = (
-                {"mean": float(vals.mean()), "std": float(vals.std()), "n": len(vals)}
-                if len(vals)
-                else {"mean": float("nan"), "std": float("nan"), "n": 0}
-            )
+            st = column_stats(r[k] for r in mine if isinstance(r.get(k), (int, float)))
+            out[lab][k] = {"mean": st.mean, "std": st.std, "n": st.n_finite}
         out[lab]["flags"] = dict(count_flags(r["flags"] for r in mine if isinstance(r.get("flags"), str)))
     return out
+
+
+def real_images(real_dir: Path, out: Path, *, recursive: bool = False) -> list[Path]:
+    """The images to compare: ``real_dir`` itself when it is a file, else its images (``recursive``), leaving
+    out any inside the report folder ``out``.
+
+    Raises:
+        ValueError: ``out`` is the input folder (or would mix with it); no image found.
+    """
+    from murk.io.images import list_images
+    from murk.io.paths import check_output_location
+    from murk.io.rosbag import is_bag
+
+    if real_dir.is_file() or is_bag(real_dir):  # a bag's frames are read by run_compare (topic, every)
+        return [real_dir]
+    check_output_location(out, [real_dir], inside="allow")  # an --out inside REAL_DIR is left out below
+    images = [p for p in list_images(real_dir, recursive=recursive) if out.resolve() not in p.resolve().parents]
+    if not images:
+        raise ValueError(f"{real_dir}: no images found")
+    return images
 
 
 def run_compare(
@@ -101,9 +127,49 @@ def run_compare(
     restorer_options: dict[str, Any] | None = None,
     save_outputs: bool = False,
     title: str = "murk compare",
+    topic: str | None = None,
+    every: int = 1,
     on_image: Callable[[int, int, str], None] | None = None,
 ) -> CompareResult:
-    """Run, score and report every method on every image (see the module docstring for the outputs)."""
+    """Run, score and report every method on every image (see the module docstring for the outputs). A ROS bag
+    among ``images`` contributes every ``every``-th frame of ``topic``; frames that fail to decode are
+    recorded in ``errors.jsonl``."""
+    from murk.io.rosbag import bag_frames_as_files
+
+    with bag_frames_as_files(images, topic, every=every) as frames:
+        from murk.io.images import list_images
+
+        files = [f for p in frames.paths for f in (list_images(p) if p.is_dir() else [p])]
+        result = _run_compare(
+            files,
+            methods,
+            out_dir,
+            boxes=boxes,
+            uiqm_preset=uiqm_preset,
+            uciqe_preset=uciqe_preset,
+            restorer_options=restorer_options,
+            save_outputs=save_outputs,
+            title=title,
+            on_image=on_image,
+            failures=frames.errors,
+        )
+    return result
+
+
+def _run_compare(
+    images: Sequence[Path],
+    methods: Sequence[MethodSpec],
+    out_dir: str | Path,
+    *,
+    boxes: Sequence[Box],
+    uiqm_preset: str,
+    uciqe_preset: str,
+    restorer_options: dict[str, Any] | None,
+    save_outputs: bool,
+    title: str,
+    on_image: Callable[[int, int, str], None] | None,
+    failures: Sequence[ErrorRecord],
+) -> CompareResult:
     if not methods:
         raise ValueError("--method: give at least one method (e.g. --method raw --method post)")
     labels = [m.label for m in methods]
@@ -112,7 +178,9 @@ def run_compare(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     restorers = [build_restorer(m, **(restorer_options or {})) for m in methods]
-    result = CompareResult(out)
+    result = CompareResult(out=out)
+    for failure in failures:
+        result.add_failure(failure)
     out_names = output_names(images)
     sections = []
     resized: set[str] = set()
@@ -122,7 +190,7 @@ def run_compare(
         try:
             img = read_rgb(path)
         except (ValueError, OSError) as exc:  # unreadable, corrupt, a bomb: recorded, the others go on
-            result.errors.append({"path": str(path), "error": str(exc)})
+            result.add_failure(ErrorRecord(str(path), "read", str(exc)))
             continue
         outputs, rows = [], []
         for spec, rest in zip(methods, restorers, strict=True):
@@ -130,7 +198,7 @@ def run_compare(
             try:
                 restored = img if rest is None else rest.restore(img[None]).images[0]
             except (ValueError, RuntimeError) as exc:
-                result.errors.append({"path": str(path), "error": f"method {spec.label}: {exc}"})
+                result.add_failure(ErrorRecord(str(path), "restore", f"method {spec.label}: {exc}"))
                 restored = None
             ms = (time.perf_counter() - t0) * 1e3
             if restored is None:
@@ -153,6 +221,7 @@ def run_compare(
         if not outputs:
             continue
         result.rows.extend(rows)
+        result.processed += 1
         chosen = list(boxes) if boxes else auto_boxes(img)
         panels = [("input", img)] if "raw" not in [m.method for m in methods] else []
         panels += [(lab, o) for lab, o in outputs]
@@ -201,11 +270,8 @@ def run_compare(
         meta=f"murk {__version__} · {len(sections)} images · {time.strftime('%Y-%m-%d %H:%M')}",
     )
     write_text_atomic(out / "report.html", html_text)
-    if result.errors:
-        write_jsonl(out / "errors.jsonl", result.errors)
-    elif (out / "errors.jsonl").exists():
-        (out / "errors.jsonl").unlink()
-    return result
+    result.write_errors(out)
+    return result.finish()
 
 
 def resize_to(image: np.ndarray, size_hw: tuple[int, ...]) -> np.ndarray:

@@ -26,20 +26,30 @@ from typing import Any
 from murk._config import merge
 from murk._version import __version__
 from murk.io.atomic import write_text_atomic
+from murk.io.jobs import ErrorRecord, JobSummary
 from murk.io.jsonl import json_safe
 from murk.train.config import TrainConfig
 from murk.train.study import WALL_FILE, ArmRun, StudyConfig, arm_config, load_study, train_arms
 
 
 @dataclass
-class StudyResult:
-    """What a ``murk study`` invocation did."""
+class StudyResult(JobSummary):
+    """What a ``murk study`` invocation did: the job summary (:class:`murk.io.jobs.JobSummary`; ``processed``
+    counts arms trained now, ``skipped`` arms already trained; failures are failed arms (stage ``train``) and
+    real images that failed in the comparison (its stages), also in ``<study>/errors.jsonl``)."""
 
-    out_dir: Path
+    command: str = "study"
     arms: list[ArmRun] = field(default_factory=list)
     report: dict[str, Any] = field(default_factory=dict)
-    ok: bool = True
     message: str = ""
+
+    @property
+    def out_dir(self) -> Path:
+        return Path(self.out or ".")
+
+    @property
+    def ok(self) -> bool:
+        return self.exit_code == 0
 
 
 def run_study(
@@ -52,21 +62,30 @@ def run_study(
     """Train every unfinished arm, then (unless ``train_only``) evaluate all arms and write the report."""
     study, base = load_study(config_file)
     out = Path(out_dir)
-    result = StudyResult(out)
+    result = StudyResult(out=out)
     result.arms = train_arms(study, base, out, on_event=on_event)
+    result.processed = sum(a.status == "trained" for a in result.arms)
+    result.skipped = sum(a.status == "done" for a in result.arms)
+    for i, arm in enumerate(result.arms):
+        if arm.status == "failed":
+            where = str(Path(arm_config(base, study.arms[i], out).out))
+            result.add_failure(ErrorRecord(where, "train", f"arm {arm.name}: {arm.error}", index=i))
     failed = [a.name for a in result.arms if a.status == "failed"]
     if failed:
-        result.ok = False
+        result.write_errors(out)
+        result.finish()
         result.message = f"study: arm(s) {', '.join(failed)} failed; rerun the same command to retry"
         return result
     if train_only:
         result.message = f"study: {len(result.arms)} arm(s) trained -> {out / 'models'}"
-        return result
+        result.write_errors(out)
+        return result.finish()
     result.report = evaluate_study(study, base, out, on_event=on_event)
-    if result.report["real"]["errors"]:
-        result.ok = False
+    for rec in result.report["real"]["errors"]:
+        result.add_failure(ErrorRecord.from_json(rec))
+    result.write_errors(out)
     result.message = f"study: report -> {out / 'study.md'} and {out / 'real' / 'report.html'}"
-    return result
+    return result.finish()
 
 
 def evaluate_study(

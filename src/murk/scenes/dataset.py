@@ -16,9 +16,11 @@ scenes that failed in the latest run (rewritten by every run, absent when none).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+from murk.io.jobs import ErrorRecord, JobSummary
 
 CONFIG_NAME = "scenes_config.yaml"
 JSONL_NAME = "scenes.jsonl"
@@ -146,14 +148,18 @@ def _check_resume(path: Path, settings: dict) -> None:
 
 
 @dataclass
-class ScenesSummary:
-    """What :func:`write_scenes` did."""
+class ScenesSummary(JobSummary):
+    """What :func:`write_scenes` did (:class:`murk.io.jobs.JobSummary`; ``processed`` counts rendered scenes)."""
 
-    out_dir: Path
-    rendered: int = 0
-    skipped: int = 0
-    failed: int = 0
-    errors: list[dict] = field(default_factory=list)
+    command: str = "scenes"
+
+    @property
+    def out_dir(self) -> Path:
+        return Path(self.out or ".")
+
+    @property
+    def rendered(self) -> int:
+        return self.processed
 
 
 def write_scenes(
@@ -175,7 +181,6 @@ def write_scenes(
     """
     import yaml
 
-    from murk.io import write_jsonl
     from murk.io.atomic import atomic_path, remove_stale_temporaries, write_text_atomic
     from murk.io.jsonl import dumps
     from murk.scenes import SceneConfig
@@ -197,7 +202,7 @@ def write_scenes(
     (out_dir / "rgb").mkdir(exist_ok=True)
     (out_dir / "depth").mkdir(exist_ok=True)
     jobs = [(i, str(out_dir), seed, size, cfg, suffix) for i in range(count)]
-    summary = ScenesSummary(out_dir)
+    summary = ScenesSummary(out=out_dir)
     done = 0
     with atomic_path(out_dir / JSONL_NAME) as tmp, open(tmp, "w", encoding="utf-8") as f:
         if workers == 1:
@@ -212,17 +217,17 @@ def write_scenes(
         try:
             for record, status, error in results:
                 f.write(dumps(record) + "\n")
-                setattr(summary, status, getattr(summary, status) + 1)
                 if error is not None:
-                    summary.errors.append({"index": record["index"], "file_name": record["file_name"], "error": error})
+                    summary.add_failure(ErrorRecord(record["file_name"], "render", error, index=record["index"]))
+                elif status == "rendered":
+                    summary.processed += 1
+                else:
+                    summary.skipped += 1
                 done += 1
                 if on_progress:
                     on_progress(done, count)
         finally:
             if pool is not None:
                 pool.shutdown(cancel_futures=True)
-    if summary.errors:
-        write_jsonl(out_dir / ERRORS_NAME, summary.errors)
-    else:
-        (out_dir / ERRORS_NAME).unlink(missing_ok=True)  # records of an earlier run
-    return summary
+    summary.write_errors(out_dir, ERRORS_NAME)  # (removes the records of an earlier run when none failed)
+    return summary.finish()

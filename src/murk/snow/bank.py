@@ -39,6 +39,7 @@ import numpy as np
 from murk._version import __version__
 from murk.errors import InputFileError, OutputError
 from murk.io.atomic import write_bytes_atomic
+from murk.io.jobs import ErrorRecord
 from murk.snow.extract import Particle
 
 BANK_FORMAT = "murk-particle-bank"
@@ -418,10 +419,11 @@ def subpixel_report(bank: ParticleBank, scale: tuple[float, float]) -> tuple[flo
 
 @dataclass(frozen=True)
 class BankReport:
-    """What :func:`extract_bank` found: the bank, frames that failed (with why), and warnings."""
+    """What :func:`extract_bank` found: the bank, frames that failed (error records, stage ``"extract"``), and
+    warnings."""
 
     bank: ParticleBank
-    problems: list[tuple[str, str]]
+    problems: list[ErrorRecord]
     warnings: list[str]
 
 
@@ -446,7 +448,7 @@ def extract_bank(
     from murk.snow.extract import extract_particles
 
     per_source: list[tuple[dict[str, Any], list[Particle]]] = []
-    problems: list[tuple[str, str]] = []
+    problems: list[ErrorRecord] = []
     names: list[str] = []
     for desc, rgb in frames:
         name = str(desc.get("path", "image")) + (f"#{desc['frame']}" if "frame" in desc else "")
@@ -454,7 +456,8 @@ def extract_bank(
         try:
             ex = extract_particles(rgb, config, source=name)
         except ValueError as exc:  # CoverageError or an unusable frame
-            problems.append((name, str(exc)))
+            why = str(exc) if str(exc).startswith(name) else f"{name}: {exc}"
+            problems.append(ErrorRecord(str(desc.get("path", "image")), "extract", why, frame=desc.get("frame")))
             if on_frame:
                 on_frame(desc, rgb, None)
             continue
@@ -464,7 +467,7 @@ def extract_bank(
             per_source.append(({**desc, "width": rgb.shape[1], "height": rgb.shape[0]}, ex.particles))
     if not per_source:
         shown = ", ".join(names[:5]) + (f" and {len(names) - 5} more" if len(names) > 5 else "")
-        why = f"; {len(problems)} frame(s) rejected: {problems[0][1]}" if problems else ""
+        why = f"; {len(problems)} frame(s) rejected: {problems[0].error}" if problems else ""
         raise ValueError(
             f"no marine-snow particles found in {shown or 'the inputs'} (method {config.method}, threshold "
             f"{config.effective_threshold}, area {config.min_area_px}-{config.max_area_px} px){why}"

@@ -28,12 +28,11 @@ cancelled; what was finished is kept and a rerun resumes).
 from __future__ import annotations
 
 import os
-import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import cv2
 import numpy as np
@@ -44,8 +43,9 @@ from murk._workers import stop_if_orphaned
 from murk.io.atomic import remove_stale_temporaries, write_text_atomic
 from murk.io.depth import write_depth_png
 from murk.io.images import to_uint, write_rgb, write_uint
+from murk.io.jobs import ErrorRecord, JobSummary
 from murk.io.jsonl import append_jsonl, read_jsonl, write_jsonl
-from murk.io.pairs import DepthOptions, Problem, RGBDSource, load_pair
+from murk.io.pairs import DepthOptions, RGBDSource, load_pair
 from murk.io.paths import check_output_location
 from murk.rng import derive_seed
 from murk.synth.config import SynthConfig
@@ -54,6 +54,9 @@ from murk.synth.pipeline import render
 
 DEPTH_SCALE_OUT = 1000.0
 """depth/ PNGs are millimetres."""
+
+DataFormat = Literal["files", "webdataset"]
+"""``murk synth --format``: loose PNG folders or tar shards (:mod:`murk.synth.shards`)."""
 
 
 @dataclass(frozen=True)
@@ -99,21 +102,28 @@ class Shard:
 
 
 @dataclass
-class RunSummary:
-    """What a run did."""
+class RunSummary(JobSummary):
+    """What a run did: the job summary (:class:`murk.io.jobs.JobSummary`; processed/skipped count variants)
+    and the number of clean images of this shard. ``notes`` warn about the inputs (implausible depth ranges)."""
 
-    out_dir: Path
+    command: str = "synth"
     images: int = 0
-    variants_written: int = 0
-    variants_skipped: int = 0
-    failures: list[Problem] = field(default_factory=list)
-    seconds: float = 0.0
-    notes: list[str] = field(default_factory=list)
-    """Warnings about the inputs (e.g. implausible depth ranges)."""
+
+    @property
+    def out_dir(self) -> Path:
+        return Path(self.out or ".")
+
+    @property
+    def variants_written(self) -> int:
+        return self.processed
+
+    @property
+    def variants_skipped(self) -> int:
+        return self.skipped
 
     @property
     def variants_per_s(self) -> float:
-        return self.variants_written / self.seconds if self.seconds > 0 else 0.0
+        return self.processed / self.wall_s if self.wall_s > 0 else 0.0
 
 
 # ------------------------------------------------------------------------------------------ per-image work
@@ -217,7 +227,7 @@ def _init_pool_worker(bank_path: str | None) -> None:
 
 def process_source(
     source: RGBDSource, variants: Sequence[int], config: SynthConfig, out_dir: str, bank: Any = None
-) -> tuple[list[dict[str, Any]], list[Problem]]:
+) -> tuple[list[dict[str, Any]], list[ErrorRecord]]:
     """Load one RGB-D pair and write the requested variants; returns their manifest records (or a problem)."""
     bank = _WORKER_BANK if bank is None else bank
     out = Path(out_dir)
@@ -227,7 +237,7 @@ def process_source(
         rgb, depth, valid = load_pair(source, opts)
         rgb, depth, valid = fit_size(rgb, depth, valid, inp.size)
     except (ValueError, OSError) as exc:
-        return [], [Problem(source.rgb_path, str(exc))]
+        return [], [ErrorRecord(source.rgb_path, "read", str(exc))]
     note = depth_range_note(source, depth[valid])
     png = config.output.png_compression
     files0 = paths_for(source.stem, 0)
@@ -364,7 +374,7 @@ def run_synthesis(
     *,
     shard: Shard = Shard(),
     bank_path: str | None = None,
-    problems: Sequence[Problem] = (),
+    problems: Sequence[ErrorRecord] = (),
     on_progress: Callable[[int, int], None] | None = None,
 ) -> RunSummary:
     """Generate (or resume) a synthetic dataset. See the module docstring for the output layout.
@@ -382,7 +392,6 @@ def run_synthesis(
         ValueError: ``out_dir`` overlaps the folders of the input files (see above); a bad bank or configuration.
         OutputError: no space left on the device (the message names the file; a rerun resumes).
     """
-    t0 = time.perf_counter()
     out = Path(out_dir)
     check_output_location(out, input_locations(sources), option="OUT_DIR", writes=OUTPUT_FOLDERS, why=_OVERLAP_WHY)
     if "marine_snow" in config.stages and not bank_path:
@@ -398,23 +407,24 @@ def run_synthesis(
     mine = sorted(sources, key=lambda s: s.stem)[shard.index :: shard.count]
     done = load_records(out)
     todo: list[tuple[RGBDSource, list[int]]] = []
-    summary = RunSummary(out, images=len(mine), failures=list(problems))
+    summary = RunSummary(out=out, images=len(mine), failures=list(problems), failed=len(problems))
     for s in mine:
         missing = [k for k in range(config.variants) if (s.stem, k) not in done]
-        summary.variants_skipped += config.variants - len(missing)
+        summary.skipped += config.variants - len(missing)
         if missing:
             todo.append((s, missing))
     log = _progress_dir(out) / f"progress-{shard.tag}.jsonl"
     total = len(mine) * config.variants
-    finished = summary.variants_skipped
+    finished = summary.skipped
     if on_progress:
         on_progress(finished, total)
 
-    def collect(records: list[dict[str, Any]], errs: list[Problem], n_asked: int) -> None:
+    def collect(records: list[dict[str, Any]], errs: list[ErrorRecord], n_asked: int) -> None:
         nonlocal finished
         append_jsonl(log, records)
-        summary.variants_written += len(records)
-        summary.failures.extend(errs)
+        summary.processed += len(records)
+        for err in errs:
+            summary.add_failure(err)
         finished += n_asked
         if on_progress:
             on_progress(finished, total)
@@ -437,10 +447,69 @@ def run_synthesis(
     final = load_records(out)
     write_index(out, final)
     summary.notes = sorted({r["depth_warning"] for r in final.values() if r.get("depth_warning")})
-    errors_path = out / "errors.jsonl"
-    if summary.failures:
-        write_jsonl(errors_path, [{"path": p.path, "error": p.error} for p in summary.failures])
-    elif errors_path.exists():
-        errors_path.unlink()
-    summary.seconds = time.perf_counter() - t0
-    return summary
+    summary.write_errors(out)
+    return summary.finish()
+
+
+def synthesize(
+    out_dir: str | Path,
+    config: SynthConfig,
+    *,
+    rgbd: str | Path | None = None,
+    list_file: str | Path | None = None,
+    shard: Shard = Shard(),
+    data_format: DataFormat = "files",
+    samples_per_shard: int = 256,
+    backend: Literal["local", "ray"] = "local",
+    ray_address: str | None = None,
+    on_progress: Callable[[int, int], None] | None = None,
+) -> JobSummary:
+    """``murk synth`` as one call: find the clean pairs (a folder or NYU ``.mat`` file ``rgbd``, or a list file),
+    pick the particle bank (``config.marine_snow.bank``, else the shipped one) and run :func:`run_synthesis`
+    (``data_format="files"``: loose PNG folders, returns a :class:`RunSummary`) or
+    :func:`murk.synth.shards.write_shards` (``"webdataset"``: tar shards, locally or on Ray).
+
+    Raises:
+        ValueError: neither or both of ``rgbd`` and ``list_file``; no pair found (the first problems named);
+            an unknown ``data_format``; ``backend``/``ray_address`` without ``data_format="webdataset"``.
+    """
+    from murk.io.pairs import discover, read_list
+
+    if (rgbd is None) == (list_file is None):
+        raise ValueError("give either RGBD_DIR or --list FILE")
+    if data_format not in ("files", "webdataset"):
+        raise ValueError(f"--format: expected files or webdataset, got {data_format!r}")
+    if data_format == "files" and (backend != "local" or ray_address):
+        raise ValueError("--backend ray and --ray-address need --format webdataset")
+    if list_file is not None:
+        sources, problems = read_list(list_file), []
+    else:
+        sources, problems = discover(rgbd)  # type: ignore[arg-type]
+    if not sources:
+        why = "; ".join(f"{p.input}: {p.error}" for p in problems[:3])
+        raise ValueError(
+            f"{rgbd if list_file is None else list_file}: no RGB-D pairs found" + (f" ({why})" if why else "")
+        )
+    bank_path = None
+    if "marine_snow" in config.stages:
+        from murk.data import default_snow_bank
+
+        bank_path = config.marine_snow.bank or str(default_snow_bank())
+    if data_format == "webdataset":
+        from murk.synth.shards import write_shards
+
+        return write_shards(
+            sources,
+            out_dir,
+            config,
+            samples_per_shard=samples_per_shard,
+            shard=shard,
+            bank_path=bank_path,
+            problems=problems,
+            backend=backend,
+            ray_address=ray_address,
+            on_progress=on_progress,
+        )
+    return run_synthesis(
+        sources, out_dir, config, shard=shard, bank_path=bank_path, problems=problems, on_progress=on_progress
+    )

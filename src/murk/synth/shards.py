@@ -45,7 +45,7 @@ from murk.io.atomic import atomic_path, remove_stale_temporaries, write_text_ato
 from murk.io.images import encode_image, to_uint
 from murk.io.jobs import ErrorRecord, JobSummary, write_errors
 from murk.io.jsonl import append_jsonl, read_jsonl
-from murk.io.pairs import DepthOptions, Problem, RGBDSource, load_pair
+from murk.io.pairs import DepthOptions, RGBDSource, load_pair
 from murk.rng import derive_seed
 from murk.synth.config import SynthConfig
 from murk.synth.runner import DEPTH_SCALE_OUT, Shard, depth_range_note, fit_size, manifest_record, variant_info
@@ -356,7 +356,7 @@ def write_shards(
     samples_per_shard: int,
     shard: Shard | None = None,
     bank_path: str | None = None,
-    problems: Sequence[Problem] = (),
+    problems: Sequence[ErrorRecord] = (),
     backend: Backend = "local",
     ray_address: str | None = None,
     on_progress: Callable[[int, int], None] | None = None,
@@ -418,7 +418,7 @@ def write_shards(
     done = load_finished(out)
     todo = [p for p in mine if not (p.name in done and done[p.name]["keys"] == p.keys)]
     summary.skipped = sum(len(p.samples) for p in mine) - sum(len(p.samples) for p in todo)
-    failures = [ErrorRecord(p.path, "pair", p.error) for p in problems]
+    failures = list(problems)
     log = _progress_dir(out) / f"shards-{shard.tag}.jsonl"
     finished = len(mine) - len(todo)
     if on_progress:
@@ -459,12 +459,3 @@ def write_shards(
     summary.errors_path = write_errors(out, failures)
     summary.failed = len(failures)
     return summary.finish()
-
-
-def describe(summary: JobSummary, shard: Shard) -> str:
-    """The summary line of ``murk synth --format webdataset``."""
-    from murk.io.jobs import summary_line
-
-    where = f" (shard {shard.index}/{shard.count})" if shard.count > 1 else ""
-    rate = summary.processed / summary.wall_s if summary.wall_s > 0 else 0.0
-    return summary_line(summary, "sample") + f", {rate:.1f} samples/s{where} -> {summary.out}"

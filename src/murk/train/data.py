@@ -157,7 +157,7 @@ def rgbd_sources(folder: str | Path) -> list[RGBDSource]:
     """The clean RGB-D pairs of a folder (``rgb/`` + ``depth/``); unpaired files are an error here."""
     sources, problems = discover(folder)
     if problems:
-        raise InputFileError(problems[0].path, problems[0].error)
+        raise InputFileError(problems[0].input, problems[0].error)
     return sources
 
 

@@ -1,5 +1,9 @@
 """The training loop of ``murk train``: single process or DistributedDataParallel under ``torchrun``.
 
+The run is set up by :mod:`murk.train.setup` (data, process group and device, step budget, model, optimiser,
+resume) and evaluated by :mod:`murk.train.evaluation`; this module holds the step loop, its logs and
+checkpoints (and re-exports ``DataSetup``, ``build_data``, ``detect_kind`` and ``evaluate``).
+
 Determinism and exact resume: nothing random is carried in hidden state. The order of samples in epoch ``e``
 is a permutation drawn from ``derive_seed(seed, "order", e)`` (each rank takes every ``world``-th sample),
 the augmentation of step ``s`` on rank ``r`` from ``derive_seed(seed, "augment", s, r)``, and online
@@ -17,7 +21,6 @@ from __future__ import annotations
 import contextlib
 import json
 import math
-import os
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -27,35 +30,40 @@ from typing import Any
 import numpy as np
 import torch
 import torch.distributed as dist
-import torch.nn.functional as F
-from torch.utils.data import DataLoader, Dataset
+from torch.utils.data import DataLoader
 
 from murk._config import dump_yaml, to_dict
 from murk._version import __version__
 from murk.io.atomic import write_text_atomic
+from murk.io.jobs import JobSummary
 from murk.io.jsonl import append_jsonl
-from murk.io.pairs import DepthOptions
 from murk.rng import derive_seed
 from murk.train.augment import apply_augment, sample_augment
 from murk.train.config import TrainConfig
-from murk.train.data import (
-    CleanRGBDDataset,
-    OnlineDegrader,
-    PairDataset,
-    items_from_list,
-    items_from_synth_folder,
-    rgbd_sources,
-    split_by_stem,
-)
+from murk.train.evaluation import evaluate, to_device
 from murk.train.losses import jointid_loss
-from murk.train.schedule import Schedule
+from murk.train.setup import (
+    DataSetup,
+    build_data,
+    build_model,
+    build_optimiser,
+    detect_kind,
+    init_runtime,
+    plan_steps,
+    resume_state,
+)
+
+__all__ = ["DataSetup", "TrainSummary", "build_data", "detect_kind", "epoch_batches", "evaluate", "train"]
 
 
 @dataclass
-class TrainSummary:
-    """What a run did (also written to ``summary.json``)."""
+class TrainSummary(JobSummary):
+    """What a run did (also written to ``summary.json``): the job summary (:class:`murk.io.jobs.JobSummary`;
+    ``processed`` counts the steps run by this invocation, ``skipped`` those resumed from ``latest.pt``) and
+    the training figures."""
 
-    out_dir: str
+    command: str = "train"
+    out_dir: str = ""
     steps_done: int = 0
     total_steps: int = 0
     images_per_s: float = 0.0
@@ -66,78 +74,7 @@ class TrainSummary:
     peak_memory_gib: float | None = None
 
 
-# ------------------------------------------------------------------------------------------------ data
-
-
-@dataclass
-class DataSetup:
-    train: Dataset
-    val: Dataset | None
-    online: OnlineDegrader | None
-    kind: str
-
-
-def detect_kind(source: str) -> str:
-    """``synth`` (folder with manifest.jsonl), ``list`` (a file), ``rgbd`` (rgb/ + depth/) or ``scenes``."""
-    p = Path(source)
-    if source == "scenes" or source.startswith("scenes:"):
-        return "scenes"
-    from murk.train.shard_data import is_shard_source
-
-    if is_shard_source(source):
-        return "shards"
-    if p.is_file():
-        return "list"
-    if (p / "manifest.jsonl").is_file():
-        return "synth"
-    if p.is_dir() and (p / "depth").is_dir():
-        return "rgbd"
-    raise ValueError(
-        f"data.source: {source or '(empty)'} is neither a 'murk synth' folder, a Joint-ID list file, a folder with "
-        "rgb/ and depth/, 'scenes', nor tar shards (a .tar pattern or an index.json)"
-    )
-
-
-def build_data(config: TrainConfig) -> DataSetup:
-    d = config.data
-    kind = d.kind if d.kind != "auto" else detect_kind(d.source)
-    crop = tuple(d.crop_hw)
-    online = None
-    if kind in ("synth", "list"):
-        items = items_from_synth_folder(d.source) if kind == "synth" else items_from_list(d.source, d.list_root)
-        if d.val_source:
-            vk = detect_kind(d.val_source)
-            val_items = items_from_synth_folder(d.val_source) if vk == "synth" else items_from_list(d.val_source)
-            tr, va = items, val_items
-        else:
-            ti, vi = split_by_stem([i.stem for i in items], d.val_fraction, config.seed)
-            tr, va = [items[i] for i in ti], [items[i] for i in vi]
-        return DataSetup(PairDataset(tr, crop), PairDataset(va, crop) if va else None, None, kind)
-    if kind == "rgbd":
-        sources = rgbd_sources(d.source)
-        opts = DepthOptions(depth_scale=d.depth_scale, invalid=d.invalid_depth, encoding=d.depth_encoding)
-        ti, vi = split_by_stem([s.stem for s in sources], d.val_fraction, config.seed)
-        online = OnlineDegrader(d.synthesis, seed=config.seed)
-        train = CleanRGBDDataset([sources[i] for i in ti], crop, opts)
-        val = CleanRGBDDataset([sources[i] for i in vi], crop, opts) if vi else None
-        return DataSetup(train, val, online, kind)
-    if kind == "shards":  # streamed tar shards (murk.train.shard_data): split by rank and worker per epoch
-        from murk.train.shard_data import build_shard_data
-
-        train_stream, val_shards = build_shard_data(config, _dist_info()[1])
-        return DataSetup(train_stream, val_shards, None, kind)  # type: ignore[arg-type]
-    if kind == "scenes":
-        from murk.train.scenes_source import SceneDataset
-
-        count = int(d.source.split(":", 1)[1]) if ":" in d.source else d.scenes_count
-        n_val = max(1, round(d.val_fraction * count)) if d.val_fraction > 0 else 0
-        online = OnlineDegrader(d.synthesis, seed=config.seed)
-        cache = d.cache_scenes and d.workers == 0
-        scale = d.scene_scale
-        train = SceneDataset(range(n_val, count), crop, seed=config.seed, cache=cache, scale=scale)
-        val = SceneDataset(range(n_val), crop, seed=config.seed, cache=cache, scale=scale) if n_val else None
-        return DataSetup(train, val, online, kind)
-    raise ValueError(f"data.kind: expected auto, synth, list, rgbd, scenes or shards, got {kind!r}")
+# ------------------------------------------------------------------------------------------------ order
 
 
 def epoch_batches(n: int, batch: int, epoch: int, seed: int, rank: int, world: int) -> list[list[int]]:
@@ -148,15 +85,6 @@ def epoch_batches(n: int, batch: int, epoch: int, seed: int, rank: int, world: i
 
 
 # --------------------------------------------------------------------------------------------- helpers
-
-
-def _dist_info() -> tuple[int, int, int]:
-    world = int(os.environ.get("WORLD_SIZE", "1"))
-    return int(os.environ.get("RANK", "0")), world, int(os.environ.get("LOCAL_RANK", "0"))
-
-
-def _to_device(batch: dict[str, Any], device: torch.device) -> dict[str, Any]:
-    return {k: v.to(device, non_blocking=True) if torch.is_tensor(v) else v for k, v in batch.items()}
 
 
 class _Logger:
@@ -205,34 +133,12 @@ def train(
         stop_after: stop after this many steps in this invocation (a time-boxed job; resume later).
         on_log: called with every log record (the CLI prints progress with it).
     """
-    from murk.train.networks import (
-        build_network,
-        frozen_parameter_names,
-        has_depth,
-        read_network_checkpoint,
-        run_network,
-        save_network,
-    )
+    from murk.train.networks import has_depth, run_network, save_network
 
     kind = config.model.kind
-    rank, world, local_rank = _dist_info()
-    distributed = world > 1
-    dev_name = config.device
-    if dev_name.startswith("cuda") and not torch.cuda.is_available():
-        raise ValueError(f"device: {dev_name} requested but CUDA is not available")
-    if distributed:
-        backend = "nccl" if dev_name.startswith("cuda") else "gloo"
-        if not dist.is_initialized():
-            dist.init_process_group(backend)
-        if dev_name.startswith("cuda"):
-            dev_name = f"cuda:{local_rank}"
-    device = torch.device(dev_name)
-    if device.type == "cuda":
-        torch.cuda.set_device(device)
-        torch.backends.cuda.matmul.allow_tf32 = True
-        torch.backends.cudnn.allow_tf32 = True
+    rt = init_runtime(config.device)
+    rank, world, distributed, device, main_rank = rt.rank, rt.world, rt.distributed, rt.device, rt.main
     out = Path(config.out)
-    main_rank = rank == 0
     if main_rank:
         out.mkdir(parents=True, exist_ok=True)
         write_text_atomic(out / "config.yaml", dump_yaml(config, murk_version=__version__, world_size=world))
@@ -240,52 +146,13 @@ def train(
 
     data = build_data(config)
     n_train = len(data.train)
-    spe = n_train // world // config.batch
-    if spe < 1:
-        raise ValueError(
-            f"data: {n_train} training samples are fewer than batch {config.batch} x {world} process(es); "
-            "lower --batch or add data"
-        )
-    total = config.steps if config.steps is not None else math.ceil(config.epochs * spe)
-    epochs_for_schedule = total / spe
-    warm = min(config.optim.warmup_epochs, epochs_for_schedule / 5)
-    schedule = Schedule(
-        spe, epochs=epochs_for_schedule, base_lr=config.optim.lr, min_lr=config.optim.min_lr, warmup_epochs=warm
-    )
-
-    torch.manual_seed(config.seed)
-    model = build_network(config.model)
-    unused = set(frozen_parameter_names(kind, model))
-    for name, p in model.named_parameters():
-        if name in unused:
-            p.requires_grad_(False)  # checkpoint-only parameters: never used in forward
-    model.to(device)
-    if config.channels_last:
-        model = model.to(memory_format=torch.channels_last)
-    optim = torch.optim.AdamW(
-        model.parameters(),
-        lr=schedule.lr(0),
-        betas=tuple(config.optim.betas),
-        eps=config.optim.eps,
-        weight_decay=config.optim.weight_decay,
-        fused=device.type == "cuda",
-    )
+    spe, total, schedule = plan_steps(config, n_train, world)
+    model = build_model(config, device)
+    optim = build_optimiser(config, model, schedule.lr(0), device)
     start, best = 0, {}
     latest = out / "latest.pt"
     if resume:
-        if not latest.is_file():
-            raise ValueError(f"--resume: {latest} not found (nothing to resume)")
-        state, meta = read_network_checkpoint(kind, latest)
-        missing = [k for k in ("optimizer", "step") if k not in meta]
-        if missing:
-            raise ValueError(
-                f"--resume: {latest} has no {' and no '.join(missing)} (not a 'murk train' latest.pt: it holds "
-                "weights only); start a new run, or use it as model.init_checkpoint"
-            )
-        model.load_state_dict({k: v.to(device) for k, v in state.items()}, strict=True)
-        optim.load_state_dict(meta["optimizer"])
-        start = int(meta["step"])
-        best = dict(meta.get("best") or {})
+        start, best = resume_state(latest, config, model, optim, device)
     net = model
     if distributed:
         net = torch.nn.parallel.DistributedDataParallel(
@@ -294,7 +161,7 @@ def train(
     if config.compile:
         net = torch.compile(net)
 
-    summary = TrainSummary(str(out), steps_done=start, total_steps=total, best=best)
+    summary = TrainSummary(out=out, out_dir=str(out), steps_done=start, skipped=start, total_steps=total, best=best)
     autocast = (
         torch.autocast(device_type=device.type, dtype=torch.bfloat16)
         if config.precision == "bf16"
@@ -333,7 +200,7 @@ def train(
     net.train()
     while step < end:
         epoch, batch = next(it)
-        batch = _to_device(batch, device)
+        batch = to_device(batch, device)
         if data.online is not None:
             with torch.no_grad():
                 inputs = data.online(batch["clean"], batch["depth_filled"], epoch, batch["index"].tolist())
@@ -360,6 +227,7 @@ def train(
         step += 1
         imgs += inputs.shape[0] * world
         summary.steps_done = step
+        summary.processed = step - start
         if step % config.log_every == 0 or step == end:
             loss = float(terms.total.detach())
             now = time.perf_counter()
@@ -419,12 +287,14 @@ def train(
         summary.peak_memory_gib = torch.cuda.max_memory_allocated(device) / 2**30
     summary.replica_checksums = _replica_checksums(model, distributed)
     if main_rank:
-        write_text_atomic(out / "summary.json", json.dumps(to_dict(summary), indent=2, default=str) + "\n")
+        summary.finish()
+        doc = {k: v for k, v in to_dict(summary).items() if k not in ("started", "failures")}
+        write_text_atomic(out / "summary.json", json.dumps(doc, indent=2, default=str) + "\n")
     logger.close()
     if distributed:
         dist.barrier()
         dist.destroy_process_group()
-    return summary
+    return summary.finish()
 
 
 def _replica_checksums(model: torch.nn.Module, distributed: bool) -> list[float]:
@@ -438,77 +308,3 @@ def _replica_checksums(model: torch.nn.Module, distributed: bool) -> list[float]
     gathered = [torch.zeros_like(s) for _ in range(dist.get_world_size())]
     dist.all_gather(gathered, s)
     return [float(g) for g in gathered]
-
-
-# --------------------------------------------------------------------------------------------- evaluation
-
-
-@torch.no_grad()
-def evaluate(
-    model: torch.nn.Module, data: DataSetup, config: TrainConfig, device: torch.device, step: int
-) -> dict[str, float]:
-    """Loss, PSNR/SSIM (and the degraded input's PSNR) and depth errors on the held-out synthetic split (the
-    same ``eval.val_batches`` batches every time, unaugmented); UIQM/UCIQE on real images."""
-    from murk.metrics import depth_errors_torch, psnr_torch, ssim_torch, uciqe_torch, uiqm_torch
-    from murk.models.padding import pad_to_multiple
-    from murk.train.networks import run_network, size_multiple
-
-    kind = config.model.kind
-
-    was_training = model.training
-    model.eval()
-    out: dict[str, float] = {}
-    if data.val is not None and len(data.val) > 0:
-        loader = DataLoader(data.val, batch_size=config.batch, shuffle=False, num_workers=0)
-        ps, ss, errs, in_ps, losses = [], [], [], [], []
-        for bi, batch in enumerate(loader):
-            if bi >= config.eval.val_batches:
-                break
-            batch = _to_device(batch, device)
-            if data.online is not None:
-                # fixed validation degradations: epoch -1 is never used for training
-                inputs = data.online(batch["clean"], batch["depth_filled"], -1, batch["index"].tolist())
-                targets = batch["clean"]
-            else:
-                inputs, targets = batch["input"], batch["target"]
-            enhanced, depth_m = run_network(kind, model, inputs)
-            enhanced = enhanced.float()
-            depth_m = None if depth_m is None else depth_m.float()
-            losses.append(float(jointid_loss(enhanced, targets, depth_m, batch["depth"], config.loss).total))
-            in_ps.append(psnr_torch(inputs.float().clamp(0, 1), targets, data_range=1.0))
-            ps.append(psnr_torch(enhanced.clamp(0, 1), targets, data_range=1.0))
-            ss.append(ssim_torch(enhanced.clamp(0, 1), targets, data_range=1.0))
-            if depth_m is not None:  # networks without a depth head: no depth errors
-                errs.append(depth_errors_torch(depth_m, batch["depth"]))
-        if ps:
-            out["val_loss"] = float(np.mean(losses))
-            out["val_psnr"] = float(torch.cat(ps).clamp(max=100).mean())
-            out["val_input_psnr"] = float(torch.cat(in_ps).clamp(max=100).mean())
-            out["val_ssim"] = float(torch.cat(ss).mean())
-            for name in ("silog", "abs_rel", "rmse", "d1"):
-                vals = [getattr(e, name, None) for e in errs]
-                if vals and all(v is not None for v in vals):
-                    out[f"val_{name}"] = float(torch.cat([v.reshape(-1) for v in vals]).nanmean())
-    if config.eval.real:
-        from murk.io.images import list_images, read_rgb
-
-        files = list_images(config.eval.real, recursive=True)[: config.eval.real_max]
-        uiqms, uciqes = [], []
-        for f in files:
-            img = read_rgb(f)
-            h, w = img.shape[:2]
-            scale = min(1.0, config.eval.real_max_side / max(h, w))
-            x = torch.from_numpy(img).permute(2, 0, 1)[None].to(device)
-            if scale < 1.0:
-                x = F.interpolate(x, scale_factor=scale, mode="area")
-            xp, padding = pad_to_multiple(x, size_multiple(kind))
-            o = padding.crop(run_network(kind, model, xp)[0].float()).clamp(0, 1)
-            uiqms.append(uiqm_torch(o, data_range=1.0).uiqm)
-            uciqes.append(uciqe_torch(o, data_range=1.0).uciqe)
-        if uiqms:
-            out["real_uiqm"] = float(torch.cat(uiqms).mean())
-            out["real_uciqe"] = float(torch.cat(uciqes).mean())
-            out["real_images"] = float(len(uiqms))
-    if was_training:
-        model.train()
-    return out

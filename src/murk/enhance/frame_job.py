@@ -1,0 +1,298 @@
+"""The frame job of ``murk enhance``: restore the frames of a video file, a camera or a stream into a video
+(source frame rate) or numbered images; optionally a coloured depth video.
+
+Reliability: a broken frame is recorded in ``errors.jsonl`` and replaced by the previous output frame so the
+video keeps its length and timing; video files are written atomically (complete or absent), live recordings
+directly and flushed (see :mod:`murk.io.video`); a full disk stops the run with :class:`murk.errors.OutputError`.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from murk.enhance.job import (
+    INPUT_ERRORS,
+    RESTORE_ERRORS,
+    EnhanceReport,
+    OutputOptions,
+    ProgressFn,
+    StopFn,
+    restore_batch,
+    write_depth_outputs,
+)
+from murk.enhance.preview import colorize_depth, side_by_side
+from murk.enhance.restorer import Restorer
+from murk.errors import OutputError
+from murk.io.atomic import TMP_PREFIX
+from murk.io.images import IMAGE_SUFFIXES, to_float, to_uint, write_uint
+from murk.io.jobs import ErrorLog, ErrorRecord
+from murk.io.readahead import ReadAhead
+from murk.io.video import DEFAULT_FPS, VIDEO_SUFFIXES, WRITABLE_VIDEO_SUFFIXES, FrameSource, VideoSink, av_available
+
+
+@dataclass
+class _FrameItem:
+    index: int
+    image: np.ndarray | None  # float32 RGB
+    error: str | None = None
+    dst: Path | None = None
+
+
+class _FrameWriter:
+    """Writes processed frames in order to a video (with repeats for broken frames) or to numbered images."""
+
+    def __init__(self, source: FrameSource, out: Path, options: OutputOptions, report: EnhanceReport) -> None:
+        self.source, self.out, self.options, self.report = source, out, options, report
+        self.as_video = out.suffix.lower() in VIDEO_SUFFIXES
+        self.out_dir = out.parent if self.as_video else out
+        self.stem = out.stem if self.as_video else source.name
+        self.ext = f".{options.format or 'jpg'}"
+        self.sink: VideoSink | None = None
+        self.depth_sink: VideoSink | None = None
+        self.last: np.ndarray | None = None
+        self.last_depth: np.ndarray | None = None
+        self.backend = options.video_backend
+        if self.backend == "auto":
+            self.backend = "av" if source.live and av_available() else "opencv"
+
+    def frame_path(self, index: int) -> Path:
+        return self.out_dir / f"{self.stem}_{index:06d}{self.ext}"
+
+    def _open(self, path: Path, size: tuple[int, int]) -> VideoSink:
+        fps = self.options.fps or self.source.fps
+        if fps is None:
+            fps = DEFAULT_FPS
+            self.report.note(f"the source reports no frame rate; videos are written at {DEFAULT_FPS:g} fps")
+        sink = VideoSink(path, fps, size, backend=self.backend, atomic=not self.source.live)  # type: ignore[arg-type]
+        self.report.outputs.append(path)
+        return sink
+
+    def write(self, index: int, frame_u8: np.ndarray, depth_m: np.ndarray | None) -> None:
+        if depth_m is not None and self.options.depth:
+            write_depth_outputs(self.out_dir, f"{self.stem}_{index:06d}", depth_m, self.options)
+            if self.options.depth_video and self.as_video:
+                preview = to_uint(colorize_depth(depth_m, self.options.depth_range_m), 8)
+                if self.depth_sink is None:
+                    path = self.out.with_name(f"{self.out.stem}_depth{self.out.suffix}")
+                    self.depth_sink = self._open(path, (preview.shape[1], preview.shape[0]))
+                self.last_depth = self._fit(preview, self.depth_sink)
+                self.depth_sink.write(self.last_depth)
+        if not self.as_video:
+            write_uint(self.frame_path(index), frame_u8, jpeg_quality=self.options.jpeg_quality)
+            return
+        if self.sink is None:
+            self.sink = self._open(self.out, (frame_u8.shape[1], frame_u8.shape[0]))
+        frame_u8 = self._fit(frame_u8, self.sink)
+        self.sink.write(frame_u8)
+        self.last = frame_u8
+
+    def repeat_last(self) -> bool:
+        """Write the previous frame again (keeps a video's length and timing); False when there is none."""
+        if self.sink is None or self.last is None:
+            return False
+        self.sink.write(self.last)
+        if self.depth_sink is not None and self.last_depth is not None:
+            self.depth_sink.write(self.last_depth)
+        return True
+
+    def _fit(self, frame: np.ndarray, sink: VideoSink) -> np.ndarray:
+        w, h = sink.size
+        if frame.shape[:2] == (h, w):
+            return frame
+        import cv2
+
+        self.report.note(f"the frame size changed during the stream; frames are resized to {w}x{h}")
+        return cv2.resize(frame, (w, h), interpolation=cv2.INTER_AREA)
+
+    def finish(self, complete: bool) -> None:
+        """Close the videos; an incomplete atomic video (interrupted file input) is discarded. When closing one
+        fails (a full disk), the others are discarded too and the error is raised."""
+        sinks = [s for s in (self.sink, self.depth_sink) if s is not None]
+        try:
+            for sink in sinks:
+                if complete or not sink.atomic:
+                    sink.close()
+                else:
+                    self._discard(sink)
+        except BaseException:
+            for sink in sinks:
+                self._discard(sink)
+            raise
+
+    def _discard(self, sink: VideoSink) -> None:
+        sink.abort()
+        if sink.atomic and sink.path in self.report.outputs:
+            self.report.outputs.remove(sink.path)
+
+
+def enhance_frames(
+    source: FrameSource,
+    restorer: Restorer,
+    out: Path,
+    options: OutputOptions | None = None,
+    *,
+    batch: int = 1,
+    max_frames: int | None = None,
+    on_progress: ProgressFn | None = None,
+    should_stop: StopFn | None = None,
+    read_ahead: bool = True,
+) -> EnhanceReport:
+    """Restore the frames of ``source`` into a video (``out`` with a video suffix) or numbered images (``out``
+    a folder: ``<name>_<index:06d>.<format>``).
+
+    A video from a finite source is written atomically: when ``should_stop`` interrupts it, the partial video
+    is discarded. A live source is recorded directly and closed cleanly on disconnect, on ``max_frames`` and
+    on ``should_stop``. Broken frames are recorded in ``errors.jsonl`` and, in a video, replaced by the
+    previous output frame.
+
+    With ``read_ahead`` (default) frames are decoded in a background thread while the previous ones are
+    restored (:class:`murk.io.readahead.ReadAhead`); for a live source only the newest frame waits, and frames
+    the source delivered while restoration was busy are counted in ``report.dropped``.
+
+    Raises:
+        ValueError: a live recording would replace an existing output without ``options.overwrite``.
+        OutputError: no space left on the device, or a finished video lacks frames; an atomic video is
+            discarded (nothing under ``out``).
+    """
+    options = options or OutputOptions()
+    if batch < 1:
+        raise ValueError(f"batch: expected >= 1, got {batch}")
+    if max_frames is not None and max_frames < 1:
+        raise ValueError(f"max_frames: expected >= 1, got {max_frames}")
+    report = EnhanceReport(out=out)
+    if source.frame_count is not None:
+        report.total = min(source.frame_count, max_frames) if max_frames else source.frame_count
+    elif max_frames is not None:
+        report.total = max_frames
+    if out.suffix.lower() in IMAGE_SUFFIXES:
+        raise ValueError(f"--out {out}: frames are written to a video file or a folder, not an image file")
+    writer = _FrameWriter(source, out, options, report)
+    if writer.as_video and out.suffix.lower() not in WRITABLE_VIDEO_SUFFIXES:
+        raise ValueError(
+            f"--out {out}: cannot write {out.suffix} videos; use one of {', '.join(WRITABLE_VIDEO_SUFFIXES)}"
+        )
+    if writer.backend == "av" and not av_available():
+        raise ValueError("--video-backend av needs PyAV: pip install 'murk[video]'")
+    errors = ErrorLog(writer.out_dir, summary=report)
+    label = getattr(source, "label", source.name)
+    if writer.as_video and out.exists() and not options.overwrite:
+        if source.live:
+            raise ValueError(f"{out}: exists; pass --overwrite to replace it")
+        report.skipped = 1
+        report.note(f"{out} exists; skipped (use --overwrite to redo it)")
+        return report
+    if not writer.as_video and source.live and writer.frame_path(0).exists() and not options.overwrite:
+        raise ValueError(f"{writer.frame_path(0)}: exists (an earlier recording); pass --overwrite or another --out")
+    if options.depth_video and not writer.as_video:
+        report.note("--depth-video applies to video outputs; depth previews are in depth_preview/")
+    writer.out_dir.mkdir(parents=True, exist_ok=True)
+    for stale in writer.out_dir.glob(f"{TMP_PREFIX}*-{out.name}"):
+        stale.unlink(missing_ok=True)
+    errors.start()
+
+    items: list[_FrameItem] = []
+    saw_depth = False
+
+    def flush() -> None:
+        nonlocal saw_depth
+        good = [it for it in items if it.image is not None]
+        outputs: dict[int, tuple[np.ndarray, np.ndarray | None]] = {}
+        t0 = time.perf_counter()
+        for group in _same_shape_runs(good):
+            try:
+                result = restore_batch(restorer, np.stack([it.image for it in group]))  # type: ignore[misc]
+            except RESTORE_ERRORS as exc:
+                for it in group:
+                    it.error = f"restore failed: {type(exc).__name__}: {exc}"
+                continue
+            for j, it in enumerate(group):
+                outputs[it.index] = (result.images[j], None if result.depth_m is None else result.depth_m[j])
+        report.restore_s += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        for it in items:
+            if it.index not in outputs:
+                repeated = writer.repeat_last()
+                stage = "read" if it.image is None else "restore"
+                errors.add(ErrorRecord(label, stage, _frame_error(it, repeated), frame=it.index))
+                continue
+            image, depth = outputs[it.index]
+            saw_depth |= depth is not None
+            panel = side_by_side(it.image, image) if options.side_by_side else image  # type: ignore[arg-type]
+            try:
+                writer.write(it.index, to_uint(panel, 8), depth)
+                report.processed += 1
+            except OutputError:  # a full disk ends the run; finish() discards the partial video
+                raise
+            except INPUT_ERRORS as exc:
+                errors.add(ErrorRecord(label, "write", str(exc), frame=it.index))
+        report.write_s += time.perf_counter() - t0
+        items.clear()
+        report.tick()
+        if on_progress:
+            on_progress(report)
+
+    complete = False
+    n_read = 0
+    reader: FrameSource = ReadAhead(source) if read_ahead else source
+    try:
+        while True:
+            if should_stop and should_stop():
+                report.stopped = True
+                break
+            if max_frames is not None and n_read >= max_frames:
+                break
+            t0 = time.perf_counter()
+            frame = reader.read()
+            if frame is None:
+                report.read_s += time.perf_counter() - t0
+                break
+            n_read += 1
+            item = _FrameItem(frame.index, None if frame.image is None else to_float(frame.image), frame.error)
+            report.read_s += time.perf_counter() - t0
+            if not writer.as_video and item.image is not None:
+                item.dst = writer.frame_path(frame.index)
+                if item.dst.exists() and not options.overwrite:
+                    report.skipped += 1
+                    continue
+            items.append(item)
+            if sum(it.image is not None for it in items) >= batch:
+                flush()
+        flush()
+        complete = source.live or not report.stopped
+    finally:
+        if isinstance(reader, ReadAhead):
+            reader.stop()
+            report.dropped = reader.dropped
+        writer.finish(complete)
+        report.tick()
+    if report.dropped:
+        report.note(
+            f"{label}: {report.dropped} frame(s) dropped: the source delivered them faster than {restorer.name} "
+            "restored (the newest frame is always the one restored)"
+        )
+    if report.stopped and not source.live and writer.as_video:
+        report.note(f"interrupted: the partial video was discarded; rerun to write {out}")
+    if source.end_reason and source.end_reason != "end" and not report.stopped:
+        report.note(f"{label}: {source.end_reason} after {n_read} frames" if source.live else source.end_reason)
+    if options.depth_video and writer.as_video and not saw_depth and report.processed:
+        report.note(f"--depth-video: method {restorer.name!r} returns no depth; no depth video written")
+    return report
+
+
+def _same_shape_runs(items: list[_FrameItem]) -> list[list[_FrameItem]]:
+    runs: list[list[_FrameItem]] = []
+    for it in items:
+        if runs and runs[-1][0].image.shape == it.image.shape:  # type: ignore[union-attr]
+            runs[-1].append(it)
+        else:
+            runs.append([it])
+    return runs
+
+
+def _frame_error(item: _FrameItem, repeated: bool) -> str:
+    what = item.error or "frame could not be decoded"
+    return f"{what}; previous frame repeated in the video" if repeated else what

@@ -1,0 +1,153 @@
+"""What ``murk enhance`` is asked to do: classify INPUT (images, a folder, a glob, a video file, a camera, a
+stream URL) and plan the output path of every image (:func:`resolve_input`, :func:`plan_images`).
+
+Outputs inside the input folder are never read back as inputs, and the input folder itself is refused as output
+(:func:`murk.io.paths.check_output_location`); inputs whose outputs would share a name get distinct names
+(:func:`murk.io.paths.output_names`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+from murk.errors import InputFileError
+from murk.io.images import IMAGE_SUFFIXES, list_images
+from murk.io.listing import glob_files
+from murk.io.paths import check_output_location, output_names
+from murk.io.video import VIDEO_SUFFIXES, is_stream_url, redact_url
+
+InputKind = Literal["images", "video", "stream", "bag"]
+ImageFormat = Literal["png", "jpg"]
+_GLOB_CHARS = set("*?[")
+
+
+@dataclass(frozen=True)
+class EnhanceInput:
+    """What the INPUT argument designates. ``images`` and ``root`` (for relative output paths) are set for
+    ``kind="images"``; ``target`` (a path, a camera index or a URL) for ``"video"``, ``"stream"`` and ``"bag"``
+    (a ROS bag: its file or folder)."""
+
+    kind: InputKind
+    label: str
+    images: tuple[Path, ...] = ()
+    root: Path | None = None
+    target: str | int | None = None
+
+
+def resolve_input(spec: str, *, recursive: bool = False, exclude: Path | None = None) -> EnhanceInput:
+    """Classify INPUT: an existing folder or image file, a video file (by suffix), a camera index (digits),
+    a stream URL, or a glob of images. Images under ``exclude`` (the output folder) are left out.
+
+    Raises:
+        InputFileError: nothing exists at ``spec``, a glob or folder matches no image.
+    """
+    path = Path(spec)
+    if path.is_dir():
+        images = _exclude(list_images(path, recursive=recursive), exclude, path)
+        if not images:
+            raise InputFileError(path, f"no images found{'' if recursive else ' (use --recursive for subfolders)'}")
+        return EnhanceInput("images", str(path), tuple(images), root=path)
+    if path.is_file():
+        if path.suffix.lower() in VIDEO_SUFFIXES:
+            return EnhanceInput("video", str(path), target=str(path))
+        return EnhanceInput("images", str(path), (path,), root=path.parent)
+    if spec.strip().isdigit():
+        return EnhanceInput("stream", f"camera {int(spec)}", target=int(spec))
+    if is_stream_url(spec):
+        return EnhanceInput("stream", redact_url(spec), target=spec.strip())
+    if _GLOB_CHARS & set(spec):
+        images = [p for p in glob_files(spec) if p.suffix.lower() in IMAGE_SUFFIXES]  # survives symlink loops
+        root = _glob_root(spec)
+        images = _exclude([p for p in images if not p.name.startswith(".")], exclude, root)
+        if not images:
+            raise InputFileError(spec, "the pattern matches no image file")
+        return EnhanceInput("images", spec, tuple(images), root=root)
+    raise InputFileError(
+        spec,
+        "not found (expected an image, a folder, a glob, a video file, a camera index or an rtsp:// / http:// URL)",
+    )
+
+
+def _exclude(images: list[Path], folder: Path | None, root: Path) -> list[Path]:
+    """Drop images below ``folder`` (the output) when it lies inside the input ``root``; an output folder
+    equal to the input, or above it with outputs landing inside it, is refused by :func:`plan_images`."""
+    if folder is None:
+        return images
+    out = folder.resolve()
+    if root.resolve().is_relative_to(out):
+        return images
+    return [p for p in images if not p.resolve().is_relative_to(out)]
+
+
+def _glob_root(spec: str) -> Path:
+    parts = Path(spec).parts
+    root: list[str] = []
+    for part in parts:
+        if _GLOB_CHARS & set(part):
+            break
+        root.append(part)
+    return Path(*root) if root else Path(".")
+
+
+@dataclass(frozen=True)
+class ImageJob:
+    """One image to restore: ``src`` -> ``dst``; ``stem`` names its depth outputs (relative, no suffix)."""
+
+    src: Path
+    dst: Path
+    stem: str
+
+
+def plan_images(inp: EnhanceInput, out: Path, fmt: ImageFormat | None = None) -> tuple[list[ImageJob], Path]:
+    """Output paths for the images of ``inp``; returns (jobs, output folder).
+
+    ``out`` is a folder (outputs mirror the inputs' paths relative to the input folder or glob root), or, for
+    a single image, a file path with an image suffix.
+
+    Two inputs whose outputs would share a name (``x.jpg`` and ``x.png`` with ``fmt="png"``, or their depth
+    maps ``depth/x.png``) get distinct names (``x_jpg``, ``x_png``; see :func:`murk.io.paths.output_names`).
+
+    Raises:
+        ValueError: the output folder is the input folder, an output would overwrite its input, or ``fmt``
+            contradicts an output file's suffix.
+    """
+    if inp.kind != "images" or inp.root is None:
+        raise ValueError(f"inp: expected an images input, got {inp.kind}")
+    if out.suffix.lower() in VIDEO_SUFFIXES:
+        raise ValueError(f"--out {out}: images are written to a folder or an image file, not a video")
+    if len(inp.images) == 1 and out.suffix.lower() in IMAGE_SUFFIXES and not out.is_dir():
+        if fmt is not None and out.suffix.lower() not in _suffixes(fmt):
+            raise ValueError(f"--format {fmt} contradicts the output file name {out.name}")
+        jobs = [ImageJob(inp.images[0], out, out.stem)]
+        out_dir = out.parent
+    else:
+        # an --out inside the input folder is fine: resolve_input leaves it out of the inputs
+        check_output_location(out, [inp.root], inside="allow")
+        names = output_names(list(inp.images), root=inp.root)
+        jobs = []
+        for src in inp.images:
+            rel = src.relative_to(inp.root) if src.is_relative_to(inp.root) else Path(src.name)
+            dst = out / (f"{names[src]}.{fmt}" if fmt else rel)  # without fmt the suffix keeps rel distinct
+            jobs.append(ImageJob(src, dst, names[src]))
+        out_dir = out
+        root, out_real = inp.root.resolve(), out.resolve()
+        if not out_real.is_relative_to(root):  # (an --out inside the input folder is left out of the listing)
+            for job in jobs:  # an --out above the input folder: outputs must not land inside the input folder
+                if job.dst.resolve().is_relative_to(root):
+                    raise ValueError(
+                        f"--out {out}: the output {job.dst} would land inside the input folder {inp.root} (and be "
+                        "read back as an input on a rerun); choose another folder"
+                    )
+    sources = {job.src.resolve(): job.src for job in jobs}
+    for job in jobs:
+        hit = sources.get(job.dst.resolve())
+        if hit is not None:
+            what = "its input" if hit == job.src else f"the input {hit}"
+            raise ValueError(f"--out {out}: the output {job.dst} would overwrite {what}")
+    return jobs, out_dir
+
+
+def _suffixes(fmt: str) -> tuple[str, ...]:
+    return (".jpg", ".jpeg") if fmt == "jpg" else (f".{fmt}",)

@@ -1,0 +1,151 @@
+"""``murk enhance`` as one library call: classify INPUT, then run the image job or the frame job on it
+(:mod:`murk.enhance.inputs`, :mod:`murk.enhance.image_job`, :mod:`murk.enhance.frame_job`)."""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable
+from contextlib import AbstractContextManager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal, Protocol
+
+from murk.enhance.frame_job import enhance_frames
+from murk.enhance.image_job import enhance_images
+from murk.enhance.inputs import EnhanceInput, plan_images, resolve_input
+from murk.enhance.job import EnhanceReport, OutputOptions, StopFn
+from murk.enhance.restorer import Restorer, weights_of
+
+
+class ProgressDisplay(Protocol):
+    """What shows a run's progress: called with the report after every batch."""
+
+    def update(self, report: EnhanceReport) -> Any: ...
+
+
+@dataclass(frozen=True)
+class BagOptions:
+    """ROS bag input and output choices (``murk enhance dive.bag --topic ...``; see :mod:`murk.enhance.bag`)."""
+
+    topic: str | None = None
+    every: int = 1
+    out_topic: str | None = None
+    depth_topic: str | None = None
+    storage: Literal["mcap", "sqlite3"] | None = None
+    copy_topics: tuple[str, ...] = ()
+
+
+DisplayFactory = Callable[[str, str, int | None, bool], AbstractContextManager[ProgressDisplay | None]]
+"""``display(title, unit, total, live)``: a context manager around the run yielding its progress display
+(``unit``: ``"images"`` or ``"frames"``)."""
+
+
+def run_enhance(
+    spec: str,
+    out: Path,
+    restorer: Restorer,
+    options: OutputOptions | None = None,
+    *,
+    recursive: bool = False,
+    batch: int = 1,
+    max_frames: int | None = None,
+    should_stop: StopFn | None = None,
+    display: DisplayFactory | None = None,
+    bag: BagOptions | None = None,
+) -> tuple[EnhanceInput, EnhanceReport]:
+    """Restore what ``spec`` designates (an image, a folder, a glob, a video file, a camera index, a stream URL,
+    a ROS bag) into ``out``; ``max_frames`` caps images or frames. Returns the classified input and the run's
+    report. ``bag`` holds the topic and output choices for a ROS bag (:mod:`murk.enhance.bag`).
+
+    Raises:
+        InputFileError: nothing usable at ``spec``; ValueError: an output location or option that cannot work
+            (bag options without a bag among them).
+    """
+    from murk.io.rosbag import is_bag
+    from murk.io.video import CaptureSource
+
+    options = options or OutputOptions()
+    shown = display or (lambda _title, _unit, _total, _live: contextlib.nullcontext(None))
+    if is_bag(spec):
+        return _run_bag(spec, out, restorer, options, bag or BagOptions(), batch, max_frames, should_stop, shown)
+    if bag is not None and bag != BagOptions():
+        raise ValueError(
+            f"{spec}: --topic, --every, --out-topic, --depth-topic, --storage, --copy-topics need a ROS bag"
+        )
+    inp = resolve_input(spec, recursive=recursive, exclude=out)
+    title = f"{restorer.name}: {inp.label}"
+    if inp.kind == "images":
+        jobs, out_dir = plan_images(inp, out, options.format)
+        jobs = jobs[:max_frames] if max_frames else jobs
+        with shown(title, "images", len(jobs), False) as d:
+            report = enhance_images(
+                jobs,
+                restorer,
+                out_dir,
+                options,
+                batch=batch,
+                on_progress=None if d is None else d.update,
+                should_stop=should_stop,
+            )
+        return inp, report
+    with CaptureSource(inp.target) as source:  # type: ignore[arg-type]
+        total = source.frame_count if max_frames is None else min(source.frame_count or max_frames, max_frames)
+        with shown(title, "frames", total, source.live) as d:
+            report = enhance_frames(
+                source,
+                restorer,
+                out,
+                options,
+                batch=batch,
+                max_frames=max_frames,
+                on_progress=None if d is None else d.update,
+                should_stop=should_stop,
+            )
+    return inp, report
+
+
+def _run_bag(
+    spec: str,
+    out: Path,
+    restorer: Restorer,
+    options: OutputOptions,
+    bag: BagOptions,
+    batch: int,
+    max_frames: int | None,
+    should_stop: StopFn | None,
+    shown: DisplayFactory,
+) -> tuple[EnhanceInput, EnhanceReport]:
+    from murk.enhance.bag import enhance_bag
+    from murk.io.rosbag import BagSource
+
+    with BagSource(spec, bag.topic, every=bag.every) as source:
+        inp = EnhanceInput("bag", source.label, target=spec)
+        total = source.frame_count if max_frames is None else min(source.frame_count or max_frames, max_frames)
+        with shown(f"{restorer.name}: {source.label}", "frames", total, False) as d:
+            report = enhance_bag(
+                source,
+                restorer,
+                out,
+                options,
+                out_topic=bag.out_topic,
+                depth_topic=bag.depth_topic,
+                storage=bag.storage,
+                copy_topics=bag.copy_topics,
+                batch=batch,
+                max_frames=max_frames,
+                on_progress=None if d is None else d.update,
+                should_stop=should_stop,
+            )
+    return inp, report
+
+
+def weights_line(restorer: Restorer, *, shipped: bool) -> str | None:
+    """``<stage> weights: <file>`` for a method with learned weights (and, for the weights shipped with murk,
+    which network they are); None for a method without weights."""
+    weights = weights_of(restorer)
+    if not weights:
+        return None
+    stage = next(s.name for s in getattr(restorer, "stages", [restorer]) if getattr(s, "weights", None))
+    what = {"jointid": "the 'small' Joint-ID murk trained", "lite": "the 'lite' network murk trained"}.get(stage)
+    note = f" (shipped with murk: {what}, docs/models.md)" if shipped and what else ""
+    return f"{stage} weights: {weights}{note}"

@@ -1,0 +1,422 @@
+"""``murk eval`` as a library call: UIQM/UCIQE of images, PSNR/SSIM against references matched by stem,
+input-vs-output restoration measures and flags (``inputs``), depth errors; the per-column statistics
+(:func:`murk.metrics.stats.column_stats`, shared with ``murk compare``) and the JSON/CSV writers.
+
+Failures (an unreadable file, no matching reference, a size mismatch) are :class:`murk.io.jobs.ErrorRecord`
+lines (stage ``score`` or ``depth``; the message without the path, which ``input`` holds); :func:`run_eval`
+writes them to ``errors.jsonl`` beside the JSON/CSV output when one is given (rewritten by every run).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from murk.io.jobs import ErrorRecord, JobSummary
+
+NOREF_COLUMNS = ("uiqm", "uicm", "uism", "uiconm", "uciqe", "sigma_c", "con_l", "mu_s")
+REF_COLUMNS = ("psnr", "ssim")
+
+
+@dataclass(frozen=True)
+class EvalOptions:
+    """How images and depth are scored.
+
+    Attributes:
+        uiqm_preset, uciqe_preset: metric presets (``docs/metrics.md``).
+        resize: (width, height) to resize to with Pillow bicubic before UIQM/UCIQE, or None.
+        ssim_window: ``gaussian`` (11x11, sigma 1.5) or ``uniform`` (7x7).
+        depth_scale: raw units per metre of integer depth images.
+        recursive: search folders recursively.
+    """
+
+    uiqm_preset: str = "panetta2016"
+    uciqe_preset: str = "uciqe_m"
+    resize: tuple[int, int] | None = None
+    ssim_window: str = "gaussian"
+    depth_scale: float = 1000.0
+    recursive: bool = False
+
+    def __post_init__(self) -> None:
+        from murk.metrics.reference import SSIM_WINDOWS
+
+        if self.ssim_window not in SSIM_WINDOWS:
+            raise ValueError(f"--ssim-window: expected one of {', '.join(SSIM_WINDOWS)}, got {self.ssim_window!r}")
+        if not (math.isfinite(self.depth_scale) and self.depth_scale > 0):
+            raise ValueError(f"--depth-scale: expected a finite number > 0, got {self.depth_scale}")
+
+    def meta(self) -> dict[str, Any]:
+        """The settings recorded in the JSON output."""
+        return {
+            "uiqm_preset": self.uiqm_preset,
+            "uciqe_preset": self.uciqe_preset,
+            "resize": list(self.resize) if self.resize else None,
+            "ssim_window": self.ssim_window,
+            "depth_scale": self.depth_scale,
+        }
+
+
+@dataclass
+class EvalResult(JobSummary):
+    """The job summary (``processed`` counts scored files) and the rows: one per image, one per depth map."""
+
+    command: str = "eval"
+    images: list[dict[str, Any]] = field(default_factory=list)
+    depth: list[dict[str, Any]] = field(default_factory=list)
+    options: EvalOptions = field(default_factory=EvalOptions)
+
+
+def parse_presets(values: Sequence[str]) -> tuple[str, str]:
+    """(UIQM preset, UCIQE preset) from names given in any order, at most one per metric."""
+    from murk.metrics import UCIQE_PRESETS, UIQM_PRESETS
+
+    uiqm_p, uciqe_p = "panetta2016", "uciqe_m"
+    seen: set[str] = set()
+    for v in values:
+        name = v.strip()
+        if name in UIQM_PRESETS:
+            kind = "uiqm"
+            uiqm_p = name
+        elif name in UCIQE_PRESETS:
+            kind = "uciqe"
+            uciqe_p = name
+        else:
+            raise ValueError(
+                f"--preset: expected a UIQM preset ({', '.join(UIQM_PRESETS)}) or a UCIQE preset "
+                f"({', '.join(UCIQE_PRESETS)}), got {v!r}"
+            )
+        if kind in seen:
+            raise ValueError(f"--preset: two {kind.upper()} presets given; give at most one per metric")
+        seen.add(kind)
+    return uiqm_p, uciqe_p
+
+
+def evaluate(
+    images: Sequence[Path] = (),
+    *,
+    ref: Path | None = None,
+    inputs: Path | None = None,
+    depth: Path | None = None,
+    depth_ref: Path | None = None,
+    options: EvalOptions | None = None,
+    topic: str | None = None,
+    every: int = 1,
+    on_progress: Callable[[int, int], None] | None = None,
+) -> EvalResult:
+    """Score ``images`` (files and/or folders; ROS bags: every ``every``-th frame of ``topic``, decode failures
+    recorded) and depth maps; see the module docstring.
+
+    Raises:
+        ValueError: a usage error (``--ref``/``--input`` without images, ``--depth`` without ``--depth-ref``,
+            nothing to evaluate); InputFileError: a path or folder with nothing to score.
+    """
+    opts = options or EvalOptions()
+    if (depth is None) != (depth_ref is None):
+        raise ValueError("--depth and --depth-ref: give both (predicted and ground-truth depth) or neither")
+    if ref is not None and not images:
+        raise ValueError("--ref: needs IMAGES (the predictions to compare with the references)")
+    if inputs is not None and not images:
+        raise ValueError("--input: needs IMAGES (the restored images to compare with their raw inputs)")
+    if not images and depth is None:
+        raise ValueError("nothing to evaluate: give IMAGES (files or folders) and/or --depth PRED --depth-ref GT")
+    result = EvalResult(options=opts)
+    if images:
+        from murk.io.rosbag import bag_frames_as_files
+
+        with bag_frames_as_files(images, topic, every=every) as frames:
+            for failure in frames.errors:
+                result.add_failure(failure)
+            files = _collect_images(frames.paths, opts.recursive)
+            refs = _index_folder(ref, opts.recursive, "--ref", "reference") if ref is not None else None
+            raws = _index_folder(inputs, opts.recursive, "--input", "raw input") if inputs is not None else None
+            _score_images(files, refs, raws, opts, result, on_progress)
+    if depth is not None and depth_ref is not None:
+        _score_depth(depth, depth_ref, opts, result)
+    result.processed = len(result.images) + len(result.depth)
+    return result.finish()
+
+
+def run_eval(
+    images: Sequence[Path] = (),
+    *,
+    json_out: Path | None = None,
+    csv_out: Path | None = None,
+    **kwargs: Any,
+) -> EvalResult:
+    """:func:`evaluate`, then the JSON/CSV outputs and, beside them, ``errors.jsonl`` (removed when nothing
+    failed; without an output file the failures are only returned)."""
+    result = evaluate(images, **kwargs)
+    if json_out is not None:
+        write_eval_json(json_out, result)
+    if csv_out is not None:
+        write_eval_csv(csv_out, result)
+    target = json_out or csv_out
+    if target is not None:
+        result.write_errors(target.parent)
+    return result
+
+
+# ----------------------------------------------------------------------------------------------------------
+# file discovery
+
+
+def _collect_images(paths: Sequence[Path], recursive: bool) -> list[tuple[str, Path]]:
+    """(display name, path) of every image named or found in the given folders; usage error if none."""
+    from murk.errors import InputFileError
+    from murk.io import list_images
+
+    found: list[tuple[str, Path]] = []
+    for p in paths:
+        if p.is_dir():
+            inside = list_images(p, recursive=recursive)
+            if not inside:
+                hint = "" if recursive else " (use --recursive for subfolders)"
+                raise InputFileError(p, f"no image files in this folder{hint}")
+            found.extend((str(f.relative_to(p)), f) for f in inside)
+        elif p.is_file():
+            found.append((str(p), p))
+        else:
+            raise InputFileError(p, "no such file or folder")
+    return found
+
+
+def _index_folder(folder: Path, recursive: bool, option: str, what: str) -> dict[str, list[Path]]:
+    """Images of ``folder`` by file stem (for --ref and --input)."""
+    from murk.errors import InputFileError
+    from murk.io import list_images
+
+    if not folder.is_dir():
+        raise InputFileError(folder, f"{option}: expected a folder of {what} images")
+    index: dict[str, list[Path]] = {}
+    for f in list_images(folder, recursive=recursive):
+        index.setdefault(f.stem, []).append(f)
+    return index
+
+
+def _match(path: Path, index: dict[str, list[Path]], option: str, what: str) -> Path:
+    """The one image of ``index`` with the stem of ``path``; a file failure when there is none or several."""
+    from murk.errors import InputFileError
+
+    matches = index.get(path.stem, [])
+    if not matches:
+        raise InputFileError(path, f"no {what} image with stem {path.stem!r} in {option}")
+    if len(matches) > 1:
+        raise InputFileError(path, f"several {what} images with stem {path.stem!r}: {matches}")
+    return matches[0]
+
+
+def _read_same_size(path: Path, other: Path, shape: tuple[int, ...], what: str) -> Any:
+    """Read ``other`` (decoded RGB); a file failure for ``path`` when its size differs from ``shape``."""
+    from murk.errors import InputFileError
+    from murk.io import read_image
+
+    rgb, _ = read_image(other)
+    if rgb.shape != shape:
+        raise InputFileError(
+            path,
+            f"size {shape[1]}x{shape[0]} differs from the {what} {other} ({rgb.shape[1]}x{rgb.shape[0]})",
+        )
+    return rgb
+
+
+def _depth_files(path: Path, recursive: bool) -> dict[str, list[Path]]:
+    """Depth files by stem; a stem with several files (``x.npy`` and ``x.png``) keeps them all, so that the
+    caller reports it as ambiguous instead of silently scoring one of them."""
+    from murk.errors import InputFileError
+    from murk.io.listing import walk_files
+    from murk.io.pairs import DEPTH_SUFFIXES
+
+    if path.is_file():
+        return {path.stem: [path]}
+    if not path.is_dir():
+        raise InputFileError(path, "no such file or folder")
+    out: dict[str, list[Path]] = {}
+    for f in walk_files(path, recursive=recursive):
+        if f.suffix.lower() in DEPTH_SUFFIXES and not f.name.startswith("."):
+            out.setdefault(f.stem, []).append(f)
+    if not out:
+        raise InputFileError(path, "no depth files in this folder")
+    return out
+
+
+def _one(stem: str, files: list[Path]) -> Path:
+    from murk.errors import InputFileError
+
+    if len(files) > 1:
+        names = ", ".join(str(f) for f in sorted(files))
+        raise InputFileError(files[0], f"ambiguous stem {stem!r}: {names} share it; rename or remove all but one")
+    return files[0]
+
+
+# ----------------------------------------------------------------------------------------------------------
+# scoring
+
+
+def _score_images(
+    files: list[tuple[str, Path]],
+    refs: dict[str, list[Path]] | None,
+    inputs: dict[str, list[Path]] | None,
+    opts: EvalOptions,
+    out: EvalResult,
+    on_progress: Callable[[int, int], None] | None,
+) -> None:
+    import numpy as np
+
+    from murk.io import read_image, to_float, to_uint
+    from murk.metrics import flags, join_flags, pil_bicubic_resize, psnr, restoration_measures, ssim, uciqe, uiqm
+
+    for done, (name, path) in enumerate(files, start=1):
+        row: dict[str, Any] = {"file": name}
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                rgb, _ = read_image(path)
+                peak = 255.0 if rgb.dtype == np.uint8 else 65535.0
+                scored = rgb
+                if opts.resize is not None:
+                    u8 = rgb if rgb.dtype == np.uint8 else to_uint(to_float(rgb), 8)
+                    scored, peak = pil_bicubic_resize(u8, opts.resize), 255.0
+                q = uiqm(scored, data_range=peak, preset=opts.uiqm_preset)  # type: ignore[arg-type]
+                c = uciqe(scored, data_range=peak, preset=opts.uciqe_preset)  # type: ignore[arg-type]
+                row.update({k: getattr(q, k) for k in NOREF_COLUMNS[:4]})
+                row.update({k: getattr(c, k) for k in NOREF_COLUMNS[4:]})
+                if refs is not None:
+                    ref_path = _match(path, refs, "--ref", "reference")
+                    ref_rgb = _read_same_size(path, ref_path, rgb.shape, "reference")
+                    pred01, ref01 = to_float(rgb), to_float(ref_rgb)
+                    row["ref"] = str(ref_path)
+                    row["psnr"] = psnr(pred01, ref01, data_range=1.0)
+                    row["ssim"] = ssim(pred01, ref01, data_range=1.0, window=opts.ssim_window)  # type: ignore[arg-type]
+                if inputs is not None:
+                    input_path = _match(path, inputs, "--input", "raw input")
+                    raw_rgb = _read_same_size(path, input_path, rgb.shape, "raw input")
+                    measures = restoration_measures(to_float(raw_rgb), to_float(rgb))
+                    row["input"] = str(input_path)
+                    row.update(measures)
+                    row["flags"] = join_flags(flags(measures))
+            row["warnings"] = sorted({str(w.message) for w in caught})
+            for msg in row["warnings"]:
+                out.note(f"{name}: {msg}")
+            out.images.append(row)
+        except (ValueError, OSError) as exc:
+            out.add_failure(ErrorRecord(str(path), "score", _problem(exc)))
+        if on_progress:
+            on_progress(done, len(files))
+
+
+def _score_depth(pred: Path, gt: Path, opts: EvalOptions, out: EvalResult) -> None:
+    from murk.errors import InputFileError
+    from murk.io import read_depth
+    from murk.metrics import depth_errors
+
+    if pred.is_file() != gt.is_file():
+        raise ValueError("--depth and --depth-ref: give two files or two folders")
+    preds = _depth_files(pred, opts.recursive)
+    gts = _depth_files(gt, opts.recursive)
+    pairs = [(stem, ps) for stem, ps in preds.items()] if pred.is_dir() else [(next(iter(gts)), [pred])]
+    scale = opts.depth_scale
+    for stem, ps in pairs:
+        p = ps[0]
+        try:
+            p = _one(stem, ps)
+            if stem not in gts:
+                raise InputFileError(p, f"no ground-truth depth with stem {stem!r} in --depth-ref")
+            g = _one(stem, gts[stem])
+            errs = depth_errors(read_depth(p, depth_scale=scale), read_depth(g, depth_scale=scale))
+            out.depth.append({"file": str(p), "ref": str(g), **errs.as_dict()})
+        except (ValueError, OSError) as exc:
+            out.add_failure(ErrorRecord(str(p), "depth", _problem(exc)))
+
+
+def _problem(exc: Exception) -> str:
+    """The error message without the file path (which the error record holds separately)."""
+    from murk.errors import InputFileError
+
+    return exc.problem if isinstance(exc, InputFileError) else str(exc)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# statistics and writers
+
+
+def columns(rows: list[dict[str, Any]]) -> list[str]:
+    """The metric columns present in ``rows``, in table order."""
+    from murk.metrics import DEPTH_ERROR_NAMES, MEASURE_KEYS
+
+    order = (*NOREF_COLUMNS, *REF_COLUMNS, *MEASURE_KEYS, *DEPTH_ERROR_NAMES)
+    present = {k for r in rows for k in r}
+    return [c for c in order if c in present]
+
+
+def summarize(rows: list[dict[str, Any]]) -> dict[str, dict[str, float | int]]:
+    """Mean, population std and count of each metric column over ``rows`` (:func:`murk.metrics.stats.column_stats`).
+
+    Infinite values (PSNR of an exact copy) are left out of mean/std and counted in ``n_inf``. With --input,
+    ``flags`` holds the flag counts of :func:`murk.metrics.count_flags`.
+    """
+    from murk.metrics import count_flags
+    from murk.metrics.stats import column_stats
+
+    summary: dict[str, dict[str, float | int]] = {}
+    for col in columns(rows):
+        st = column_stats(r[col] for r in rows if col in r)
+        entry: dict[str, float | int] = {"n": st.n}
+        if st.n_finite:
+            entry["mean"] = st.mean
+            entry["std"] = st.std
+        if st.n_inf:
+            entry["n_inf"] = st.n_inf
+        summary[col] = entry
+    if any("flags" in r for r in rows):
+        summary["flags"] = dict(count_flags(r["flags"] for r in rows if "flags" in r))
+    return summary
+
+
+def _jsonable(v: Any) -> Any:
+    if isinstance(v, float) and not math.isfinite(v):
+        return "inf" if v > 0 else ("-inf" if v < 0 else "nan")
+    if isinstance(v, dict):
+        return {k: _jsonable(x) for k, x in v.items()}
+    if isinstance(v, list):
+        return [_jsonable(x) for x in v]
+    return v
+
+
+def write_eval_json(path: Path, result: EvalResult) -> None:
+    """Rows, summary, settings and failures (``errors.jsonl`` records) as one JSON file, atomically."""
+    import json
+
+    from murk import __version__
+    from murk.io import write_text_atomic
+
+    doc = {
+        "murk_version": __version__,
+        **result.options.meta(),
+        "images": result.images,
+        "depth": result.depth,
+        "summary": {"images": summarize(result.images), "depth": summarize(result.depth)},
+        "errors": [r.to_json() for r in result.failures],
+    }
+    write_text_atomic(path, json.dumps(_jsonable(doc), indent=1, allow_nan=False) + "\n")
+
+
+def write_eval_csv(path: Path, result: EvalResult) -> None:
+    """One row per scored file, atomically."""
+    import csv
+    import io
+
+    from murk.io import write_text_atomic
+
+    rows = result.images + result.depth
+    paired = any("input" in r for r in rows)  # --input adds the raw input's path and the flags
+    cols = ["file", "ref", *(["input"] if paired else []), *columns(rows), *(["flags"] if paired else []), "warnings"]
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=cols, extrasaction="ignore", lineterminator="\n")
+    writer.writeheader()
+    for r in rows:
+        writer.writerow({**r, "warnings": "; ".join(r.get("warnings", []))})
+    write_text_atomic(path, buf.getvalue())

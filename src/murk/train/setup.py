@@ -1,0 +1,232 @@
+"""Setting up a training run (what :func:`murk.train.loop.train` starts with): the data (a ``murk synth`` folder,
+a Joint-ID list, clean RGB-D with online synthesis, or procedural scenes), the process group and device, the
+step budget and learning-rate schedule, the network and its optimiser, and the state resumed from ``latest.pt``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import torch
+import torch.distributed as dist
+from torch.utils.data import Dataset
+
+from murk.io.pairs import DepthOptions
+from murk.train.config import TrainConfig
+from murk.train.data import (
+    CleanRGBDDataset,
+    OnlineDegrader,
+    PairDataset,
+    items_from_list,
+    items_from_synth_folder,
+    rgbd_sources,
+    split_by_stem,
+)
+from murk.train.schedule import Schedule
+
+# ------------------------------------------------------------------------------------------------ data
+
+
+@dataclass
+class DataSetup:
+    train: Dataset
+    val: Dataset | None
+    online: OnlineDegrader | None
+    kind: str
+
+
+def detect_kind(source: str) -> str:
+    """``synth`` (folder with manifest.jsonl), ``list`` (a file), ``rgbd`` (rgb/ + depth/), ``scenes`` or
+    ``shards`` (tar shards: a ``.tar`` pattern or an ``index.json``)."""
+    p = Path(source)
+    if source == "scenes" or source.startswith("scenes:"):
+        return "scenes"
+    from murk.train.shard_data import is_shard_source
+
+    if is_shard_source(source):
+        return "shards"
+    if p.is_file():
+        return "list"
+    if (p / "manifest.jsonl").is_file():
+        return "synth"
+    if p.is_dir() and (p / "depth").is_dir():
+        return "rgbd"
+    raise ValueError(
+        f"data.source: {source or '(empty)'} is neither a 'murk synth' folder, a Joint-ID list file, a folder with "
+        "rgb/ and depth/, 'scenes', nor tar shards (a .tar pattern or an index.json)"
+    )
+
+
+def build_data(config: TrainConfig) -> DataSetup:
+    d = config.data
+    kind = d.kind if d.kind != "auto" else detect_kind(d.source)
+    crop = tuple(d.crop_hw)
+    online = None
+    if kind in ("synth", "list"):
+        items = items_from_synth_folder(d.source) if kind == "synth" else items_from_list(d.source, d.list_root)
+        if d.val_source:
+            vk = detect_kind(d.val_source)
+            val_items = items_from_synth_folder(d.val_source) if vk == "synth" else items_from_list(d.val_source)
+            tr, va = items, val_items
+        else:
+            ti, vi = split_by_stem([i.stem for i in items], d.val_fraction, config.seed)
+            tr, va = [items[i] for i in ti], [items[i] for i in vi]
+        return DataSetup(PairDataset(tr, crop), PairDataset(va, crop) if va else None, None, kind)
+    if kind == "rgbd":
+        sources = rgbd_sources(d.source)
+        opts = DepthOptions(depth_scale=d.depth_scale, invalid=d.invalid_depth, encoding=d.depth_encoding)
+        ti, vi = split_by_stem([s.stem for s in sources], d.val_fraction, config.seed)
+        online = OnlineDegrader(d.synthesis, seed=config.seed)
+        train = CleanRGBDDataset([sources[i] for i in ti], crop, opts)
+        val = CleanRGBDDataset([sources[i] for i in vi], crop, opts) if vi else None
+        return DataSetup(train, val, online, kind)
+    if kind == "shards":  # streamed tar shards (murk.train.shard_data): split by rank and worker per epoch
+        from murk.train.shard_data import build_shard_data
+
+        train_stream, val_shards = build_shard_data(config, dist_info()[1])
+        return DataSetup(train_stream, val_shards, None, kind)  # type: ignore[arg-type]
+    if kind == "scenes":
+        from murk.train.scenes_source import SceneDataset
+
+        count = int(d.source.split(":", 1)[1]) if ":" in d.source else d.scenes_count
+        n_val = max(1, round(d.val_fraction * count)) if d.val_fraction > 0 else 0
+        online = OnlineDegrader(d.synthesis, seed=config.seed)
+        cache = d.cache_scenes and d.workers == 0
+        scale = d.scene_scale
+        train = SceneDataset(range(n_val, count), crop, seed=config.seed, cache=cache, scale=scale)
+        val = SceneDataset(range(n_val), crop, seed=config.seed, cache=cache, scale=scale) if n_val else None
+        return DataSetup(train, val, online, kind)
+    raise ValueError(f"data.kind: expected auto, synth, list, rgbd, scenes or shards, got {kind!r}")
+
+
+# ---------------------------------------------------------------------------------------- process, device
+
+
+@dataclass(frozen=True)
+class Runtime:
+    """Where this process trains: its rank among ``world`` processes and its device."""
+
+    rank: int
+    world: int
+    device: torch.device
+
+    @property
+    def distributed(self) -> bool:
+        return self.world > 1
+
+    @property
+    def main(self) -> bool:
+        """The process that writes checkpoints and logs."""
+        return self.rank == 0
+
+
+def dist_info() -> tuple[int, int, int]:
+    """(rank, world size, local rank) from the ``torchrun`` environment (0, 1, 0 without it)."""
+    world = int(os.environ.get("WORLD_SIZE", "1"))
+    return int(os.environ.get("RANK", "0")), world, int(os.environ.get("LOCAL_RANK", "0"))
+
+
+def init_runtime(device_name: str) -> Runtime:
+    """Join the process group under ``torchrun`` (gloo on CPU, NCCL on CUDA) and pick this process's device.
+
+    Raises:
+        ValueError: CUDA requested but not available.
+    """
+    rank, world, local_rank = dist_info()
+    if device_name.startswith("cuda") and not torch.cuda.is_available():
+        raise ValueError(f"device: {device_name} requested but CUDA is not available")
+    if world > 1:
+        backend = "nccl" if device_name.startswith("cuda") else "gloo"
+        if not dist.is_initialized():
+            dist.init_process_group(backend)
+        if device_name.startswith("cuda"):
+            device_name = f"cuda:{local_rank}"
+    device = torch.device(device_name)
+    if device.type == "cuda":
+        torch.cuda.set_device(device)
+        torch.backends.cuda.matmul.allow_tf32 = True
+        torch.backends.cudnn.allow_tf32 = True
+    return Runtime(rank, world, device)
+
+
+# ------------------------------------------------------------------------------ steps, model, optimiser
+
+
+def plan_steps(config: TrainConfig, n_train: int, world: int) -> tuple[int, int, Schedule]:
+    """(steps per epoch, total steps, learning-rate schedule) of a run over ``n_train`` samples.
+
+    Raises:
+        ValueError: fewer samples than one step needs.
+    """
+    spe = n_train // world // config.batch
+    if spe < 1:
+        raise ValueError(
+            f"data: {n_train} training samples are fewer than batch {config.batch} x {world} process(es); "
+            "lower --batch or add data"
+        )
+    total = config.steps if config.steps is not None else math.ceil(config.epochs * spe)
+    epochs_for_schedule = total / spe
+    warm = min(config.optim.warmup_epochs, epochs_for_schedule / 5)
+    schedule = Schedule(
+        spe, epochs=epochs_for_schedule, base_lr=config.optim.lr, min_lr=config.optim.min_lr, warmup_epochs=warm
+    )
+    return spe, total, schedule
+
+
+def build_model(config: TrainConfig, device: torch.device) -> torch.nn.Module:
+    """The network of ``config.model``, seeded by ``config.seed``, on ``device``; checkpoint-only parameters
+    (never used in forward) are frozen."""
+    from murk.train.networks import build_network, frozen_parameter_names
+
+    torch.manual_seed(config.seed)
+    model = build_network(config.model)
+    unused = set(frozen_parameter_names(config.model.kind, model))
+    for name, p in model.named_parameters():
+        if name in unused:
+            p.requires_grad_(False)
+    model.to(device)
+    if config.channels_last:
+        model = model.to(memory_format=torch.channels_last)
+    return model
+
+
+def build_optimiser(
+    config: TrainConfig, model: torch.nn.Module, lr: float, device: torch.device
+) -> torch.optim.Optimizer:
+    """AdamW over the model's parameters as ``config.optim`` says (fused on CUDA)."""
+    return torch.optim.AdamW(
+        model.parameters(),
+        lr=lr,
+        betas=tuple(config.optim.betas),
+        eps=config.optim.eps,
+        weight_decay=config.optim.weight_decay,
+        fused=device.type == "cuda",
+    )
+
+
+def resume_state(
+    latest: Path, config: TrainConfig, model: torch.nn.Module, optim: torch.optim.Optimizer, device: torch.device
+) -> tuple[int, dict[str, Any]]:
+    """Load the weights and optimiser state of ``latest`` into ``model``/``optim``; return (step, best).
+
+    Raises:
+        ValueError: no ``latest.pt``, or one without optimiser state and step (weights only).
+    """
+    from murk.train.networks import read_network_checkpoint
+
+    if not latest.is_file():
+        raise ValueError(f"--resume: {latest} not found (nothing to resume)")
+    state, meta = read_network_checkpoint(config.model.kind, latest)
+    missing = [k for k in ("optimizer", "step") if k not in meta]
+    if missing:
+        raise ValueError(
+            f"--resume: {latest} has no {' and no '.join(missing)} (not a 'murk train' latest.pt: it holds "
+            "weights only); start a new run, or use it as model.init_checkpoint"
+        )
+    model.load_state_dict({k: v.to(device) for k, v in state.items()}, strict=True)
+    optim.load_state_dict(meta["optimizer"])
+    return int(meta["step"]), dict(meta.get("best") or {})

@@ -1,0 +1,45 @@
+"""murk enhance as one library call (murk.enhance.run): input classification, then the image or frame job."""
+
+from __future__ import annotations
+
+import contextlib
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from murk.enhance.post import PostRestorer
+from murk.enhance.run import run_enhance, weights_line
+
+from ._enhance_helpers import make_frames, make_video
+
+
+def test_folder_runs_the_image_job_and_shows_progress(tmp_path: Path) -> None:
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for i, frame in enumerate(make_frames(3)):
+        assert cv2.imwrite(str(folder / f"{i}.png"), np.ascontiguousarray(frame[:, :, ::-1]))
+    seen: list[tuple[str, int | None, bool]] = []
+    reports: list[int] = []
+
+    class Display:
+        def update(self, report) -> None:
+            reports.append(report.processed)
+
+    @contextlib.contextmanager
+    def display(title: str, unit: str, total: int | None, live: bool):
+        seen.append((unit, total, live))
+        yield Display()
+
+    inp, report = run_enhance(str(folder), tmp_path / "out", PostRestorer(), max_frames=2, display=display)
+    assert inp.kind == "images" and report.processed == 2 and report.command == "enhance"
+    assert report.to_json()["out"] == str(tmp_path / "out")
+    assert seen == [("images", 2, False)] and reports[-1] == 2
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["0.png", "1.png"]
+    assert weights_line(PostRestorer(), shipped=True) is None
+
+
+def test_video_runs_the_frame_job(tmp_path: Path) -> None:
+    video = make_video(tmp_path / "dive.avi", 4)
+    inp, report = run_enhance(str(video), tmp_path / "out.avi", PostRestorer())
+    assert inp.kind == "video" and report.processed == 4 and report.outputs == [tmp_path / "out.avi"]

@@ -1,0 +1,48 @@
+"""murk eval as a library call (murk.report.evaluate): rows, failures in the job schema, shared statistics."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from murk.io.jobs import read_errors
+from murk.metrics.stats import column_stats
+from murk.report.evaluate import EvalOptions, evaluate, run_eval, summarize
+
+
+def _images(folder: Path) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(0)
+    for name in ("a", "b"):
+        cv2.imwrite(str(folder / f"{name}.png"), rng.integers(0, 256, (32, 40, 3), dtype=np.uint8))
+    (folder / "bad.png").write_bytes(b"not a png")
+    return folder
+
+
+def test_evaluate_returns_rows_and_error_records(tmp_path: Path) -> None:
+    res = evaluate([_images(tmp_path / "imgs")])
+    assert [r["file"] for r in res.images] == ["a.png", "b.png"]
+    assert res.processed == 2 and res.failed == 1 and res.exit_code == 1
+    (rec,) = res.failures
+    assert (Path(rec.input).name, rec.stage) == ("bad.png", "score") and "decode" in rec.error
+    stats = column_stats(r["uiqm"] for r in res.images)
+    assert summarize(res.images)["uiqm"] == {"n": 2, "mean": stats.mean, "std": stats.std}
+
+
+def test_run_eval_writes_errors_beside_the_json(tmp_path: Path) -> None:
+    out = tmp_path / "out" / "r.json"
+    res = run_eval([_images(tmp_path / "imgs")], json_out=out, options=EvalOptions(recursive=True))
+    assert out.is_file() and res.errors_path == out.parent / "errors.jsonl"
+    assert [Path(r.input).name for r in read_errors(out.parent / "errors.jsonl")] == ["bad.png"]
+
+
+def test_usage_errors_name_the_option() -> None:
+    with pytest.raises(ValueError, match="nothing to evaluate"):
+        evaluate([])
+    with pytest.raises(ValueError, match="--ref: needs IMAGES"):
+        evaluate([], ref=Path("x"))
+    with pytest.raises(ValueError, match="--ssim-window"):
+        EvalOptions(ssim_window="box")
