@@ -43,7 +43,7 @@ from murk._config import dump_yaml
 from murk._version import __version__
 from murk.io.atomic import atomic_path, remove_stale_temporaries, write_text_atomic
 from murk.io.images import encode_image, to_uint
-from murk.io.jobs import ErrorRecord, JobSummary, write_errors
+from murk.io.jobs import ErrorRecord, JobSummary
 from murk.io.jsonl import append_jsonl, read_jsonl
 from murk.io.pairs import DepthOptions, RGBDSource, load_pair
 from murk.rng import derive_seed
@@ -456,6 +456,6 @@ def write_shards(
         finally:  # on an error (a full disk) the queued shards are cancelled
             ex.shutdown(wait=True, cancel_futures=True)
     write_index(out, plans, samples_per_shard, config)
-    summary.errors_path = write_errors(out, failures)
-    summary.failed = len(failures)
+    summary.failures = failures  # printed by the CLI; written to errors.jsonl (removed when none)
+    summary.write_errors(out)
     return summary.finish()
