@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -78,9 +79,13 @@ def test_live_http_stream_is_recorded_headless(mjpeg_url: str, tmp_path: Path, b
     out = tmp_path / "rov.mp4"
     res = runner.invoke(app, ["enhance", mjpeg_url, "--out", str(out), "--video-backend", backend, "--fps", "10"])
     assert res.exit_code == 0, res.output
-    assert "15 frames processed" in _out(res) and "disconnected" in _out(res)
+    text = _out(res)
+    processed = int(re.search(r"(\d+) frames? processed", text).group(1))  # type: ignore[union-attr]
+    dropped_note = re.search(r"(\d+) frame\(s\) dropped", text)  # the fake camera sends at 200 frames/s
+    dropped = int(dropped_note.group(1)) if dropped_note else 0
+    assert processed + dropped == 15 and processed >= 1 and "disconnected" in text
     frames = read_video(out)
-    assert len(frames) == 15 and frames[0].shape == (48, 64, 3)
+    assert len(frames) == processed and frames[0].shape == (48, 64, 3)
 
 
 def test_fake_depth_method_through_the_cli(folder: Path, tmp_path: Path, fake_depth_method: list[dict]) -> None:
