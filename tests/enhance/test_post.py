@@ -228,14 +228,35 @@ def test_validation_errors(rng: np.random.Generator) -> None:
 # --- the "post" restorer ---------------------------------------------------------------------------------------
 
 
-def test_post_is_registered_and_ignores_foreign_options(rng: np.random.Generator) -> None:
+def test_post_is_registered_and_takes_its_declared_options(rng: np.random.Generator) -> None:
     assert "post" in restorer_mod.available()
-    r = restorer_mod.create("post", device="cpu", he="rgb", lam=0.1, checkpoint="x.pt", tile=512, precision="bf16")
+    assert set(restorer_mod.options_of("post")) == {"device", "sigma_px", "lam", "he", "clahe_clip", "clahe_tiles"}
+    assert str(restorer_mod.options_of("post")["lam"]) == "lam: float = 0.3"
+    shared = {"checkpoint": "x.pt", "tile": 512, "precision": "bf16", "batch": 4}  # a command's settings for others
+    r = restorer_mod.create("post", device="cpu", he="rgb", lam=0.1, shared=shared)
     assert isinstance(r, PostRestorer) and r.params == PostParams(lam=0.1, he="rgb")
+    assert restorer_mod.create("post?he=rgb,lam=0.1").params == r.params  # the same options written in the spec
     batch = np.stack([_smooth_image(rng, 20, 24) for _ in range(2)])
     out = r.restore(batch)
     assert out.depth_m is None and out.images.shape == batch.shape
     np.testing.assert_array_equal(out.images[1], post_process(batch[1], he="rgb", lam=0.1))
+
+
+def test_misspelt_and_foreign_options_are_errors_naming_the_valid_ones() -> None:
+    valid = "options of post: clahe_clip, clahe_tiles, device, he, lam, sigma_px"
+    with pytest.raises(ValueError, match=rf"unknown option 'lamda' \(did you mean 'lam'\?\); {valid}"):
+        restorer_mod.create("post?lamda=0.9")
+    with pytest.raises(ValueError, match=rf"unknown option 'lamda' \(did you mean 'lam'\?\); {valid}"):
+        restorer_mod.create("post", lamda=0.9)
+    with pytest.raises(ValueError, match=rf"method post: unknown option 'checkpoint'; {valid}"):
+        restorer_mod.create("post", checkpoint="x.pt")  # an option of other methods, given to post explicitly
+    with pytest.raises(ValueError, match=r"method \(any\): unknown option 'devise' \(did you mean 'device'\?\)"):
+        restorer_mod.create("post", shared={"devise": "cpu"})  # a shared setting no method declares
+    with pytest.raises(ValueError, match="option 'lam' given twice"):
+        restorer_mod.create("post?lam=0.1,lam=0.2")
+    with pytest.raises(TypeError, match=r"\*\*kwargs would swallow misspelt options"):
+        restorer_mod.register("sloppy")(lambda **kwargs: PostRestorer())
+    assert "sloppy" not in restorer_mod.available()
 
 
 def test_post_restorer_tensor_path_and_chain(rng: np.random.Generator) -> None:

@@ -64,8 +64,9 @@ def method_options(
     compile: bool = False,
     policy: str = "native",
 ) -> dict[str, Any]:
-    """Keyword options handed to every stage of ``--method`` (each factory takes what it knows and ignores
-    the rest). New method options (checkpoint, precision, tiling, ...) are added here and in :func:`enhance`."""
+    """The command's settings handed to ``--method`` as ``shared`` (each stage takes the ones it declares;
+    options written after ``?`` in the spec must be declared). New method options (checkpoint, precision,
+    tiling, ...) are added here and in :func:`enhance`."""
     return {
         "device": device,
         "batch": batch,
@@ -104,7 +105,13 @@ def enhance(
         ),
     ],
     method: Annotated[
-        str, typer.Option("--method", "-m", help="Restoration method; chain with '+' (e.g. jointid+post).")
+        str,
+        typer.Option(
+            "--method",
+            "-m",
+            help="Restoration method; chain with '+' (e.g. jointid+post); method options after '?' "
+            "(e.g. post?lam=0.5,he=rgb; a misspelt one is an error).",
+        ),
     ] = "post",
     recursive: Annotated[bool, typer.Option("--recursive", "-r", help="Include subfolders of a folder.")] = False,
     format: Annotated[
@@ -198,7 +205,7 @@ def enhance(
     dev = resolve_device(device)
     restorer = create(
         method,
-        **method_options(
+        shared=method_options(
             device=dev,
             batch=batch,
             he=he.value,

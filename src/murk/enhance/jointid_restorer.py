@@ -5,7 +5,7 @@ Pipeline per batch: normalise (training recipe's mean/std) -> reflect-pad to mul
 resized. Backends: a torch :class:`~murk.models.jointid.JointID` (fp32, or bf16/fp16 autocast; channels-last
 memory; optional ``torch.compile`` and CUDA-graph replay) or an exported ONNX file run by ONNX Runtime.
 
-Registry options (``murk.enhance.create("jointid", **options)``; unknown options are ignored):
+Registry options (``murk.enhance.create("jointid", **options)``; any other option is an error):
 ``checkpoint`` (murk or official ``.pth``/``.pt``, or an ``.onnx`` file; required), ``onnx`` (an ``.onnx``
 path, alternative to ``checkpoint``), ``device`` ("cpu", "cuda", "cuda:N"), ``precision`` ("fp32", "bf16",
 "fp16"), ``tile`` (pixels or None), ``overlap`` (pixels, default 64), ``trust_checkpoint`` (bool),
@@ -226,14 +226,13 @@ def create_jointid(
     batch: int | None = None,
     compile: bool = False,
     cuda_graph: bool = False,
-    **_ignored: Any,
 ) -> JointIDRestorer:
     """Registry factory of ``jointid``: load ``checkpoint`` (or the ``onnx`` file) and wrap it.
 
     Without either, the weights shipped with murk are used (``murk.data.shipped_jointid_weights()``: the
     ``small`` Joint-ID murk trained itself, model card ``docs/models.md``). The restorer's ``weights``
     attribute names the file used. A checkpoint path ending in ``.onnx`` runs with ONNX Runtime. Other options: see
-    :class:`JointIDRestorer`; options meant for other methods are ignored.
+    :class:`JointIDRestorer`.
 
     Raises:
         ValueError: no checkpoint given, or bad options.

@@ -3,7 +3,7 @@
 Pipeline per batch: reflect-pad to multiples of 16 -> the folded (re-parameterised) network, or its ONNX export
 run by ONNX Runtime -> crop back -> clamp to [0, 1]. Frames are never resized. No depth.
 
-Registry options (``murk.enhance.create("lite", **options)``; options of other methods are ignored):
+Registry options (``murk.enhance.create("lite", **options)``; any other option is an error):
 ``checkpoint`` (a ``murk train`` checkpoint with ``model.kind: lite``, or an ``.onnx`` export; default: the
 weights shipped with murk), ``onnx`` (an ``.onnx`` path, alternative to ``checkpoint``), ``device`` ("cpu",
 "cuda", "cuda:N"; ONNX runs on the CPU), ``precision`` (only "fp32"), ``trust_checkpoint`` (bool), ``batch``
@@ -104,7 +104,6 @@ def create_lite(
     trust_checkpoint: bool = False,
     batch: int | None = None,
     threads: int | None = None,
-    **_ignored: Any,
 ) -> LiteRestorer:
     """Registry factory of ``lite``: load ``checkpoint`` (or the ``onnx`` file), fold it and wrap it.
 

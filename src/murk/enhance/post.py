@@ -449,9 +449,8 @@ def make_post(
     he: HEMode = "y",
     clahe_clip: float = CLAHE_CLIP,
     clahe_tiles: int | tuple[int, int] = CLAHE_TILES,
-    **_ignored: Any,
 ) -> PostRestorer:
-    """Factory of the ``post`` method; ignores options meant for other methods."""
+    """Factory of the ``post`` method (Eq. 9 with these parameters; see :func:`post_process`)."""
     return PostRestorer(PostParams(sigma_px, lam, he, clahe_clip, clahe_tiles), device=device)
 
 
