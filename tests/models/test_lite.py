@@ -9,7 +9,6 @@ import pytest
 import torch
 
 from murk.errors import InputFileError, ShapeError
-from murk.models import build_model
 from murk.models.lite.blocks import RepConv, fold_rep_conv
 from murk.models.lite.checkpoint import (
     is_lite_checkpoint,
@@ -137,7 +136,7 @@ def test_errors() -> None:
         LiteConfig.from_dict({"depth": 3})
     with pytest.raises(TypeError, match="expected a LiteNet"):
         reparameterize(torch.nn.Conv2d(3, 3, 1))
-    assert isinstance(build_model("lite", variant="tiny"), LiteNet)
+    assert isinstance(build_lite("tiny"), LiteNet)
 
 
 # --------------------------------------------------------------------------------------------- checkpoints

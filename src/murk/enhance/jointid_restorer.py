@@ -20,17 +20,17 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import torch
 from torch import Tensor, nn
 
+from murk.enhance.choices import Precision
 from murk.enhance.restorer import RestoredTensor, Restorer, register
 from murk.enhance.tiling import pad_to_multiple, tiled_apply
 from murk.errors import ShapeError
 from murk.models.jointid.network import INPUT_MEAN, INPUT_STD, SIZE_MULTIPLE
 
-Precision = Literal["fp32", "bf16", "fp16"]
 _DTYPES: dict[str, torch.dtype] = {"bf16": torch.bfloat16, "fp16": torch.float16}
 DEFAULT_OVERLAP = 64
 

@@ -32,6 +32,7 @@ from typing import Literal
 import numpy as np
 import torch
 
+from murk.enhance.choices import ImageFormat, VideoBackendChoice
 from murk.enhance.preview import DEPTH_PREVIEW_RANGE_M, colorize_depth, side_by_side
 from murk.enhance.restorer import Restored, Restorer
 from murk.errors import InputFileError, OutputError, ShapeError
@@ -53,8 +54,6 @@ from murk.io.video import (
 )
 
 InputKind = Literal["images", "video", "stream"]
-ImageFormat = Literal["png", "jpg"]
-VideoBackendChoice = Literal["auto", "opencv", "av"]
 ERRORS_FILE = "errors.jsonl"
 SIXTEEN_BIT_SUFFIXES = (".png", ".tif", ".tiff")
 _GLOB_CHARS = set("*?[")

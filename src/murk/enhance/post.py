@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Literal, get_args
+from typing import Any
 
 import cv2
 import numpy as np
@@ -40,11 +40,9 @@ import torch
 import torch.nn.functional as F
 
 from murk._checks import check_positive, check_rgb
+from murk.enhance.choices import HE_MODES, HEMode
 from murk.enhance.restorer import Restored, RestoredTensor, Restorer, register
 from murk.errors import ShapeError
-
-HEMode = Literal["y", "rgb", "clahe"]
-HE_MODES: tuple[str, ...] = get_args(HEMode)
 
 SIGMA_PX = 1.0
 """LoG standard deviation of the paper (Sec. 5.1)."""
