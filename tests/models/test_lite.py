@@ -132,7 +132,7 @@ def test_errors() -> None:
         build_lite("small")
     with pytest.raises(ValueError, match="widths"):
         LiteConfig(widths=(8, 0, 16))
-    with pytest.raises(ValueError, match="unknown keys"):
+    with pytest.raises(ValueError, match=r"config: unknown key\(s\) depth; allowed: blocks, "):
         LiteConfig.from_dict({"depth": 3})
     with pytest.raises(TypeError, match="expected a LiteNet"):
         reparameterize(torch.nn.Conv2d(3, 3, 1))

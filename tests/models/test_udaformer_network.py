@@ -160,7 +160,7 @@ def test_errors():
         UDAformerConfig(dim=3)
     with pytest.raises(ValueError, match="blocks"):
         UDAformerConfig(blocks=(1, 1, 1))
-    with pytest.raises(ValueError, match="unknown keys"):
+    with pytest.raises(ValueError, match=r"config: unknown key\(s\) width; allowed: blocks, dim, "):
         build_udaformer({"width": 3})
     with pytest.raises(TypeError, match="UDAformerConfig"):
         build_udaformer(3)

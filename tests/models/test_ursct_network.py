@@ -204,5 +204,5 @@ def test_errors():
         model(np.zeros((1, 3, 128, 128)))
     with pytest.raises(ValueError, match="img_size: expected a positive multiple of 128"):
         URSCTConfig(img_size=200)
-    with pytest.raises(ValueError, match="unknown keys"):
+    with pytest.raises(ValueError, match=r"config: unknown key\(s\) window; allowed: .*depths"):
         build_ursct({"window": 7})

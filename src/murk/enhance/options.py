@@ -15,11 +15,12 @@ Two kinds of options reach :func:`murk.enhance.restorer.create`:
 
 from __future__ import annotations
 
-import difflib
 import inspect
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
+
+from murk._suggest import did_you_mean
 
 
 @dataclass(frozen=True)
@@ -56,17 +57,13 @@ def declared_options(factory: Callable[..., Any]) -> dict[str, Option]:
     return out
 
 
-def suggest(name: str, valid: Iterable[str]) -> str:
-    """`` (did you mean 'x'?)`` for the closest valid name, or an empty string when none is close."""
-    close = difflib.get_close_matches(name, list(valid), n=1, cutoff=0.6)
-    return f" (did you mean {close[0]!r}?)" if close else ""
-
-
 def unknown_option_error(method: str, name: str, valid: Iterable[str]) -> ValueError:
     """The error of an option ``method`` does not declare: names it, the nearest valid one and all valid ones."""
     names = sorted(valid)
     listed = ", ".join(names) if names else "none"
-    return ValueError(f"method {method}: unknown option {name!r}{suggest(name, names)}; options of {method}: {listed}")
+    return ValueError(
+        f"method {method}: unknown option {name!r}{did_you_mean(name, names)}; options of {method}: {listed}"
+    )
 
 
 def route_options(

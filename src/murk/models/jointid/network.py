@@ -21,6 +21,7 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
+from murk._config import from_dict
 from murk.errors import ShapeError
 from murk.models.jointid.decoder import Decoder, JointBlock, Task
 from murk.models.jointid.encoder import Encoder
@@ -69,10 +70,7 @@ class JointIDConfig:
         Raises:
             ValueError: unknown keys.
         """
-        unknown = set(d) - set(cls.__dataclass_fields__)
-        if unknown:
-            raise ValueError(f"config: unknown keys {sorted(unknown)}")
-        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+        return from_dict(cls, d, where="config")
 
 
 VARIANTS: dict[str, JointIDConfig] = {

@@ -34,6 +34,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
+from murk._config import from_dict
 from murk.errors import ShapeError
 from murk.models.lite.blocks import RepConv, conv_block, fold_rep_conv
 
@@ -77,10 +78,7 @@ class LiteConfig:
         Raises:
             ValueError: unknown keys or bad values.
         """
-        unknown = set(d) - set(cls.__dataclass_fields__)
-        if unknown:
-            raise ValueError(f"config: unknown keys {sorted(unknown)}")
-        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+        return from_dict(cls, d, where="config")
 
 
 VARIANTS: dict[str, LiteConfig] = {
