@@ -120,7 +120,7 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
             raise ValueError(f"{where}: unknown key(s) {', '.join(unknown)}{hint}; allowed: {', '.join(sorted(names))}")
         kwargs = {k: _convert(hints[k], v, f"{where}.{k}") for k, v in value.items()}
         try:
-            return tp(**kwargs)
+            return typing.cast(Any, tp)(**kwargs)
         except (TypeError, ValueError) as exc:
             raise ValueError(f"{where}: {exc}") from None
     if tp is Any:

@@ -151,7 +151,7 @@ class JointIDRestorer(Restorer):
         self.channels_last = self.device.type == "cuda" if channels_last is None else bool(channels_last)
         net.to(self.device)
         if self.channels_last:
-            net.to(memory_format=torch.channels_last)
+            net.to(memory_format=torch.channels_last)  # type: ignore[call-overload]  # valid; torch's stubs lack it
         self.model = net
         fn: Callable[[Tensor], Any] = torch.compile(net, dynamic=False) if compile else net  # one kernel set per shape
 
@@ -170,7 +170,7 @@ class JointIDRestorer(Restorer):
 
     def _normalize(self, images: Tensor) -> Tensor:
         """``normalize_input`` with the mean/std kept on the device (no host-to-device copy per call)."""
-        if self._mean is None or self._mean.device != images.device:
+        if self._mean is None or self._std is None or self._mean.device != images.device:
             self._mean = torch.tensor(INPUT_MEAN, device=images.device).view(1, 3, 1, 1)
             self._std = torch.tensor(INPUT_STD, device=images.device).view(1, 3, 1, 1)
         return (images - self._mean) / self._std
@@ -253,14 +253,21 @@ def create_jointid(
                 f"checkpoint: the shipped weights {path} are missing from this installation; give --checkpoint FILE "
                 "(a murk or the official Joint-ID checkpoint, or an .onnx export)"
             )
-    common = {"precision": precision, "tile": tile, "overlap": overlap, "batch": batch}
     if onnx is not None or str(path).lower().endswith(".onnx"):
-        restorer = JointIDRestorer(
-            OnnxJointID(path, device=str(device)), **common, compile=compile, cuda_graph=cuda_graph
-        )
+        model: nn.Module | OnnxJointID = OnnxJointID(path, device=str(device))
+        dev = torch.device("cpu")
     else:
         dev = _resolve_device(device)
         model = load_checkpoint(path, trust=trust_checkpoint, device="cpu")
-        restorer = JointIDRestorer(model, device=dev, **common, compile=compile, cuda_graph=cuda_graph)
+    restorer = JointIDRestorer(
+        model,
+        device=dev,
+        precision=precision,
+        tile=tile,
+        overlap=overlap,
+        batch=batch,
+        compile=compile,
+        cuda_graph=cuda_graph,
+    )
     restorer.weights = str(path)
     return restorer

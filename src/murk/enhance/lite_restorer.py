@@ -65,7 +65,8 @@ class LiteRestorer(Restorer):
         # Channels-last memory: a numpy frame (H, W, 3) already is, so nothing is transposed on the way in or out,
         # and the full-resolution steps (pooling, upsampling, gain * x + offset) run faster (about 15%, CPU).
         net = reparameterize(unwrap(model))
-        self.model = net.float().to(dev).to(memory_format=torch.channels_last).eval()
+        channels_last = net.float().to(dev).to(memory_format=torch.channels_last)  # type: ignore[call-overload]
+        self.model = channels_last.eval()  # (valid: torch's stubs lack memory_format on Module.to)
         self._backend = self.model
 
     def restore_tensor(self, images: Tensor) -> RestoredTensor:

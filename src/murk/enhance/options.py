@@ -16,7 +16,7 @@ Two kinds of options reach :func:`murk.enhance.restorer.create`:
 from __future__ import annotations
 
 import inspect
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -68,7 +68,7 @@ def unknown_option_error(method: str, name: str, valid: Iterable[str]) -> ValueE
 
 def route_options(
     method: str,
-    stages: list[Mapping[str, Option]],
+    stages: Sequence[Mapping[str, Option]],
     options: Mapping[str, Any],
     shared: Mapping[str, Any],
     known: Iterable[str],

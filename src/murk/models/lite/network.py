@@ -130,7 +130,7 @@ class LiteNet(nn.Module):
         self.dec1 = block(c1, c1)
         self.head = nn.Conv2d(c1, 6, 1)
         nn.init.zeros_(self.head.weight)  # starts as the identity: gain 1, offset 0
-        nn.init.zeros_(self.head.bias)
+        nn.init.zeros_(self.head.bias)  # type: ignore[arg-type]  # a Conv2d built with bias=True
 
     def coefficients(self, x: Tensor) -> Tensor:
         """Gain (channels 0-2) and offset (3-5) at 1/4 resolution for an input (B, 3, H, W) in [0, 1]."""
