@@ -135,7 +135,7 @@ class CaptureSource(FrameSource):
         is_camera = isinstance(target, int)
         is_url = isinstance(target, str) and is_stream_url(target)
         self.live = bool(is_camera or is_url) if live is None else live
-        self.label = f"camera {target}" if is_camera else redact_url(target) if is_url else str(target)
+        self.label = f"camera {target}" if is_camera else redact_url(str(target)) if is_url else str(target)
         self.name = name or default_name(target)
         if isinstance(target, str) and not is_url and not Path(target).is_file():
             raise InputFileError(target, "video file not found")

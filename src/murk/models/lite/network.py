@@ -184,7 +184,7 @@ def unwrap(model: nn.Module) -> LiteNet:
     Raises:
         TypeError: no LiteNet inside ``model``.
     """
-    m = model
+    m: Any = model
     for _ in range(4):
         if isinstance(m, LiteNet):
             return m
