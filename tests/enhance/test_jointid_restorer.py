@@ -44,6 +44,9 @@ def test_registered_and_created_from_a_checkpoint_rejecting_unknown_options(tiny
         create(f"jointid?tiles=64,checkpoint={tiny_ckpt}")
     r = create(f"jointid?tile=64,overlap=16,checkpoint={tiny_ckpt}", tile=128)  # the spec's options win
     assert (r.tile, r.overlap) == (64, 16)
+    with pytest.raises(ValueError, match=r"method jointid: option tile: expected int \| None, got 'big'"):
+        create(f"jointid?tile=big,checkpoint={tiny_ckpt}")
+    assert create("jointid", checkpoint=tiny_ckpt, device=torch.device("cpu")).device == torch.device("cpu")
 
 
 def test_factory_defaults_to_shipped_weights_and_reports_bad_files(tmp_path, monkeypatch):

@@ -218,7 +218,7 @@ def create_jointid(
     *,
     checkpoint: str | Path | None = None,
     onnx: str | Path | None = None,
-    device: str = "cpu",
+    device: str | torch.device = "cpu",
     precision: Precision = "fp32",
     tile: int | None = None,
     overlap: int | None = DEFAULT_OVERLAP,

@@ -100,7 +100,7 @@ def create_lite(
     *,
     checkpoint: str | Path | None = None,
     onnx: str | Path | None = None,
-    device: str = "cpu",
+    device: str | torch.device = "cpu",
     precision: str = "fp32",
     trust_checkpoint: bool = False,
     batch: int | None = None,

@@ -16,6 +16,10 @@ Two kinds of options reach :func:`murk.enhance.restorer.create`:
 from __future__ import annotations
 
 import inspect
+import numbers
+import os
+import types
+import typing
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -25,11 +29,13 @@ from murk._suggest import did_you_mean
 
 @dataclass(frozen=True)
 class Option:
-    """One declared option of a method: its name, its type (the annotation's text) and its default."""
+    """One declared option of a method: its name, its type (the annotation's text), its default and the resolved
+    annotation (``Any`` when it cannot be resolved)."""
 
     name: str
     type: str
     default: Any
+    annotation: Any = Any
 
     def __str__(self) -> str:
         return f"{self.name}: {self.type} = {self.default!r}"
@@ -43,6 +49,10 @@ def declared_options(factory: Callable[..., Any]) -> dict[str, Option]:
             or an option without a default.
     """
     what = getattr(factory, "__qualname__", repr(factory))
+    try:
+        hints = typing.get_type_hints(factory)
+    except (NameError, TypeError):  # an annotation that cannot be evaluated here: values are not type-checked
+        hints = {}
     out: dict[str, Option] = {}
     for p in inspect.signature(factory).parameters.values():
         if p.kind is inspect.Parameter.VAR_KEYWORD:
@@ -52,9 +62,48 @@ def declared_options(factory: Callable[..., Any]) -> dict[str, Option]:
             )
         if p.kind is not inspect.Parameter.KEYWORD_ONLY or p.default is inspect.Parameter.empty:
             raise TypeError(f"{what}: option {p.name!r} must be keyword-only with a default")
-        annotation = p.annotation if isinstance(p.annotation, str) else getattr(p.annotation, "__name__", "Any")
-        out[p.name] = Option(p.name, "Any" if p.annotation is inspect.Parameter.empty else annotation, p.default)
+        text = p.annotation if isinstance(p.annotation, str) else getattr(p.annotation, "__name__", "Any")
+        text = "Any" if p.annotation is inspect.Parameter.empty else text
+        out[p.name] = Option(p.name, text, p.default, hints.get(p.name, Any))
     return out
+
+
+def check_value(method: str, option: Option, value: Any) -> None:
+    """Raises ValueError unless ``value`` fits the option's declared type (bool, int, float, str, paths, None,
+    ``Literal``, tuples and unions of them are checked; other annotations accept anything).
+
+    A spec's options arrive as text (``post?lam=abc``), so a value of the wrong type is a bad value here.
+    """
+    if not _fits(option.annotation, value):
+        tp = option.annotation
+        literal = typing.get_origin(tp) is typing.Literal
+        expected = f"one of {', '.join(map(repr, typing.get_args(tp)))}" if literal else option.type
+        raise ValueError(f"method {method}: option {option.name}: expected {expected}, got {value!r}")
+
+
+def _fits(tp: Any, value: Any) -> bool:
+    origin = typing.get_origin(tp)
+    if tp is Any or tp is object:
+        return True
+    if tp is None or tp is type(None):
+        return value is None
+    if origin is typing.Literal:
+        return value in typing.get_args(tp)
+    if origin in (typing.Union, types.UnionType):
+        return any(_fits(a, value) for a in typing.get_args(tp))
+    if origin is tuple:
+        return isinstance(value, (tuple, list))
+    if tp is bool:
+        return isinstance(value, bool)
+    if tp is int:
+        return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+    if tp is float:
+        return isinstance(value, numbers.Real) and not isinstance(value, bool)
+    if tp is str:
+        return isinstance(value, str)
+    if isinstance(tp, type) and issubclass(tp, os.PathLike):
+        return isinstance(value, (str, os.PathLike))
+    return True  # other types (torch.device, classes): the factory checks them
 
 
 def unknown_option_error(method: str, name: str, valid: Iterable[str]) -> ValueError:
@@ -85,12 +134,15 @@ def route_options(
 
     Raises:
         ValueError: an option no stage declares, or a shared setting no method declares (named, with the
-            nearest valid name and the valid ones).
+            nearest valid name and the valid ones); an option whose value does not fit its declared type.
     """
     declared = set().union(*(set(s) for s in stages)) if stages else set()
-    for name in options:
+    for name, value in options.items():
         if name not in declared:
             raise unknown_option_error(method, name, declared)
+        for stage in stages:
+            if name in stage:
+                check_value(method, stage[name], value)
     known = set(known)
     for name in shared:
         if name not in known:

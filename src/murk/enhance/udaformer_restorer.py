@@ -157,7 +157,7 @@ def create_udaformer(
     *,
     checkpoint: str | Path | None = None,
     onnx: str | Path | None = None,
-    device: str = "cpu",
+    device: str | torch.device = "cpu",
     precision: str = "fp32",
     policy: Policy = "native",
     tile: int | None = None,

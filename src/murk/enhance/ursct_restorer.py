@@ -142,7 +142,7 @@ def create_ursct(
     *,
     checkpoint: str | Path | None = None,
     onnx: str | Path | None = None,
-    device: str = "cpu",
+    device: str | torch.device = "cpu",
     precision: str = "fp32",
     policy: Policy = "native",
     tile: int | None = None,
