@@ -143,10 +143,13 @@ def route_options(
         for stage in stages:
             if name in stage:
                 check_value(method, stage[name], value)
-    known = set(known)
+    known = sorted(set(known))
     for name in shared:
         if name not in known:
-            raise unknown_option_error("(any)", name, known)
+            raise ValueError(
+                f"shared setting {name!r}{did_you_mean(name, known)} is an option of no registered method; "
+                f"options of the methods: {', '.join(known)}"
+            )
     merged = {**shared, **options}
     return [{k: v for k, v in merged.items() if k in stage} for stage in stages]
 

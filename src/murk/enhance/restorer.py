@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from murk._suggest import did_you_mean
 from murk.enhance.options import Option, declared_options, parse_spec, route_options
 
 
@@ -168,8 +169,9 @@ def create(spec: str, *, shared: dict[str, Any] | None = None, **options: Any) -
     names = [n.strip() for n in spec.split("+")]
     unknown = [n for n in names if n not in _REGISTRY]
     if unknown or not all(names):
+        hint = did_you_mean(unknown[0], _REGISTRY) if len(unknown) == 1 else ""
         raise ValueError(
-            f"method: unknown {', '.join(repr(n) for n in unknown) or repr(spec)}; "
+            f"method: unknown {', '.join(repr(n) for n in unknown) or repr(spec)}{hint}; "
             f"available: {', '.join(sorted(_REGISTRY))} (chain them with '+')"
         )
     declared = [declared_options(_REGISTRY[n]) for n in names]
