@@ -298,7 +298,7 @@ class VideoSink:
             self._open_av(suffix)
 
     def _open_opencv(self, suffix: str) -> None:
-        fourcc = cv2.VideoWriter.fourcc(*("MJPG" if suffix == ".avi" else "mp4v"))
+        fourcc = cv2.VideoWriter_fourcc(*("MJPG" if suffix == ".avi" else "mp4v"))  # type: ignore[attr-defined]
         self._writer = cv2.VideoWriter(str(self._target), fourcc, self.fps, self._even)
         if not self._writer.isOpened():
             self._writer.release()
