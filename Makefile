@@ -11,7 +11,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.murk-installed
 PYTEST_ARGS ?= -n auto
 
-.PHONY: demo test test-slow browser-test lint bench install clean gpu-suite gpu-suite-dry-run gpu-deps
+.PHONY: demo test test-slow browser-test check lint typecheck layers bench install clean gpu-suite gpu-suite-dry-run gpu-deps
 
 install: $(STAMP)
 
@@ -24,8 +24,18 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(VENV)/bin/murk demo --out murk-demo
 
-test: $(STAMP)
+# CI (.ci/run) runs `make test`: the house checks first, then the suite.
+test: check
 	$(PY) -m pytest -q $(PYTEST_ARGS)
+
+# The house checks: lint + format, types against the committed baseline (may only shrink), import layering.
+check: lint typecheck layers
+
+typecheck: $(STAMP)
+	$(PY) tools/mypy_baseline.py
+
+layers: $(STAMP)
+	$(VENV)/bin/lint-imports
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow $(PYTEST_ARGS)
@@ -35,8 +45,8 @@ browser-test: $(STAMP)
 	$(PY) -m pytest -q -m browser $(PYTEST_ARGS)
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check src tests benchmarks
-	$(VENV)/bin/ruff format --check src tests benchmarks
+	$(VENV)/bin/ruff check src tests benchmarks tools
+	$(VENV)/bin/ruff format --check src tests benchmarks tools
 
 bench: $(STAMP)
 	for b in benchmarks/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
@@ -58,4 +68,4 @@ gpu-deps: $(STAMP)
 		--platform any pytest pluggy iniconfig packaging pygments exceptiongroup tomli
 
 clean:
-	rm -rf $(VENV) build dist src/*.egg-info .pytest_cache .ruff_cache
+	rm -rf $(VENV) build dist src/*.egg-info .pytest_cache .ruff_cache .mypy_cache

@@ -359,10 +359,10 @@ def part_jointid_lite(ctx: Ctx) -> None:
         ctx.rec.note(f"lite weights: {weights_of(lite)}")
     except ValueError as exc:  # no shipped weights yet: time the same network with random weights
         from murk.enhance.lite_restorer import LiteRestorer
-        from murk.models import build_model
+        from murk.models.lite.network import build_lite
 
         torch.manual_seed(0)
-        lite = LiteRestorer(build_model("lite"), device=ctx.device)
+        lite = LiteRestorer(build_lite(), device=ctx.device)
         print(f"create('lite'): {exc}", flush=True)
         ctx.rec.note("no shipped lite weights: random weights (seed 0), which run at the trained network's speed")
     ctx.rec.note("the lite network's training step is not measured (bench_train measures Joint-ID)")

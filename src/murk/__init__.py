@@ -45,6 +45,7 @@ _LAZY = {
     # restoration
     "post_process": "murk.enhance.post",
     "create_restorer": "murk.enhance.restorer",
+    "restorer_options": "murk.enhance.restorer",
     "build_jointid": "murk.models.jointid",
     "load_checkpoint": "murk.models.jointid",
     "save_checkpoint": "murk.models.jointid",
@@ -65,7 +66,7 @@ _LAZY = {
 __all__ = ["__version__", "tune_allocator", *_LAZY]
 
 
-_RENAMED = {"create_restorer": "create"}
+_RENAMED = {"create_restorer": "create", "restorer_options": "options_of"}
 
 
 def __getattr__(name: str) -> Any:

@@ -1,7 +1,10 @@
-"""Frozen-dataclass configurations to and from plain dicts / YAML, strictly validated.
+"""The one config loader: frozen-dataclass configurations to and from plain dicts / YAML, strictly validated.
 
-Unknown keys, wrong types and bad ``Literal`` values are errors that name the key path (and the file when
-loaded from one). Lists become tuples, so configs stay hashable and immutable.
+Every YAML murk reads goes through :func:`read_yaml` (a mapping, or an error naming the file: missing, not
+UTF-8, invalid YAML, not a mapping) and every config dataclass is built by :func:`from_dict` (scenes, synth,
+train, study; the network configs of Joint-ID, lite and the baselines from checkpoints). Unknown keys (named,
+with the valid ones), wrong types and bad ``Literal`` values are errors that name the key path (and the file
+when loaded from one). Lists become tuples, so configs stay hashable and immutable.
 """
 
 from __future__ import annotations
@@ -13,6 +16,8 @@ from pathlib import Path
 from typing import Any, TypeVar, get_args, get_origin, get_type_hints
 
 import yaml
+
+from murk._suggest import did_you_mean
 
 T = TypeVar("T")
 
@@ -45,9 +50,13 @@ PROVENANCE_KEYS = ("murk_version", "world_size")
 :func:`load_yaml` ignores them, so an output folder's config.yaml reproduces its run."""
 
 
-def load_yaml(cls: type[T], path: str | Path) -> T:
-    """Load a YAML file (``yaml.safe_load``) into ``cls``; errors name the file and the key. The provenance keys
-    written by :func:`dump_yaml` (:data:`PROVENANCE_KEYS`) are ignored."""
+def read_yaml(path: str | Path, *, what: str = "settings") -> dict[str, Any]:
+    """The mapping in a YAML file (``yaml.safe_load``; an empty file is ``{}``).
+
+    Raises:
+        ValueError: naming the file: not found, not UTF-8, invalid YAML, nested too deeply, or not a mapping
+            (of ``what``).
+    """
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"{path}: config file not found")
@@ -59,9 +68,19 @@ def load_yaml(cls: type[T], path: str | Path) -> T:
         raise ValueError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     except RecursionError:
         raise ValueError(f"{path}: YAML nested too deeply") from None
-    if isinstance(data, dict):
-        data = {k: v for k, v in data.items() if k not in PROVENANCE_KEYS}
-    return from_dict(cls, data or {}, where=str(path))
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: expected a mapping of {what}, got {_short(data)}")
+    return data
+
+
+def load_yaml(cls: type[T], path: str | Path) -> T:
+    """Load a YAML file into ``cls``; errors name the file and the key. The provenance keys written by
+    :func:`dump_yaml` (:data:`PROVENANCE_KEYS`) are ignored."""
+    data = read_yaml(path, what=f"{getattr(cls, '__name__', cls)} fields")
+    data = {k: v for k, v in data.items() if k not in PROVENANCE_KEYS}
+    return from_dict(cls, data, where=str(path))
 
 
 def dump_yaml(obj: Any, **extra: Any) -> str:
@@ -97,10 +116,11 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
         names = {f.name for f in dataclasses.fields(tp) if f.init}
         unknown = sorted(set(value) - names)
         if unknown:
-            raise ValueError(f"{where}: unknown key(s) {', '.join(unknown)}; allowed: {', '.join(sorted(names))}")
+            hint = did_you_mean(unknown[0], names) if len(unknown) == 1 else ""
+            raise ValueError(f"{where}: unknown key(s) {', '.join(unknown)}{hint}; allowed: {', '.join(sorted(names))}")
         kwargs = {k: _convert(hints[k], v, f"{where}.{k}") for k, v in value.items()}
         try:
-            return tp(**kwargs)
+            return typing.cast(Any, tp)(**kwargs)
         except (TypeError, ValueError) as exc:
             raise ValueError(f"{where}: {exc}") from None
     if tp is Any:

@@ -22,6 +22,7 @@ import multiprocessing
 import os
 import signal
 import sys
+from collections.abc import Callable
 
 PR_SET_PDEATHSIG = 1
 """From <linux/prctl.h>."""
@@ -68,7 +69,7 @@ def _pdeathsig_term() -> None:  # runs in the child between fork and exec
         pass
 
 
-def subprocess_dies_with_parent() -> object:
+def subprocess_dies_with_parent() -> Callable[[], None] | None:
     """``preexec_fn`` for :class:`subprocess.Popen`: on Linux the child gets SIGTERM when this process dies
     (however it dies, SIGKILL included); None elsewhere (there the owner's ``finally`` is the only guard)."""
     return _pdeathsig_term if sys.platform.startswith("linux") else None

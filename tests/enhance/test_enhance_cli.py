@@ -173,3 +173,12 @@ def test_bombs_are_recorded_and_the_batch_goes_on(folder: Path, tmp_path: Path) 
     assert res.exit_code == 1 and "1 failed" in _out(res)
     (record,) = read_jsonl(tmp_path / "o2" / "errors.jsonl")
     assert "declares 32x24 = 768 pixels, over the limit of 100" in record["error"]
+
+
+def test_method_options_in_the_spec_and_misspelt_ones(folder: Path, tmp_path: Path) -> None:
+    out = tmp_path / "o"
+    res = runner.invoke(app, ["enhance", str(folder), "-o", str(out), "-r", "-m", "post?lam=0.5,he=rgb"])
+    assert res.exit_code == 0, res.output
+    res = runner.invoke(app, ["enhance", str(folder), "-o", str(tmp_path / "o2"), "-m", "post?lamda=0.9"])
+    assert res.exit_code == 2 and "unknown option 'lamda' (did you mean 'lam'?)" in _out(res)
+    assert not (tmp_path / "o2").exists()

@@ -34,10 +34,19 @@ def underwater() -> np.ndarray:
     return read_rgb(path)[:240, :300]
 
 
-def test_registered_and_created_from_a_checkpoint_ignoring_unknown_options(tiny_ckpt):
+def test_registered_and_created_from_a_checkpoint_rejecting_unknown_options(tiny_ckpt):
     assert "jointid" in available()
-    r = create("jointid", checkpoint=tiny_ckpt, device="cpu", precision="fp32", quiet=True, strength=0.7)
+    r = create("jointid", checkpoint=tiny_ckpt, device="cpu", precision="fp32", shared={"he": "rgb", "lam": 0.1})
     assert isinstance(r, JointIDRestorer) and r.name == "jointid" and r.model.config.depths == (1, 1, 2, 1)
+    with pytest.raises(ValueError, match=r"unknown option 'strength'; options of jointid: batch, checkpoint, "):
+        create("jointid", checkpoint=tiny_ckpt, strength=0.7)
+    with pytest.raises(ValueError, match=r"unknown option 'tiles' \(did you mean 'tile'\?\)"):
+        create(f"jointid?tiles=64,checkpoint={tiny_ckpt}")
+    r = create(f"jointid?tile=64,overlap=16,checkpoint={tiny_ckpt}", tile=128)  # the spec's options win
+    assert (r.tile, r.overlap) == (64, 16)
+    with pytest.raises(ValueError, match=r"method jointid: option tile: expected int \| None, got 'big'"):
+        create(f"jointid?tile=big,checkpoint={tiny_ckpt}")
+    assert create("jointid", checkpoint=tiny_ckpt, device=torch.device("cpu")).device == torch.device("cpu")
 
 
 def test_factory_defaults_to_shipped_weights_and_reports_bad_files(tmp_path, monkeypatch):

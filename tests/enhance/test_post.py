@@ -72,11 +72,6 @@ def test_log_matches_scipy_gaussian_laplace(rng: np.random.Generator) -> None:
     assert np.abs(ref).max() > 0.02  # the comparison is not between two near-zero maps
 
 
-def test_log_torch_twin_handles_images_smaller_than_the_kernel(rng: np.random.Generator) -> None:
-    tiny = rng.random((3, 2, 3)).astype(np.float32)  # radius 4 > size: reflect-101 wraps repeatedly, as OpenCV
-    assert np.abs(laplacian_of_gaussian(tiny) - _n(laplacian_of_gaussian_torch(_t(tiny)))).max() < TWIN_ATOL
-
-
 def test_post_sharpens_a_step_edge() -> None:
     # a vertical luminance ramp (so equalisation keeps mid-tones) with a step at column 12
     yy, xx = np.mgrid[0:32, 0:24].astype(np.float32)
@@ -180,18 +175,6 @@ def test_clahe_torch_twin_equals_opencv_exactly(rng: np.random.Generator) -> Non
         assert np.array_equal(mine, ref), ((h, w), tiles, clip)
 
 
-@pytest.mark.parametrize("he", ["y", "rgb", "clahe"])
-def test_numpy_equals_torch(he: str, rng: np.random.Generator) -> None:
-    imgs = [_smooth_image(rng, 45, 67) for _ in range(3)]
-    batch = torch.stack([_t(im)[0] for im in imgs])
-    he_t = equalize_torch(batch, he)  # type: ignore[arg-type]
-    out_t = post_process_torch(batch, he=he, clahe_tiles=(4, 3))  # type: ignore[arg-type]
-    for i, im in enumerate(imgs):  # each image has its own histogram in the batch
-        np.testing.assert_array_equal(he_t[i].permute(1, 2, 0).numpy(), equalize(im, he))  # type: ignore[arg-type]
-        ref = post_process(im, he=he, clahe_tiles=(4, 3))  # type: ignore[arg-type]
-        assert np.abs(out_t[i].permute(1, 2, 0).numpy() - ref).max() <= TWIN_ATOL
-
-
 def test_output_is_clipped_to_unit_range(rng: np.random.Generator) -> None:
     img = rng.random((32, 32, 3)).astype(np.float32)  # noise: strong LoG response
     out = post_process(img, lam=3.0)
@@ -228,14 +211,43 @@ def test_validation_errors(rng: np.random.Generator) -> None:
 # --- the "post" restorer ---------------------------------------------------------------------------------------
 
 
-def test_post_is_registered_and_ignores_foreign_options(rng: np.random.Generator) -> None:
+def test_post_is_registered_and_takes_its_declared_options(rng: np.random.Generator) -> None:
     assert "post" in restorer_mod.available()
-    r = restorer_mod.create("post", device="cpu", he="rgb", lam=0.1, checkpoint="x.pt", tile=512, precision="bf16")
+    assert set(restorer_mod.options_of("post")) == {"device", "sigma_px", "lam", "he", "clahe_clip", "clahe_tiles"}
+    assert str(restorer_mod.options_of("post")["lam"]) == "lam: float = 0.3"
+    shared = {"checkpoint": "x.pt", "tile": 512, "precision": "bf16", "batch": 4}  # a command's settings for others
+    r = restorer_mod.create("post", device="cpu", he="rgb", lam=0.1, shared=shared)
     assert isinstance(r, PostRestorer) and r.params == PostParams(lam=0.1, he="rgb")
+    assert restorer_mod.create("post?he=rgb,lam=0.1").params == r.params  # the same options written in the spec
     batch = np.stack([_smooth_image(rng, 20, 24) for _ in range(2)])
     out = r.restore(batch)
     assert out.depth_m is None and out.images.shape == batch.shape
     np.testing.assert_array_equal(out.images[1], post_process(batch[1], he="rgb", lam=0.1))
+
+
+def test_misspelt_and_foreign_options_are_errors_naming_the_valid_ones() -> None:
+    valid = "options of post: clahe_clip, clahe_tiles, device, he, lam, sigma_px"
+    with pytest.raises(ValueError, match=rf"unknown option 'lamda' \(did you mean 'lam'\?\); {valid}"):
+        restorer_mod.create("post?lamda=0.9")
+    with pytest.raises(ValueError, match=rf"unknown option 'lamda' \(did you mean 'lam'\?\); {valid}"):
+        restorer_mod.create("post", lamda=0.9)
+    with pytest.raises(ValueError, match=rf"method post: unknown option 'checkpoint'; {valid}"):
+        restorer_mod.create("post", checkpoint="x.pt")  # an option of other methods, given to post explicitly
+    no_method = r"shared setting 'devise' \(did you mean 'device'\?\) is an option of no registered method"
+    with pytest.raises(ValueError, match=no_method):
+        restorer_mod.create("post", shared={"devise": "cpu"})  # a shared setting no method declares
+    with pytest.raises(ValueError, match=r"method post: option lam: expected float, got 'abc'"):
+        restorer_mod.create("post?lam=abc")  # values are checked against the declared types
+    with pytest.raises(ValueError, match=r"method post: option he: expected one of 'y', 'rgb', 'clahe', got 'hsv'"):
+        restorer_mod.create("post", he="hsv")
+    assert restorer_mod.create("post?lam=1,sigma_px=2").params.lam == 1  # an int is a valid float
+    with pytest.raises(ValueError, match=r"method: unknown 'pots' \(did you mean 'post'\?\); available: "):
+        restorer_mod.create("jointid+pots")
+    with pytest.raises(ValueError, match="option 'lam' given twice"):
+        restorer_mod.create("post?lam=0.1,lam=0.2")
+    with pytest.raises(TypeError, match=r"\*\*kwargs would swallow misspelt options"):
+        restorer_mod.register("sloppy")(lambda **kwargs: PostRestorer())
+    assert "sloppy" not in restorer_mod.available()
 
 
 def test_post_restorer_tensor_path_and_chain(rng: np.random.Generator) -> None:

@@ -67,14 +67,13 @@ def test_ssim_grayscale_and_worse_is_lower(rng: np.random.Generator) -> None:
     assert psnr(strong, ref, data_range=1.0) < psnr(mild, ref, data_range=1.0)
 
 
-def test_psnr_torch_equals_numpy_per_image(rng: np.random.Generator) -> None:
+def test_psnr_torch_gives_one_float64_per_image(rng: np.random.Generator) -> None:  # equal to numpy: tests/twins.py
     ref = rng.random((3, 9, 11, 3))
     pred = np.clip(ref + 0.02 * rng.standard_normal(ref.shape), 0, 1)
     pred[1] = ref[1]
     got = psnr_torch(_nchw(pred), _nchw(ref), data_range=1.0)
     assert got.shape == (3,) and got.dtype == torch.float64
-    for i in range(3):
-        assert float(got[i]) == pytest.approx(psnr(pred[i], ref[i], data_range=1.0), rel=1e-12)
+    assert math.isinf(float(got[1])) and all(math.isfinite(float(got[i])) for i in (0, 2))
 
 
 def test_small_images_warn_in_both_twins() -> None:

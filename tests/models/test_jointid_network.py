@@ -197,7 +197,7 @@ def test_config_round_trip_and_unknown_keys():
     cfg = JointIDConfig(decoder_blocks=2)
     assert JointIDConfig.from_dict(cfg.to_dict()) == cfg
     assert isinstance(cfg.to_dict()["embed_dims"], list)
-    with pytest.raises(ValueError, match="unknown keys"):
+    with pytest.raises(ValueError, match=r"config: unknown key\(s\) width; allowed: decoder_blocks, "):
         JointIDConfig.from_dict({"width": 3})
 
 

@@ -9,7 +9,6 @@ import pytest
 import torch
 
 from murk.errors import InputFileError, ShapeError
-from murk.models import build_model
 from murk.models.lite.blocks import RepConv, fold_rep_conv
 from murk.models.lite.checkpoint import (
     is_lite_checkpoint,
@@ -133,11 +132,11 @@ def test_errors() -> None:
         build_lite("small")
     with pytest.raises(ValueError, match="widths"):
         LiteConfig(widths=(8, 0, 16))
-    with pytest.raises(ValueError, match="unknown keys"):
+    with pytest.raises(ValueError, match=r"config: unknown key\(s\) depth; allowed: blocks, "):
         LiteConfig.from_dict({"depth": 3})
     with pytest.raises(TypeError, match="expected a LiteNet"):
         reparameterize(torch.nn.Conv2d(3, 3, 1))
-    assert isinstance(build_model("lite", variant="tiny"), LiteNet)
+    assert isinstance(build_lite("tiny"), LiteNet)
 
 
 # --------------------------------------------------------------------------------------------- checkpoints

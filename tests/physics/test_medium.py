@@ -2,15 +2,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import torch
 
 from murk.physics.jerlov import beta_per_m, residual_ratio
 from murk.physics.medium import (
     ambient_light,
     apply_medium,
-    apply_medium_torch,
     distance_map,
-    distance_map_torch,
     transmission,
 )
 
@@ -55,20 +52,3 @@ def test_distance_map_modes() -> None:
     np.testing.assert_allclose(distance_map(np.array([[0.1, 20.0]], np.float32), mode="metric"), [[0.3, 15.0]])
     with pytest.raises(ValueError, match="distance_mode: expected"):
         distance_map(depth, mode="log")  # type: ignore[arg-type]
-
-
-def test_torch_twin_equals_numpy(rng: np.random.Generator) -> None:
-    clean = rng.random((2, 7, 9, 3)).astype(np.float32)
-    depth = (rng.random((2, 7, 9)) * 8 + 0.5).astype(np.float32)
-    betas = np.stack([beta_per_m("IB"), beta_per_m("7C")])
-    bs = np.stack([ambient_light("IB", 3.2), ambient_light("7C", 4.8)])
-    near, far = np.array([0.3, 0.3]), np.array([12.0, 3.5])
-    dt = distance_map_torch(torch.from_numpy(depth)[:, None], torch.tensor(near), torch.tensor(far))
-    out_t, _ = apply_medium_torch(
-        torch.from_numpy(clean).permute(0, 3, 1, 2), dt, torch.tensor(betas), torch.tensor(bs)
-    )
-    for i in range(2):
-        d = distance_map(depth[i], near_m=near[i], far_m=far[i])
-        np.testing.assert_allclose(dt[i, 0].numpy(), d, atol=1e-6)
-        out, _ = apply_medium(clean[i], d, betas[i], bs[i])
-        np.testing.assert_allclose(out_t[i].permute(1, 2, 0).numpy(), out, atol=1e-6)

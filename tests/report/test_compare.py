@@ -45,6 +45,20 @@ def test_parse_method() -> None:
         parse_method("jointid:file.pt?trust_checkpoint=true")  # trust only from the explicit flag or API
 
 
+def test_method_spec_options_are_checked_against_the_method() -> None:
+    from murk.report.methods import build_restorer
+
+    shared = {"device": "cpu", "precision": "fp32", "tile": None, "policy": "native", "trust_checkpoint": False}
+    post = build_restorer(parse_method("clahe=post?he=clahe,clahe_clip=3,lam=0.9"), **shared)
+    assert (post.params.he, post.params.clahe_clip, post.params.lam) == ("clahe", 3.0, 0.9)
+    with pytest.raises(ValueError, match=r"unknown option 'lamda' \(did you mean 'lam'\?\); options of post: "):
+        build_restorer(parse_method("post?lamda=0.9"), **shared)
+    with pytest.raises(ValueError, match=r"method post: unknown option 'checkpoint'"):
+        build_restorer(parse_method("post:weights.pt"), **shared)  # post has no weights
+    with pytest.raises(ValueError, match=r"raw \(the input itself\) takes no checkpoint or options"):
+        build_restorer(parse_method("raw?lam=0.9"))
+
+
 def test_compare_outputs_are_consistent(three_images: Path, tmp_path: Path) -> None:
     images = sorted(three_images.iterdir())
     methods = [parse_method("raw"), parse_method("post")]
@@ -166,7 +180,7 @@ class _Checkerboard(Restorer):
 
 def test_compare_flags_a_destroyed_method(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     restorer_registry.available()  # load the built-in methods first
-    monkeypatch.setitem(restorer_registry._REGISTRY, "checkerboard", lambda **_: _Checkerboard())
+    monkeypatch.setitem(restorer_registry._REGISTRY, "checkerboard", lambda: _Checkerboard())
     images = [sample_underwater_dir() / "suim" / "n_l_52_.jpg", sample_underwater_dir() / "funie_euvp" / "3.jpg"]
     res = run_compare(images, [parse_method("raw"), parse_method("broken=checkerboard")], tmp_path / "rep")
     assert not res.errors

@@ -8,7 +8,6 @@ import pytest
 from murk.scenes.textures import (
     TILE_PX,
     lookup_numpy,
-    lookup_torch,
     noise_tile,
     prepare_image_texture,
     wrap_coords,
@@ -44,17 +43,6 @@ def test_lookup_wraps_and_interpolates() -> None:
     assert lookup_numpy(tile, big, big).shape == (70000, 4)
     w = wrap_coords(np, np.array([-1.0, 256.0, 300.25], dtype=np.float32), TILE_PX)
     np.testing.assert_allclose(w, [255.0, 0.0, 44.25])
-
-
-def test_lookup_torch_equals_numpy(torch_cpu) -> None:
-    torch = torch_cpu
-    rng = np.random.default_rng(3)
-    x = (rng.random((40, 30)) * TILE_PX).astype(np.float32)
-    y = (rng.random((40, 30)) * TILE_PX).astype(np.float32)
-    tile = noise_tile()
-    a = lookup_numpy(tile, x, y)
-    b = lookup_torch(torch.from_numpy(np.array(tile)), torch.from_numpy(x), torch.from_numpy(y)).numpy()
-    np.testing.assert_allclose(a, b, atol=2e-6)
 
 
 def test_prepare_image_texture() -> None:

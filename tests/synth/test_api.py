@@ -38,4 +38,5 @@ def test_every_top_level_export_resolves() -> None:
     for name in murk.__all__:
         assert getattr(murk, name) is not None, name
     assert murk.create_restorer("post").name == "post"
+    assert "lam" in murk.restorer_options("post")
     assert "uiqm" in dir(murk)

@@ -33,7 +33,9 @@ def test_yaml_round_trip(tmp_path: Path) -> None:
 def test_yaml_errors_name_file_and_key(tmp_path: Path) -> None:
     p = tmp_path / "bad.yaml"
     p.write_text("medium:\n  water_type: [I]\n")
-    with pytest.raises(ValueError, match=r"bad\.yaml\.medium: unknown key\(s\) water_type"):
+    with pytest.raises(
+        ValueError, match=r"bad\.yaml\.medium: unknown key\(s\) water_type \(did you mean 'water_types'\?\); allowed: "
+    ):
         load_yaml(SynthConfig, p)
     p.write_text("variants: many\n")
     with pytest.raises(ValueError, match=r"bad\.yaml\.variants: expected an integer, got 'many'"):
@@ -46,6 +48,20 @@ def test_yaml_errors_name_file_and_key(tmp_path: Path) -> None:
         load_yaml(SynthConfig, p)
     with pytest.raises(ValueError, match="config file not found"):
         load_yaml(SynthConfig, tmp_path / "none.yaml")
+    p.write_text("- a list\n")
+    with pytest.raises(ValueError, match=r"bad\.yaml: expected a mapping of SynthConfig fields, got a list of 1"):
+        load_yaml(SynthConfig, p)
+
+
+def test_the_resume_check_names_a_corrupt_earlier_config(tmp_path: Path) -> None:
+    from murk.synth.runner import check_config_compatible
+
+    (tmp_path / "config.yaml").write_text("variants: [1\n")
+    with pytest.raises(ValueError, match=r"config\.yaml: invalid YAML"):
+        check_config_compatible(tmp_path, SynthConfig())
+    (tmp_path / "config.yaml").write_text("just text\n")
+    with pytest.raises(ValueError, match=r"config\.yaml: expected a mapping of the configuration of an earlier run"):
+        check_config_compatible(tmp_path, SynthConfig())
 
 
 def test_validation_errors() -> None:

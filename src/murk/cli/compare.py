@@ -9,6 +9,7 @@ import typer
 
 from murk.cli._common import QuietOpt, make_console
 from murk.cli._jobs import JobProgress, print_summary
+from murk.enhance.choices import Policy, Precision
 
 
 def compare(
@@ -32,10 +33,12 @@ def compare(
     uiqm_preset: Annotated[str, typer.Option("--uiqm-preset", help="panetta2016, funie or jointid.")] = "panetta2016",
     uciqe_preset: Annotated[str, typer.Option("--uciqe-preset", help="uciqe_m or cielab_raw.")] = "uciqe_m",
     device: Annotated[str, typer.Option("--device", help="cpu, cuda or cuda:N.")] = "cpu",
-    precision: Annotated[str, typer.Option("--precision", help="Joint-ID precision: fp32, bf16 or fp16.")] = "fp32",
+    precision: Annotated[
+        Precision, typer.Option("--precision", help="Joint-ID precision: fp32, bf16 or fp16.")
+    ] = "fp32",
     tile: Annotated[int | None, typer.Option("--tile", help="Joint-ID tile size for large images (px).")] = None,
     policy: Annotated[
-        str,
+        Policy,
         typer.Option(
             "--policy",
             help="udaformer/ursct: native (any size, default) or official (256x256 as their published test scripts).",

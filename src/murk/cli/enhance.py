@@ -6,7 +6,6 @@ import contextlib
 import signal
 import threading
 from collections.abc import Iterator
-from enum import Enum
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -15,41 +14,9 @@ from rich.markup import escape
 
 from murk.cli._common import EXIT_OK, EXIT_PARTIAL, DeviceOpt, QuietOpt, make_console, resolve_device
 from murk.cli._jobs import JobProgress, print_summary
+from murk.enhance.choices import BagStorage, HEMode, ImageFormat, Policy, Precision, VideoBackendChoice
 
 EXIT_INTERRUPTED = 130
-
-
-class HEChoice(str, Enum):
-    y = "y"
-    rgb = "rgb"
-    clahe = "clahe"
-
-
-class PrecisionChoice(str, Enum):
-    fp32 = "fp32"
-    bf16 = "bf16"
-    fp16 = "fp16"
-
-
-class FormatChoice(str, Enum):
-    png = "png"
-    jpg = "jpg"
-
-
-class PolicyChoice(str, Enum):
-    native = "native"
-    official = "official"
-
-
-class StorageChoice(str, Enum):
-    mcap = "mcap"
-    sqlite3 = "sqlite3"
-
-
-class BackendChoice(str, Enum):
-    auto = "auto"
-    opencv = "opencv"
-    av = "av"
 
 
 def method_options(
@@ -69,8 +36,9 @@ def method_options(
     compile: bool = False,
     policy: str = "native",
 ) -> dict[str, Any]:
-    """Keyword options handed to every stage of ``--method`` (each factory takes what it knows and ignores
-    the rest). New method options (checkpoint, precision, tiling, ...) are added here and in :func:`enhance`."""
+    """The command's settings handed to ``--method`` as ``shared`` (each stage takes the ones it declares;
+    options written after ``?`` in the spec must be declared). New method options (checkpoint, precision,
+    tiling, ...) are added here and in :func:`enhance`."""
     return {
         "device": device,
         "batch": batch,
@@ -109,11 +77,17 @@ def enhance(
         ),
     ],
     method: Annotated[
-        str, typer.Option("--method", "-m", help="Restoration method; chain with '+' (e.g. jointid+post).")
+        str,
+        typer.Option(
+            "--method",
+            "-m",
+            help="Restoration method; chain with '+' (e.g. jointid+post); method options after '?' "
+            "(e.g. post?lam=0.5,he=rgb; a misspelt one is an error).",
+        ),
     ] = "post",
     recursive: Annotated[bool, typer.Option("--recursive", "-r", help="Include subfolders of a folder.")] = False,
     format: Annotated[
-        FormatChoice | None,
+        ImageFormat | None,
         typer.Option("--format", help="Image format of outputs (default: as input; jpg for frames)."),
     ] = None,
     side_by_side: Annotated[bool, typer.Option("--side-by-side", help="Write input|output panels.")] = False,
@@ -126,8 +100,8 @@ def enhance(
         bool, typer.Option("--overwrite", help="Redo outputs that exist (default: skip them, so reruns resume).")
     ] = False,
     he: Annotated[
-        HEChoice, typer.Option("--he", help="post: equalise luma (y, colours kept), each channel (rgb), or CLAHE.")
-    ] = HEChoice.y,
+        HEMode, typer.Option("--he", help="post: equalise luma (y, colours kept), each channel (rgb), or CLAHE.")
+    ] = "y",
     sigma_px: Annotated[float, typer.Option("--sigma-px", min=0.0, help="post: LoG sigma in pixels (Eq. 9).")] = 1.0,
     lam: Annotated[float, typer.Option("--lambda", min=0.0, help="post: edge-enhancement weight (Eq. 9).")] = 0.3,
     clahe_clip: Annotated[float, typer.Option("--clahe-clip", min=0.0, help="post --he clahe: clip limit.")] = 2.0,
@@ -142,8 +116,8 @@ def enhance(
         ),
     ] = None,
     precision: Annotated[
-        PrecisionChoice, typer.Option("--precision", help="jointid: fp32, or bf16/fp16 autocast (GPU).")
-    ] = PrecisionChoice.fp32,
+        Precision, typer.Option("--precision", help="jointid: fp32, or bf16/fp16 autocast (GPU).")
+    ] = "fp32",
     tile: Annotated[
         int | None, typer.Option("--tile", min=32, help="jointid: run large frames in tiles of this size (px).")
     ] = None,
@@ -159,13 +133,13 @@ def enhance(
         bool, typer.Option("--compile", help="jointid: torch.compile the network (GPU; slow first frames).")
     ] = False,
     policy: Annotated[
-        PolicyChoice,
+        Policy,
         typer.Option(
             "--policy",
             help="udaformer/ursct: native (any size, output at the input size) or official (the published test "
             "script: resized to 256x256, output 256x256; docs/baselines.md).",
         ),
-    ] = PolicyChoice.native,
+    ] = "native",
     depth: Annotated[
         bool,
         typer.Option("--depth/--no-depth", help="Write depth/ and depth_preview/ when the method estimates depth."),
@@ -177,12 +151,12 @@ def enhance(
         float | None, typer.Option("--fps", min=0.001, help="Frame rate of video outputs (default: the source's).")
     ] = None,
     video_backend: Annotated[
-        BackendChoice,
+        VideoBackendChoice,
         typer.Option(
             "--video-backend",
             help="Video writer: opencv, av (PyAV; kill-safe fragmented MP4), auto (av for live streams if installed).",
         ),
-    ] = BackendChoice.auto,
+    ] = "auto",
     topic: Annotated[
         str | None, typer.Option("--topic", help="ROS bag input: the image topic (omit it to list them).")
     ] = None,
@@ -194,7 +168,7 @@ def enhance(
         str | None, typer.Option("--depth-topic", help="Bag output: topic of 32FC1 depth in metres (<topic>/depth).")
     ] = None,
     storage: Annotated[
-        StorageChoice | None, typer.Option("--storage", help="ROS 2 bag output: mcap or sqlite3 (default: as input).")
+        BagStorage | None, typer.Option("--storage", help="ROS 2 bag output: mcap or sqlite3 (default: as input).")
     ] = None,
     copy_topics: Annotated[
         list[str] | None,
@@ -217,30 +191,30 @@ def enhance(
     dev = resolve_device(device)
     restorer = create(
         method,
-        **method_options(
+        shared=method_options(
             device=dev,
             batch=batch,
-            he=he.value,
+            he=he,
             sigma_px=sigma_px,
             lam=lam,
             clahe_clip=clahe_clip,
             clahe_tiles=clahe_tiles,
             checkpoint=None if checkpoint is None else str(checkpoint),
-            precision=precision.value,
+            precision=precision,
             tile=tile,
             overlap=overlap,
             trust_checkpoint=trust_checkpoint,
             compile=compile_model,
-            policy=policy.value,
+            policy=policy,
         ),
     )
     options = OutputOptions(
-        format=None if format is None else format.value,  # type: ignore[arg-type]
+        format=format,
         side_by_side=side_by_side,
         overwrite=overwrite,
         depth=depth,
         depth_video=depth_video,
-        video_backend=video_backend.value,  # type: ignore[arg-type]
+        video_backend=video_backend,
         fps=fps,
     )
     console = make_console(quiet)
@@ -268,7 +242,7 @@ def enhance(
                 every=every,
                 out_topic=out_topic,
                 depth_topic=depth_topic,
-                storage=None if storage is None else storage.value,  # type: ignore[arg-type]
+                storage=storage,
                 copy_topics=tuple(copy_topics or ()),
             ),
         )

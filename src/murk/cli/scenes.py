@@ -34,9 +34,7 @@ def scenes(
     Depth = line-of-sight distance along each pixel's ray (not z-depth), in [near_m, far_m] (default
     0.3-15 m); a ray that hits nothing gets far_m.
     """
-    import yaml
-
-    from murk.errors import InputFileError
+    from murk._config import read_yaml
     from murk.scenes import SceneConfig
     from murk.scenes.dataset import load_textures
 
@@ -45,23 +43,11 @@ def scenes(
     fmt = rgb_format.lower()
     if fmt not in ("png", "jpg"):
         raise ValueError(f"--rgb-format: expected png or jpg, got {rgb_format!r}")
-    cfg_dict: dict[str, Any] = {}
-    if config is not None:
-        if not config.is_file():
-            raise InputFileError(config, "config file not found")
-        try:
-            cfg_dict = yaml.safe_load(config.read_text(encoding="utf-8")) or {}
-        except yaml.YAMLError as exc:
-            raise InputFileError(config, f"not valid YAML ({exc})") from None
-        if not isinstance(cfg_dict, dict):
-            raise InputFileError(config, "expected a mapping of SceneConfig fields")
+    cfg_dict: dict[str, Any] = {} if config is None else read_yaml(config, what="SceneConfig fields")
     tex = load_textures(textures) if textures is not None else {}
     if tex:
         cfg_dict = {**cfg_dict, "texture_names": sorted(tex)}
-    try:
-        cfg = SceneConfig.from_dict(cfg_dict)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{config}: {exc}" if config is not None else str(exc)) from None
+    cfg = SceneConfig.from_dict(cfg_dict, where=str(config) if config is not None else "scene config")
 
     from murk.scenes.dataset import write_scenes
 

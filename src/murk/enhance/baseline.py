@@ -13,15 +13,14 @@ Two input policies (``policy`` option, ``docs/baselines.md``):
 from __future__ import annotations
 
 import contextlib
-from typing import Any, Literal
+from typing import Any
 
 import torch
 from torch import Tensor, nn
 
+from murk.enhance.choices import POLICIES, Policy
 from murk.errors import ShapeError
 
-Policy = Literal["native", "official"]
-POLICIES: tuple[str, ...] = ("native", "official")
 OFFICIAL_SIZE = 256
 """Side of the square the official test scripts resize every image to (and leave the output at)."""
 DEFAULT_OVERLAP = 64

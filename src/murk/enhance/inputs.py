@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
+from murk.enhance.choices import ImageFormat
 from murk.errors import InputFileError
 from murk.io.images import IMAGE_SUFFIXES, list_images
 from murk.io.listing import glob_files
@@ -19,7 +20,6 @@ from murk.io.paths import check_output_location, output_names
 from murk.io.video import VIDEO_SUFFIXES, is_stream_url, redact_url
 
 InputKind = Literal["images", "video", "stream", "bag"]
-ImageFormat = Literal["png", "jpg"]
 _GLOB_CHARS = set("*?[")
 
 

@@ -10,12 +10,11 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
 import torch
 
-from murk.enhance.inputs import ImageFormat
+from murk.enhance.choices import ImageFormat, VideoBackendChoice
 from murk.enhance.preview import DEPTH_PREVIEW_RANGE_M, colorize_depth
 from murk.enhance.restorer import Restored, Restorer
 from murk.errors import InputFileError, ShapeError
@@ -23,7 +22,6 @@ from murk.io.depth import write_depth_png
 from murk.io.images import write_rgb
 from murk.io.jobs import JobSummary
 
-VideoBackendChoice = Literal["auto", "opencv", "av"]
 SIXTEEN_BIT_SUFFIXES = (".png", ".tif", ".tiff")
 
 ProgressFn = Callable[["EnhanceReport"], None]

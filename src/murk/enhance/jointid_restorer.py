@@ -5,7 +5,7 @@ Pipeline per batch: normalise (training recipe's mean/std) -> reflect-pad to mul
 resized. Backends: a torch :class:`~murk.models.jointid.JointID` (fp32, or bf16/fp16 autocast; channels-last
 memory; optional ``torch.compile`` and CUDA-graph replay) or an exported ONNX file run by ONNX Runtime.
 
-Registry options (``murk.enhance.create("jointid", **options)``; unknown options are ignored):
+Registry options (``murk.enhance.create("jointid", **options)``; any other option is an error):
 ``checkpoint`` (murk or official ``.pth``/``.pt``, or an ``.onnx`` file; required), ``onnx`` (an ``.onnx``
 path, alternative to ``checkpoint``), ``device`` ("cpu", "cuda", "cuda:N"), ``precision`` ("fp32", "bf16",
 "fp16"), ``tile`` (pixels or None), ``overlap`` (pixels, default 64), ``trust_checkpoint`` (bool),
@@ -20,17 +20,17 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import torch
 from torch import Tensor, nn
 
+from murk.enhance.choices import Precision
 from murk.enhance.restorer import RestoredTensor, Restorer, register
 from murk.enhance.tiling import pad_to_multiple, tiled_apply
 from murk.errors import ShapeError
 from murk.models.jointid.network import INPUT_MEAN, INPUT_STD, SIZE_MULTIPLE
 
-Precision = Literal["fp32", "bf16", "fp16"]
 _DTYPES: dict[str, torch.dtype] = {"bf16": torch.bfloat16, "fp16": torch.float16}
 DEFAULT_OVERLAP = 64
 
@@ -151,7 +151,7 @@ class JointIDRestorer(Restorer):
         self.channels_last = self.device.type == "cuda" if channels_last is None else bool(channels_last)
         net.to(self.device)
         if self.channels_last:
-            net.to(memory_format=torch.channels_last)
+            net.to(memory_format=torch.channels_last)  # type: ignore[call-overload]  # valid; torch's stubs lack it
         self.model = net
         fn: Callable[[Tensor], Any] = torch.compile(net, dynamic=False) if compile else net  # one kernel set per shape
 
@@ -170,7 +170,7 @@ class JointIDRestorer(Restorer):
 
     def _normalize(self, images: Tensor) -> Tensor:
         """``normalize_input`` with the mean/std kept on the device (no host-to-device copy per call)."""
-        if self._mean is None or self._mean.device != images.device:
+        if self._mean is None or self._std is None or self._mean.device != images.device:
             self._mean = torch.tensor(INPUT_MEAN, device=images.device).view(1, 3, 1, 1)
             self._std = torch.tensor(INPUT_STD, device=images.device).view(1, 3, 1, 1)
         return (images - self._mean) / self._std
@@ -218,7 +218,7 @@ def create_jointid(
     *,
     checkpoint: str | Path | None = None,
     onnx: str | Path | None = None,
-    device: str = "cpu",
+    device: str | torch.device = "cpu",
     precision: Precision = "fp32",
     tile: int | None = None,
     overlap: int | None = DEFAULT_OVERLAP,
@@ -226,14 +226,13 @@ def create_jointid(
     batch: int | None = None,
     compile: bool = False,
     cuda_graph: bool = False,
-    **_ignored: Any,
 ) -> JointIDRestorer:
     """Registry factory of ``jointid``: load ``checkpoint`` (or the ``onnx`` file) and wrap it.
 
     Without either, the weights shipped with murk are used (``murk.data.shipped_jointid_weights()``: the
     ``small`` Joint-ID murk trained itself, model card ``docs/models.md``). The restorer's ``weights``
     attribute names the file used. A checkpoint path ending in ``.onnx`` runs with ONNX Runtime. Other options: see
-    :class:`JointIDRestorer`; options meant for other methods are ignored.
+    :class:`JointIDRestorer`.
 
     Raises:
         ValueError: no checkpoint given, or bad options.
@@ -254,14 +253,21 @@ def create_jointid(
                 f"checkpoint: the shipped weights {path} are missing from this installation; give --checkpoint FILE "
                 "(a murk or the official Joint-ID checkpoint, or an .onnx export)"
             )
-    common = {"precision": precision, "tile": tile, "overlap": overlap, "batch": batch}
     if onnx is not None or str(path).lower().endswith(".onnx"):
-        restorer = JointIDRestorer(
-            OnnxJointID(path, device=str(device)), **common, compile=compile, cuda_graph=cuda_graph
-        )
+        model: nn.Module | OnnxJointID = OnnxJointID(path, device=str(device))
+        dev = torch.device("cpu")
     else:
         dev = _resolve_device(device)
         model = load_checkpoint(path, trust=trust_checkpoint, device="cpu")
-        restorer = JointIDRestorer(model, device=dev, **common, compile=compile, cuda_graph=cuda_graph)
+    restorer = JointIDRestorer(
+        model,
+        device=dev,
+        precision=precision,
+        tile=tile,
+        overlap=overlap,
+        batch=batch,
+        compile=compile,
+        cuda_graph=cuda_graph,
+    )
     restorer.weights = str(path)
     return restorer

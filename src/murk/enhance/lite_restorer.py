@@ -3,7 +3,7 @@
 Pipeline per batch: reflect-pad to multiples of 16 -> the folded (re-parameterised) network, or its ONNX export
 run by ONNX Runtime -> crop back -> clamp to [0, 1]. Frames are never resized. No depth.
 
-Registry options (``murk.enhance.create("lite", **options)``; options of other methods are ignored):
+Registry options (``murk.enhance.create("lite", **options)``; any other option is an error):
 ``checkpoint`` (a ``murk train`` checkpoint with ``model.kind: lite``, or an ``.onnx`` export; default: the
 weights shipped with murk), ``onnx`` (an ``.onnx`` path, alternative to ``checkpoint``), ``device`` ("cpu",
 "cuda", "cuda:N"; ONNX runs on the CPU), ``precision`` (only "fp32"), ``trust_checkpoint`` (bool), ``batch``
@@ -65,7 +65,8 @@ class LiteRestorer(Restorer):
         # Channels-last memory: a numpy frame (H, W, 3) already is, so nothing is transposed on the way in or out,
         # and the full-resolution steps (pooling, upsampling, gain * x + offset) run faster (about 15%, CPU).
         net = reparameterize(unwrap(model))
-        self.model = net.float().to(dev).to(memory_format=torch.channels_last).eval()
+        channels_last = net.float().to(dev).to(memory_format=torch.channels_last)  # type: ignore[call-overload]
+        self.model = channels_last.eval()  # (valid: torch's stubs lack memory_format on Module.to)
         self._backend = self.model
 
     def restore_tensor(self, images: Tensor) -> RestoredTensor:
@@ -99,12 +100,11 @@ def create_lite(
     *,
     checkpoint: str | Path | None = None,
     onnx: str | Path | None = None,
-    device: str = "cpu",
+    device: str | torch.device = "cpu",
     precision: str = "fp32",
     trust_checkpoint: bool = False,
     batch: int | None = None,
     threads: int | None = None,
-    **_ignored: Any,
 ) -> LiteRestorer:
     """Registry factory of ``lite``: load ``checkpoint`` (or the ``onnx`` file), fold it and wrap it.
 

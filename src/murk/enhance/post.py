@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Literal, get_args
+from typing import Any
 
 import cv2
 import numpy as np
@@ -40,11 +40,9 @@ import torch
 import torch.nn.functional as F
 
 from murk._checks import check_positive, check_rgb
+from murk.enhance.choices import HE_MODES, HEMode
 from murk.enhance.restorer import Restored, RestoredTensor, Restorer, register
 from murk.errors import ShapeError
-
-HEMode = Literal["y", "rgb", "clahe"]
-HE_MODES: tuple[str, ...] = get_args(HEMode)
 
 SIGMA_PX = 1.0
 """LoG standard deviation of the paper (Sec. 5.1)."""
@@ -462,9 +460,8 @@ def make_post(
     he: HEMode = "y",
     clahe_clip: float = CLAHE_CLIP,
     clahe_tiles: int | tuple[int, int] = CLAHE_TILES,
-    **_ignored: Any,
 ) -> PostRestorer:
-    """Factory of the ``post`` method; ignores options meant for other methods."""
+    """Factory of the ``post`` method (Eq. 9 with these parameters; see :func:`post_process`)."""
     return PostRestorer(PostParams(sigma_px, lam, he, clahe_clip, clahe_tiles), device=device)
 
 

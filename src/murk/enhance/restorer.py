@@ -3,7 +3,10 @@
 A :class:`Restorer` takes a batch of float32 RGB images in [0, 1] and returns the enhanced batch, plus metric
 depth when the method estimates it (Joint-ID does). Methods are registered by name (``post``, ``jointid``,
 ...); a spec ``"a+b"`` chains them left to right (``jointid+post`` = Joint-ID, then Eq. (9) on its output),
-and the depth of the chain is the last depth any stage produced.
+and the depth of the chain is the last depth any stage produced. A spec may carry options after ``?``
+(``post?lam=0.9``). Each factory declares its options in its signature; an option no stage declares is an
+error (:mod:`murk.enhance.options`). This is murk's one registry of methods (networks are built by their
+restorer factories).
 
 Two entry points per restorer:
 
@@ -21,6 +24,9 @@ from typing import Any
 
 import numpy as np
 import torch
+
+from murk._suggest import did_you_mean
+from murk.enhance.options import Option, declared_options, parse_spec, route_options
 
 
 @dataclass(frozen=True)
@@ -99,11 +105,18 @@ _REGISTRY: dict[str, Factory] = {}
 
 
 def register(name: str) -> Callable[[Factory], Factory]:
-    """Decorator registering a factory ``f(**options) -> Restorer`` under ``name`` (no ``+`` allowed)."""
-    if not name or "+" in name:
-        raise ValueError(f"name: expected a non-empty name without '+', got {name!r}")
+    """Decorator registering a factory ``f(*, option=default, ...) -> Restorer`` under ``name``.
+
+    Raises:
+        ValueError: an empty name, or one with ``+`` or ``?``.
+        TypeError: the factory does not declare its options as keyword-only parameters with defaults (e.g. it
+            takes ``**kwargs``).
+    """
+    if not name or "+" in name or "?" in name:
+        raise ValueError(f"name: expected a non-empty name without '+' or '?', got {name!r}")
 
     def deco(factory: Factory) -> Factory:
+        declared_options(factory)  # the contract is checked when the method is registered
         _REGISTRY[name] = factory
         return factory
 
@@ -125,23 +138,46 @@ def weights_of(restorer: Any) -> str | None:
     return None
 
 
-def create(spec: str, **options: Any) -> Restorer:
-    """Build the restorer for ``spec`` (``"post"``, ``"jointid"``, ``"jointid+post"``, ...).
-
-    Every stage receives ``options``; each factory picks what it understands and ignores the rest.
+def options_of(name: str) -> dict[str, Option]:
+    """The options the method ``name`` declares (name, type, default), by name.
 
     Raises:
-        ValueError: an unknown method name (the known ones are listed).
+        ValueError: an unknown method name.
     """
     _load_builtin()
+    if name not in _REGISTRY:
+        raise ValueError(f"method: unknown {name!r}; available: {', '.join(sorted(_REGISTRY))}")
+    return declared_options(_REGISTRY[name])
+
+
+def create(spec: str, *, shared: dict[str, Any] | None = None, **options: Any) -> Restorer:
+    """Build the restorer for ``spec`` (``"post"``, ``"jointid"``, ``"jointid+post"``, ``"post?lam=0.9"``, ...).
+
+    Args:
+        spec: method names chained with ``+``, optionally followed by ``?KEY=VALUE,...`` options.
+        shared: settings of the calling command (device, batch size, ...); each stage takes the ones it
+            declares. A name that no registered method declares is an error.
+        **options: method options (the spec's own win on a clash); each must be declared by at least one
+            stage, and goes to every stage that declares it.
+
+    Raises:
+        ValueError: an unknown method name (the known ones are listed), or an unknown or misspelt option (named,
+            with the nearest valid name and the method's valid options).
+    """
+    _load_builtin()
+    spec, spec_options = parse_spec(spec)
     names = [n.strip() for n in spec.split("+")]
     unknown = [n for n in names if n not in _REGISTRY]
     if unknown or not all(names):
+        hint = did_you_mean(unknown[0], _REGISTRY) if len(unknown) == 1 else ""
         raise ValueError(
-            f"method: unknown {', '.join(repr(n) for n in unknown) or repr(spec)}; "
+            f"method: unknown {', '.join(repr(n) for n in unknown) or repr(spec)}{hint}; "
             f"available: {', '.join(sorted(_REGISTRY))} (chain them with '+')"
         )
-    stages = [_REGISTRY[n](**options) for n in names]
+    declared = [declared_options(_REGISTRY[n]) for n in names]
+    known = {o for f in _REGISTRY.values() for o in declared_options(f)}
+    kwargs = route_options(spec, declared, {**options, **spec_options}, shared or {}, known)
+    stages = [_REGISTRY[n](**kw) for n, kw in zip(names, kwargs, strict=True)]
     return stages[0] if len(stages) == 1 else Chain(stages)
 
 

@@ -8,8 +8,9 @@ from collections.abc import Callable
 from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal, Protocol
+from typing import Any, Protocol
 
+from murk.enhance.choices import BagStorage
 from murk.enhance.frame_job import enhance_frames
 from murk.enhance.image_job import enhance_images
 from murk.enhance.inputs import EnhanceInput, plan_images, resolve_input
@@ -31,7 +32,7 @@ class BagOptions:
     every: int = 1
     out_topic: str | None = None
     depth_topic: str | None = None
-    storage: Literal["mcap", "sqlite3"] | None = None
+    storage: BagStorage | None = None
     copy_topics: tuple[str, ...] = ()
 
 

@@ -21,7 +21,6 @@ transformer", Computers & Graphics 111 (2023) 77-88, doi:10.1016/j.cag.2023.01.0
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import cv2
 import numpy as np
@@ -158,14 +157,13 @@ def create_udaformer(
     *,
     checkpoint: str | Path | None = None,
     onnx: str | Path | None = None,
-    device: str = "cpu",
+    device: str | torch.device = "cpu",
     precision: str = "fp32",
     policy: Policy = "native",
     tile: int | None = None,
     overlap: int | None = DEFAULT_OVERLAP,
     batch: int | None = None,
     trust_checkpoint: bool = False,
-    **_ignored: Any,
 ) -> UDAformerRestorer:
     """Registry factory of ``udaformer``: load ``checkpoint`` (the official file needs ``trust_checkpoint``: it
     pickles an optimiser object) and wrap it. Options: see :class:`UDAformerRestorer`.

@@ -24,7 +24,6 @@ doi:10.1109/TGRS.2022.3205061.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import torch
 import torch.nn.functional as F
@@ -143,14 +142,13 @@ def create_ursct(
     *,
     checkpoint: str | Path | None = None,
     onnx: str | Path | None = None,
-    device: str = "cpu",
+    device: str | torch.device = "cpu",
     precision: str = "fp32",
     policy: Policy = "native",
     tile: int | None = None,
     overlap: int | None = DEFAULT_OVERLAP,
     batch: int | None = None,
     trust_checkpoint: bool = False,
-    **_ignored: Any,
 ) -> URSCTRestorer:
     """Registry factory of ``ursct``: load ``checkpoint`` and wrap it. Options: see :class:`URSCTRestorer`.
 

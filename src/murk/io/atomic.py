@@ -42,7 +42,7 @@ def no_space_as_error(path: str | Path) -> Iterator[None]:
         raise
     except OSError as exc:
         if exc.errno in NO_SPACE_ERRNOS:
-            raise no_space_error(path, exc.errno) from exc
+            raise no_space_error(path, int(exc.errno or 0)) from exc
         raise
 
 

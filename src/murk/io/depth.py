@@ -82,7 +82,8 @@ def read_depth(
             raise InputFileError(path, f"depth must be single-channel, got {raw.shape[2]} different channels")
         raw = raw[:, :, 0]
     if relative:
-        peak = float(np.iinfo(raw.dtype).max) if np.issubdtype(raw.dtype, np.integer) else 1.0
+        integer = np.issubdtype(raw.dtype, np.integer)
+        peak = float(np.iinfo(raw.dtype).max) if integer else 1.0  # type: ignore[type-var]  # integer dtype here
         u = raw.astype(np.float32) / np.float32(peak)
         return (RELATIVE_NEAR_M + u * (RELATIVE_FAR_M - RELATIVE_NEAR_M)).astype(np.float32)
     if raw.dtype == np.uint8:

@@ -17,7 +17,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from murk.io.jsonl import append_jsonl, read_jsonl, write_jsonl
 
@@ -110,6 +110,9 @@ def read_errors(path: str | Path) -> list[ErrorRecord]:
     return [ErrorRecord.from_json(r) for r in read_jsonl(path)]
 
 
+_S = TypeVar("_S", bound="JobSummary")
+
+
 @dataclass
 class JobSummary:
     """What a batch command did. ``failed`` counts the records in ``errors_path``; ``failures`` holds them
@@ -143,7 +146,7 @@ class JobSummary:
         if text not in self.notes:
             self.notes.append(text)
 
-    def finish(self) -> JobSummary:
+    def finish(self: _S) -> _S:
         """Stamp the wall time since the summary was created."""
         self.wall_s = time.perf_counter() - self.started
         return self

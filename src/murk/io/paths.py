@@ -92,7 +92,7 @@ def output_names(
     for step in widen:
         counts = Counter(names.values())
         names = {p: step(p, n) if counts[n] > 1 else n for p, n in names.items()}
-    counts, seen = Counter(names.values()), Counter()
+    counts, seen = Counter(names.values()), Counter[str]()
     taken = {n for n, c in counts.items() if c == 1}
     for p in paths:
         name = names[p]

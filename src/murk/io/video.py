@@ -40,7 +40,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import Literal
+from typing import Literal, TypeVar
 from urllib.parse import urlsplit, urlunsplit
 
 import cv2
@@ -72,6 +72,9 @@ class Frame:
     error: str | None = None
 
 
+_Source = TypeVar("_Source", bound="FrameSource")
+
+
 class FrameSource(ABC):
     """A sequence of frames with metadata. Iterate it (or call :meth:`read` until it returns None); close it,
     or use it as a context manager.
@@ -101,7 +104,7 @@ class FrameSource(ABC):
         while (frame := self.read()) is not None:
             yield frame
 
-    def __enter__(self) -> FrameSource:
+    def __enter__(self: _Source) -> _Source:
         return self
 
     def __exit__(
@@ -135,7 +138,7 @@ class CaptureSource(FrameSource):
         is_camera = isinstance(target, int)
         is_url = isinstance(target, str) and is_stream_url(target)
         self.live = bool(is_camera or is_url) if live is None else live
-        self.label = f"camera {target}" if is_camera else redact_url(target) if is_url else str(target)
+        self.label = f"camera {target}" if is_camera else redact_url(str(target)) if is_url else str(target)
         self.name = name or default_name(target)
         if isinstance(target, str) and not is_url and not Path(target).is_file():
             raise InputFileError(target, "video file not found")
@@ -298,7 +301,7 @@ class VideoSink:
             self._open_av(suffix)
 
     def _open_opencv(self, suffix: str) -> None:
-        fourcc = cv2.VideoWriter_fourcc(*("MJPG" if suffix == ".avi" else "mp4v"))
+        fourcc = cv2.VideoWriter_fourcc(*("MJPG" if suffix == ".avi" else "mp4v"))  # type: ignore[attr-defined]
         self._writer = cv2.VideoWriter(str(self._target), fourcc, self.fps, self._even)
         if not self._writer.isOpened():
             self._writer.release()

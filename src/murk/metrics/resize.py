@@ -35,4 +35,4 @@ def pil_bicubic_resize(image: np.ndarray, size_wh: tuple[int, int]) -> np.ndarra
         raise ValueError(f"size_wh: expected (width, height) integers >= 1, got {size_wh!r}") from None
     if w < 1 or h < 1:
         raise ValueError(f"size_wh: expected (width, height) integers >= 1, got {size_wh!r}")
-    return np.asarray(Image.fromarray(np.ascontiguousarray(image), mode="RGB").resize((w, h), Image.BICUBIC))
+    return np.asarray(Image.fromarray(np.ascontiguousarray(image), mode="RGB").resize((w, h), Image.Resampling.BICUBIC))

@@ -1,5 +1,5 @@
-"""Networks (Joint-ID; the comparison baselines UDAformer and URSCT-SESR) and a small registry to build them by name."""
+"""Networks (Joint-ID, lite; the comparison baselines UDAformer and URSCT-SESR).
 
-from murk.models.registry import available_models, build_model, register_model
-
-__all__ = ["available_models", "build_model", "register_model"]
+Each network has its own ``build_*`` function; methods are built by name through the one registry,
+:mod:`murk.enhance.restorer`.
+"""

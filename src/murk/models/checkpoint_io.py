@@ -13,7 +13,7 @@ import pickle
 import zipfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeGuard
 
 import torch
 
@@ -100,7 +100,7 @@ def torch_load(path: str | Path, *, trust: bool = False, hint: str = "") -> Any:
         raise InputFileError(path, f"not a readable PyTorch checkpoint ({first_line(exc)})") from exc
 
 
-def is_state_dict(obj: Any) -> bool:
+def is_state_dict(obj: Any) -> TypeGuard[Mapping[str, torch.Tensor]]:
     """A non-empty mapping whose values are all tensors."""
     return isinstance(obj, Mapping) and bool(obj) and all(isinstance(v, torch.Tensor) for v in obj.values())
 

@@ -124,7 +124,7 @@ def forward_scatter_exact(
     the two levels of the grid ``sigma0 + j * step_px`` that bracket it. The test suite bounds the error
     against :func:`forward_scatter_reference` (see ``docs/synthesis.md``).
     """
-    sig = sigma_px(dist_m.astype(np.float64), sigma0_px, k_px_per_m)
+    sig = np.asarray(sigma_px(dist_m.astype(np.float64), sigma0_px, k_px_per_m))  # an array for an array
     s_min, s_max = float(sig.min()), float(sig.max())
     levels = sigma_levels(s_min, s_max, sigma0_px=sigma0_px, step_px=step_px)
     lo, w = _level_weights(sig, levels)
@@ -147,7 +147,7 @@ def forward_scatter_reference(
     h, w, _ = basic.shape
     src = basic.astype(np.float64)
     out = np.empty_like(src)
-    sig = sigma_px(dist_m.astype(np.float64), sigma0_px, k_px_per_m)
+    sig = np.asarray(sigma_px(dist_m.astype(np.float64), sigma0_px, k_px_per_m))  # an array for an array
     for y in range(h):
         for x in range(w):
             g = gaussian_kernel_1d(float(sig[y, x]))

@@ -74,9 +74,10 @@ def apply_medium(
     """
     t = transmission(dist_m, beta_per_m)
     b = (*(float(np.float32(v)) for v in b_inf), 0.0)  # per-channel scalar for OpenCV
-    out = cv2.subtract(np.ascontiguousarray(clean, dtype=np.float32), b)
+    # (OpenCV takes a 4-tuple as a per-channel scalar; its type stubs do not say so.)
+    out = cv2.subtract(np.ascontiguousarray(clean, dtype=np.float32), b)  # type: ignore[call-overload]
     cv2.multiply(out, t, out)
-    cv2.add(out, b, out)  # Eq. (1): (J - B) T + B
+    cv2.add(out, b, out)  # type: ignore[call-overload]  # Eq. (1): (J - B) T + B
     return out, t
 
 

@@ -140,6 +140,6 @@ def comparison_grid(
         columns.append(np.vstack(parts))
     gap = np.full((columns[0].shape[0], 4, 3), 255, np.uint8)
     out = [columns[0]]
-    for c in columns[1:]:
-        out += [gap, c]
+    for column in columns[1:]:
+        out += [gap, column]
     return np.hstack(out)

@@ -16,9 +16,10 @@ Examples::
     udaformer:weights/UDA.pt
     ursct-256=ursct:weights/model_bestSSIM.pth?policy=official
 
-Options after ``?`` go to that method's restorer only (the same names as ``murk enhance``'s options:
-``he``, ``sigma_px``, ``lam``, ``clahe_clip``, ``clahe_tiles``, ``precision``, ``tile``, ``overlap``,
-``policy``, ...).
+Options after ``?`` go to that method's restorer only (the options its factory declares, e.g. ``he``,
+``sigma_px``, ``lam``, ``clahe_clip``, ``clahe_tiles`` for ``post``; ``precision``, ``tile``, ``overlap``,
+``policy``, ... for the networks; ``murk.enhance.restorer.options_of(name)`` lists them). An option that no stage of the
+method declares is an error naming the valid ones (``post?lamda=0.9`` suggests ``lam``).
 """
 
 from __future__ import annotations
@@ -26,6 +27,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+from murk.enhance.options import parse_spec
 
 
 @dataclass(frozen=True)
@@ -40,52 +43,37 @@ class MethodSpec:
 
 
 def parse_method(text: str) -> MethodSpec:
-    """Parse ``[LABEL=]METHOD[:CHECKPOINT]``.
+    """Parse ``[LABEL=]METHOD[:CHECKPOINT][?KEY=VALUE,...]`` (options: :func:`murk.enhance.options.parse_spec`).
 
     Raises:
-        ValueError: empty parts.
+        ValueError: empty parts, options that are not ``KEY=VALUE``, or ``trust_checkpoint`` in the spec.
     """
     raw = text.strip()
-    body, _, opt_text = raw.partition("?")
+    body, options = parse_spec(raw)
     label, _, rest = body.partition("=") if "=" in body else ("", "", body)
     method, _, ckpt = rest.partition(":")
-    options = tuple(_parse_option(o, text) for o in opt_text.split(",") if o.strip())
-    if any(k == "trust_checkpoint" for k, _ in options):
-        raise ValueError(
-            f"--method {text}: trust_checkpoint cannot be set inside a method spec (specs end up in scripts and "
-            "configs); pass --trust-checkpoint on the command line or trust_checkpoint=True in the API"
-        )
     method, ckpt, label = method.strip(), ckpt.strip(), label.strip()
     if not method:
         raise ValueError(f"--method: expected [LABEL=]METHOD[:CHECKPOINT], got {text!r}")
     if not label:
         label = method if not ckpt else f"{method}:{Path(ckpt).parent.name or Path(ckpt).stem}"
-    return MethodSpec(raw, label, method, ckpt or None, options)
+    return MethodSpec(raw, label, method, ckpt or None, tuple(options.items()))
 
 
-def _parse_option(item: str, text: str) -> tuple[str, Any]:
-    key, sep, value = item.partition("=")
-    if not sep or not key.strip():
-        raise ValueError(f"--method {text}: expected KEY=VALUE options after '?', got {item!r}")
-    v = value.strip()
-    for cast in (int, float):
-        try:
-            return key.strip(), cast(v)
-        except ValueError:
-            pass
-    if v.lower() in ("true", "false"):
-        return key.strip(), v.lower() == "true"
-    return key.strip(), v
+def build_restorer(spec: MethodSpec, **shared: Any) -> Any:
+    """The restorer of ``spec`` (None for ``raw``), built through the enhance registry.
 
-
-def build_restorer(spec: MethodSpec, **options: Any) -> Any:
-    """The restorer of ``spec`` (None for ``raw``), built through the enhance registry."""
+    ``shared`` are the command's settings (device, precision, ...): each stage takes those it declares. The
+    spec's own options and checkpoint must be options of the method (misspelt ones are an error).
+    """
     if spec.method == "raw":
+        if spec.options or spec.checkpoint:
+            raise ValueError(f"--method {spec.text}: raw (the input itself) takes no checkpoint or options")
         return None
     from murk.enhance.restorer import create
 
-    extra = {**options, **dict(spec.options)}
+    extra = dict(spec.options)
     if spec.checkpoint:
         key = "onnx" if spec.checkpoint.lower().endswith(".onnx") else "checkpoint"
         extra[key] = spec.checkpoint
-    return create(spec.method, **extra)
+    return create(spec.method, shared=shared, **extra)

@@ -6,6 +6,7 @@ from dataclasses import dataclass, fields
 from typing import Any, Literal, get_args
 
 from murk._checks import check_interval, check_positive, check_range
+from murk._config import from_dict
 
 Layout = Literal["quay", "breakwater", "piles", "mixed"]
 LAYOUTS: tuple[Layout, ...] = get_args(Layout)
@@ -82,13 +83,7 @@ class SceneConfig:
         return {f.name: (list(v) if isinstance(v := getattr(self, f.name), tuple) else v) for f in fields(self)}
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> SceneConfig:
-        """Build from a dict (e.g. ``yaml.safe_load``); unknown keys are an error naming them."""
-        if not isinstance(d, dict):
-            raise TypeError(f"scene config: expected a mapping, got {type(d).__name__}")
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise ValueError(f"scene config: unknown keys {unknown}; expected some of {sorted(known)}")
-        kwargs = {k: (tuple(v) if isinstance(v, list) else v) for k, v in d.items()}
-        return cls(**kwargs)
+    def from_dict(cls, d: dict[str, Any], *, where: str = "scene config") -> SceneConfig:
+        """Build from a dict (e.g. a YAML file's, :func:`murk._config.read_yaml`) with the one config loader:
+        unknown keys, wrong types and bad values are errors naming ``where`` and the key."""
+        return from_dict(cls, d, where=where)

@@ -133,11 +133,11 @@ def _settings(seed: int, size: tuple[int, int], cfg: Any, rgb_format: str, textu
 
 
 def _check_resume(path: Path, settings: dict) -> None:
-    import yaml
+    from murk._config import read_yaml
 
     if not path.is_file():
         return
-    old = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+    old = read_yaml(path, what="the settings of an earlier run")
     keys = ("murk_version", "scene_format_version", "seed", "size", "rgb_format", "textures", "scene_config")
     diff = [k for k in keys if old.get(k) != settings[k]]
     if diff:

@@ -198,8 +198,9 @@ class SceneParams:
 def _to_jsonable(value: Any) -> Any:
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         out: dict[str, Any] = {}
-        if hasattr(type(value), "shape"):
-            out["shape"] = type(value).shape
+        cls: Any = type(value)
+        if hasattr(cls, "shape"):
+            out["shape"] = cls.shape
         for f in dataclasses.fields(value):
             out[f.name] = _to_jsonable(getattr(value, f.name))
         return out

@@ -18,7 +18,7 @@ No equation of the paper is implemented here; the output is the clean input of E
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -32,7 +32,11 @@ from murk.scenes.textures import IMAGE_TEXTURE_PX, TILE_PX, lookup_numpy, lookup
 
 KINDS = ("box", "frustum", "sphere", "net")
 _FIELDS = {"box": geo.BOX_FIELDS, "frustum": geo.FRUSTUM_FIELDS, "sphere": geo.SPHERE_FIELDS, "net": geo.NET_FIELDS}
-_PACK = {Box: ("box", geo.pack_box), Frustum: ("frustum", geo.pack_frustum), Sphere: ("sphere", geo.pack_sphere)}
+_PACK: dict[type, tuple[str, Callable[..., np.ndarray]]] = {
+    Box: ("box", geo.pack_box),
+    Frustum: ("frustum", geo.pack_frustum),
+    Sphere: ("sphere", geo.pack_sphere),
+}
 _PACK[Net] = ("net", geo.pack_net)
 T_CAP_FACTOR = 1.0
 """Hits are searched up to this many times ``far_m`` (beyond ``far_m`` a surface is background anyway)."""

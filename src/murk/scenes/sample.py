@@ -28,6 +28,7 @@ from murk.scenes.params import (
     Frustum,
     Lighting,
     Material,
+    MaterialKind,
     Net,
     Primitive,
     SceneObject,
@@ -229,6 +230,7 @@ def _concrete(s: _Site, joints: bool) -> Material:
 
 def _rust(s: _Site, painted: bool = False) -> Material:
     rng = s.rng
+    kind: MaterialKind
     if painted:
         base = [(0.30, 0.30, 0.32), (0.55, 0.47, 0.22), (0.22, 0.26, 0.30)][int(rng.integers(0, 3))]
         a, b, kind = base, (base[0] * 0.7, base[1] * 0.7, base[2] * 0.7), "steel"

@@ -189,8 +189,9 @@ def composite_snow(image: np.ndarray, params: SnowParams, bank: ParticleBank) ->
     alpha_c = gaussian_blur(b, params.rho_px)  # Eq. (8): a_ms = G_rho * B (padded canvas)
     spread_c = gaussian_blur(bm, params.rho_px)  # a_ms M' = G_rho * (B M)
     # OpenCV reads the strided interior views directly (no copies)
-    alpha = cv2.min(alpha_c[pad : pad + h, pad : pad + w], 1.0)
-    one_minus = cv2.cvtColor(cv2.subtract(1.0, alpha), cv2.COLOR_GRAY2BGR)
+    # (OpenCV takes a float as a scalar operand; its type stubs do not say so.)
+    alpha = cv2.min(alpha_c[pad : pad + h, pad : pad + w], 1.0)  # type: ignore[call-overload]
+    one_minus = cv2.cvtColor(cv2.subtract(1.0, alpha), cv2.COLOR_GRAY2BGR)  # type: ignore[call-overload]
     out = cv2.multiply(np.ascontiguousarray(image, dtype=np.float32), one_minus)
     cv2.add(out, spread_c[pad : pad + h, pad : pad + w], out)  # Eq. (7): (1 - a) I_fs + a M'
     return out, alpha

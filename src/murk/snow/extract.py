@@ -115,6 +115,7 @@ def particle_mask(gray: np.ndarray, config: ExtractConfig) -> np.ndarray:
     if gray.ndim != 2 or gray.dtype != np.uint8:
         raise ShapeError(f"gray: expected a uint8 (H, W) image, got {gray.dtype} {gray.shape}")
     t = config.effective_threshold
+    binary: np.ndarray
     if config.method == "threshold":
         binary = (gray > t).astype(np.uint8)
     elif config.method == "tophat":

@@ -77,8 +77,8 @@ def sample_medium(rng: RngLike, config: MediumConfig) -> MediumParams:
         b_inf = ambient_light(wt, depth_d, scale=config.ambient_scale)
     return MediumParams(
         water_type=wt,
-        beta_per_m=tuple(float(b) for b in beta),
-        b_inf=tuple(float(b) for b in b_inf),
+        beta_per_m=(float(beta[0]), float(beta[1]), float(beta[2])),
+        b_inf=(float(b_inf[0]), float(b_inf[1]), float(b_inf[2])),
         vertical_depth_m=depth_d,
         distance_mode=config.distance_mode,
         near_m=float(config.near_m),

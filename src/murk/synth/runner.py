@@ -37,7 +37,7 @@ from typing import Any, Literal
 import cv2
 import numpy as np
 
-from murk._config import dump_yaml, to_dict
+from murk._config import dump_yaml, read_yaml, to_dict
 from murk._version import __version__
 from murk._workers import stop_if_orphaned
 from murk.io.atomic import remove_stale_temporaries, write_text_atomic
@@ -348,12 +348,10 @@ def input_locations(sources: Sequence[RGBDSource]) -> list[Path]:
 
 def check_config_compatible(out_dir: Path, config: SynthConfig) -> None:
     """Refuse to add to a folder made with a different configuration (the results would not be one dataset)."""
-    import yaml
-
     path = out_dir / "config.yaml"
     if not path.exists():
         return
-    old = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+    old = read_yaml(path, what="the configuration of an earlier run")
     new = to_dict(config)
     diffs = [
         k

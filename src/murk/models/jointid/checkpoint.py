@@ -58,7 +58,7 @@ def unwrap(model: nn.Module) -> JointID:
     Raises:
         TypeError: no JointID inside ``model``.
     """
-    m = model
+    m: Any = model
     for _ in range(4):
         if isinstance(m, JointID):
             return m

@@ -21,6 +21,7 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
+from murk._config import from_dict
 from murk.errors import ShapeError
 from murk.models.jointid.decoder import Decoder, JointBlock, Task
 from murk.models.jointid.encoder import Encoder
@@ -69,10 +70,7 @@ class JointIDConfig:
         Raises:
             ValueError: unknown keys.
         """
-        unknown = set(d) - set(cls.__dataclass_fields__)
-        if unknown:
-            raise ValueError(f"config: unknown keys {sorted(unknown)}")
-        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+        return from_dict(cls, d, where="config")
 
 
 VARIANTS: dict[str, JointIDConfig] = {
@@ -231,11 +229,13 @@ def init_weights(model: JointID) -> JointID:
             if isinstance(m, nn.Conv2d):
                 fan_out = m.kernel_size[0] * m.kernel_size[1] * m.out_channels // m.groups
                 nn.init.normal_(m.weight, 0.0, math.sqrt(2.0 / fan_out))
-                nn.init.zeros_(m.bias)
+                if m.bias is not None:
+                    nn.init.zeros_(m.bias)
         for m in branch.decoder.modules():
             if isinstance(m, nn.Conv2d):
                 nn.init.xavier_uniform_(m.weight)
-                nn.init.zeros_(m.bias)
+                if m.bias is not None:
+                    nn.init.zeros_(m.bias)
     return model
 
 

@@ -80,10 +80,10 @@ def fold_rep_conv(block: RepConv) -> PlainConv:
     """The :class:`PlainConv` equal to ``block`` in eval mode (to float rounding): the 1x1 kernel goes to the
     centre tap of the 3x3 kernel, the identity is a 3x3 kernel with a 1 at the centre of its own channel, and
     each branch's batch norm is folded into its kernel and bias before they are summed. Computed in float64."""
-    dd = {"dtype": torch.float64, "device": block.conv3.weight.device}
-    k3, b3 = fold_bn(block.conv3.weight.to(**dd), block.bn3)
+    dev = block.conv3.weight.device
+    k3, b3 = fold_bn(block.conv3.weight.to(dev, torch.float64), block.bn3)
     k1 = torch.zeros_like(k3)
-    k1[:, :, 1:2, 1:2] = block.conv1.weight.to(**dd)
+    k1[:, :, 1:2, 1:2] = block.conv1.weight.to(dev, torch.float64)
     k1, b1 = fold_bn(k1, block.bn1)
     kernel, bias = k3 + k1, b3 + b1
     if block.bn_id is not None:

@@ -34,6 +34,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
+from murk._config import from_dict
 from murk.errors import ShapeError
 from murk.models.lite.blocks import RepConv, conv_block, fold_rep_conv
 
@@ -77,10 +78,7 @@ class LiteConfig:
         Raises:
             ValueError: unknown keys or bad values.
         """
-        unknown = set(d) - set(cls.__dataclass_fields__)
-        if unknown:
-            raise ValueError(f"config: unknown keys {sorted(unknown)}")
-        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+        return from_dict(cls, d, where="config")
 
 
 VARIANTS: dict[str, LiteConfig] = {
@@ -132,7 +130,7 @@ class LiteNet(nn.Module):
         self.dec1 = block(c1, c1)
         self.head = nn.Conv2d(c1, 6, 1)
         nn.init.zeros_(self.head.weight)  # starts as the identity: gain 1, offset 0
-        nn.init.zeros_(self.head.bias)
+        nn.init.zeros_(self.head.bias)  # type: ignore[arg-type]  # a Conv2d built with bias=True
 
     def coefficients(self, x: Tensor) -> Tensor:
         """Gain (channels 0-2) and offset (3-5) at 1/4 resolution for an input (B, 3, H, W) in [0, 1]."""
@@ -186,7 +184,7 @@ def unwrap(model: nn.Module) -> LiteNet:
     Raises:
         TypeError: no LiteNet inside ``model``.
     """
-    m = model
+    m: Any = model
     for _ in range(4):
         if isinstance(m, LiteNet):
             return m

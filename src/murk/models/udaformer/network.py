@@ -22,6 +22,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
+from murk._config import from_dict
 from murk.errors import ShapeError
 
 WINDOW = 8
@@ -404,13 +405,7 @@ def build_udaformer(config: UDAformerConfig | dict[str, Any] | None = None) -> U
         ValueError: invalid values or unknown keys in a dict.
     """
     if isinstance(config, dict):
-        unknown = set(config) - set(UDAformerConfig.__dataclass_fields__)
-        if unknown:
-            raise ValueError(f"config: unknown keys {sorted(unknown)}")
-        d = dict(config)
-        if "blocks" in d:
-            d["blocks"] = tuple(d["blocks"])
-        config = UDAformerConfig(**d)
+        config = from_dict(UDAformerConfig, config, where="config")
     if config is not None and not isinstance(config, UDAformerConfig):
         raise TypeError(f"config: expected a UDAformerConfig, a dict or None, got {type(config).__name__}")
     return UDAformer(config)

@@ -32,6 +32,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
+from murk._config import from_dict
 from murk.errors import ShapeError
 
 WINDOW = 8
@@ -405,13 +406,7 @@ def build_ursct(config: URSCTConfig | dict[str, Any] | None = None, *, init: boo
         ValueError: invalid values or unknown keys in a dict.
     """
     if isinstance(config, dict):
-        unknown = set(config) - set(URSCTConfig.__dataclass_fields__)
-        if unknown:
-            raise ValueError(f"config: unknown keys {sorted(unknown)}")
-        d = dict(config)
-        if "depths" in d:
-            d["depths"] = tuple(d["depths"])
-        config = URSCTConfig(**d)
+        config = from_dict(URSCTConfig, config, where="config")
     if config is not None and not isinstance(config, URSCTConfig):
         raise TypeError(f"config: expected a URSCTConfig, a dict or None, got {type(config).__name__}")
     model = URSCT(config)

@@ -1,0 +1,26 @@
+"""The option strings of restoration and ``murk enhance`` as ``Literal`` types, in one light module.
+
+The library annotates with them and the CLI uses them directly as its choices (typer turns a ``Literal``
+annotation into a choice list), so the two never drift apart; importing this module pulls in neither torch nor
+OpenCV, so ``murk --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+from typing import Literal, get_args
+
+HEMode = Literal["y", "rgb", "clahe"]
+"""Histogram equalisation of the ``post`` method: luma only, each channel, or CLAHE on luma."""
+Precision = Literal["fp32", "bf16", "fp16"]
+"""Arithmetic of the network restorers: fp32, or bf16/fp16 autocast."""
+Policy = Literal["native", "official"]
+"""Input policy of the comparison baselines (:mod:`murk.enhance.baseline`)."""
+ImageFormat = Literal["png", "jpg"]
+"""Image format of ``murk enhance`` outputs."""
+VideoBackendChoice = Literal["auto", "opencv", "av"]
+"""Video writer of ``murk enhance``: auto picks av for live streams when installed."""
+BagStorage = Literal["mcap", "sqlite3"]
+"""Storage of a ROS 2 bag written by ``murk enhance`` (default: the input's)."""
+
+HE_MODES: tuple[str, ...] = get_args(HEMode)
+POLICIES: tuple[str, ...] = get_args(Policy)

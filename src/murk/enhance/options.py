@@ -1,0 +1,194 @@
+"""The options contract of restoration methods: what each factory declares, and strict checking of what it gets.
+
+A method's factory (registered with :func:`murk.enhance.restorer.register`) declares its options as keyword-only
+parameters with an annotation and a default; that signature is the contract (names, types, defaults), read once
+by :func:`declared_options`. A factory may not take ``**kwargs``: an option nobody declares is an error naming
+it, the nearest declared name and the valid ones, never silently ignored.
+
+Two kinds of options reach :func:`murk.enhance.restorer.create`:
+
+- method options (keyword arguments, or ``?KEY=VALUE,...`` after a spec such as ``post?lam=0.9``): each must be
+  declared by at least one stage of the chain, and goes to the stages that declare it;
+- shared settings (the ``shared`` mapping: a command's device, batch size, ... at their defaults): each stage
+  takes the ones it declares; a name no registered method declares at all is still an error.
+"""
+
+from __future__ import annotations
+
+import inspect
+import numbers
+import os
+import types
+import typing
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from murk._suggest import did_you_mean
+
+
+@dataclass(frozen=True)
+class Option:
+    """One declared option of a method: its name, its type (the annotation's text), its default and the resolved
+    annotation (``Any`` when it cannot be resolved)."""
+
+    name: str
+    type: str
+    default: Any
+    annotation: Any = Any
+
+    def __str__(self) -> str:
+        return f"{self.name}: {self.type} = {self.default!r}"
+
+
+def declared_options(factory: Callable[..., Any]) -> dict[str, Option]:
+    """The options ``factory`` declares, by name (its keyword-only parameters with defaults).
+
+    Raises:
+        TypeError: the factory takes ``**kwargs`` (which would swallow misspelt options), positional parameters,
+            or an option without a default.
+    """
+    what = getattr(factory, "__qualname__", repr(factory))
+    try:
+        hints = typing.get_type_hints(factory)
+    except (NameError, TypeError):  # an annotation that cannot be evaluated here: values are not type-checked
+        hints = {}
+    out: dict[str, Option] = {}
+    for p in inspect.signature(factory).parameters.values():
+        if p.kind is inspect.Parameter.VAR_KEYWORD:
+            raise TypeError(
+                f"{what}: a restorer factory declares its options as keyword-only parameters; **{p.name} would "
+                "swallow misspelt options"
+            )
+        if p.kind is not inspect.Parameter.KEYWORD_ONLY or p.default is inspect.Parameter.empty:
+            raise TypeError(f"{what}: option {p.name!r} must be keyword-only with a default")
+        text = p.annotation if isinstance(p.annotation, str) else getattr(p.annotation, "__name__", "Any")
+        text = "Any" if p.annotation is inspect.Parameter.empty else text
+        out[p.name] = Option(p.name, text, p.default, hints.get(p.name, Any))
+    return out
+
+
+def check_value(method: str, option: Option, value: Any) -> None:
+    """Raises ValueError unless ``value`` fits the option's declared type (bool, int, float, str, paths, None,
+    ``Literal``, tuples and unions of them are checked; other annotations accept anything).
+
+    A spec's options arrive as text (``post?lam=abc``), so a value of the wrong type is a bad value here.
+    """
+    if not _fits(option.annotation, value):
+        tp = option.annotation
+        literal = typing.get_origin(tp) is typing.Literal
+        expected = f"one of {', '.join(map(repr, typing.get_args(tp)))}" if literal else option.type
+        raise ValueError(f"method {method}: option {option.name}: expected {expected}, got {value!r}")
+
+
+def _fits(tp: Any, value: Any) -> bool:
+    origin = typing.get_origin(tp)
+    if tp is Any or tp is object:
+        return True
+    if tp is None or tp is type(None):
+        return value is None
+    if origin is typing.Literal:
+        return value in typing.get_args(tp)
+    if origin in (typing.Union, types.UnionType):
+        return any(_fits(a, value) for a in typing.get_args(tp))
+    if origin is tuple:
+        return isinstance(value, (tuple, list))
+    if tp is bool:
+        return isinstance(value, bool)
+    if tp is int:
+        return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+    if tp is float:
+        return isinstance(value, numbers.Real) and not isinstance(value, bool)
+    if tp is str:
+        return isinstance(value, str)
+    if isinstance(tp, type) and issubclass(tp, os.PathLike):
+        return isinstance(value, (str, os.PathLike))
+    return True  # other types (torch.device, classes): the factory checks them
+
+
+def unknown_option_error(method: str, name: str, valid: Iterable[str]) -> ValueError:
+    """The error of an option ``method`` does not declare: names it, the nearest valid one and all valid ones."""
+    names = sorted(valid)
+    listed = ", ".join(names) if names else "none"
+    return ValueError(
+        f"method {method}: unknown option {name!r}{did_you_mean(name, names)}; options of {method}: {listed}"
+    )
+
+
+def route_options(
+    method: str,
+    stages: Sequence[Mapping[str, Option]],
+    options: Mapping[str, Any],
+    shared: Mapping[str, Any],
+    known: Iterable[str],
+) -> list[dict[str, Any]]:
+    """The keyword arguments of each stage of ``method``: the declared subset of ``shared`` updated with
+    ``options``.
+
+    Args:
+        method: the spec, for messages (``"jointid+post"``).
+        stages: each stage's declared options.
+        options: method options; each must be declared by some stage.
+        shared: shared settings; each must be declared by some registered method (``known``).
+        known: every option name any registered method declares.
+
+    Raises:
+        ValueError: an option no stage declares, or a shared setting no method declares (named, with the
+            nearest valid name and the valid ones); an option whose value does not fit its declared type.
+    """
+    declared = set().union(*(set(s) for s in stages)) if stages else set()
+    for name, value in options.items():
+        if name not in declared:
+            raise unknown_option_error(method, name, declared)
+        for stage in stages:
+            if name in stage:
+                check_value(method, stage[name], value)
+    known = sorted(set(known))
+    for name in shared:
+        if name not in known:
+            raise ValueError(
+                f"shared setting {name!r}{did_you_mean(name, known)} is an option of no registered method; "
+                f"options of the methods: {', '.join(known)}"
+            )
+    merged = {**shared, **options}
+    return [{k: v for k, v in merged.items() if k in stage} for stage in stages]
+
+
+def parse_spec(spec: str) -> tuple[str, dict[str, Any]]:
+    """Split ``METHOD[?KEY=VALUE,...]`` into the method (``"jointid+post"``) and its options.
+
+    Values become int, float or bool (``true``/``false``) when they read as one, else stay strings. Options
+    cannot set ``trust_checkpoint`` (specs end up in scripts and configs; trust is an explicit flag).
+
+    Raises:
+        ValueError: an option that is not ``KEY=VALUE``, a repeated key, or ``trust_checkpoint``.
+    """
+    method, _, text = spec.partition("?")
+    options: dict[str, Any] = {}
+    for item in text.split(","):
+        if not item.strip():
+            continue
+        key, sep, value = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise ValueError(f"--method {spec}: expected KEY=VALUE options after '?', got {item!r}")
+        if key in options:
+            raise ValueError(f"--method {spec}: option {key!r} given twice")
+        options[key] = _value(value.strip())
+    if "trust_checkpoint" in options:
+        raise ValueError(
+            f"--method {spec}: trust_checkpoint cannot be set inside a method spec (specs end up in scripts and "
+            "configs); pass --trust-checkpoint on the command line or trust_checkpoint=True in the API"
+        )
+    return method.strip(), options
+
+
+def _value(text: str) -> Any:
+    for cast in (int, float):
+        try:
+            return cast(text)
+        except ValueError:
+            pass
+    if text.lower() in ("true", "false"):
+        return text.lower() == "true"
+    return text
