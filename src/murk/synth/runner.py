@@ -480,7 +480,7 @@ def synthesize(
     if data_format == "files" and (backend != "local" or ray_address):
         raise ValueError("--backend ray and --ray-address need --format webdataset")
     if list_file is not None:
-        sources, problems = read_list(list_file), []
+        sources, problems = read_list(list_file), list[ErrorRecord]()
     else:
         sources, problems = discover(rgbd)  # type: ignore[arg-type]
     if not sources:

@@ -232,14 +232,14 @@ def decode_sample(sample: dict[str, bytes], size_hw: tuple[int, int], index: int
     """``input``/``target`` (3, H, W) in [0, 1] and ``depth`` (1, H, W) metres (0 = invalid), centre-cropped."""
     missing = [m for m in ("degraded.png", "clean.png", "depth.png") if m not in sample]
     if missing:
-        raise InputFileError(where, f"sample {sample.get('__key__')} lacks {', '.join(missing)}")
+        raise InputFileError(where, f"sample {sample.get('__key__')!s} lacks {', '.join(missing)}")
     x = _decode_rgb(sample["degraded.png"], where)
     y = _decode_rgb(sample["clean.png"], where)
     raw = cv2.imdecode(np.frombuffer(sample["depth.png"], np.uint8), cv2.IMREAD_UNCHANGED)
     if raw is None or raw.ndim != 2:
-        raise InputFileError(where, f"sample {sample.get('__key__')}: depth.png is not a single-channel image")
+        raise InputFileError(where, f"sample {sample.get('__key__')!s}: depth.png is not a single-channel image")
     d = raw.astype(np.float32) / np.float32(DEPTH_SCALE)
-    x, y, d = centre_crop([x, y, d[:, :, None]], size_hw, source=f"{where}:{sample.get('__key__')}")
+    x, y, d = centre_crop([x, y, d[:, :, None]], size_hw, source=f"{where}:{sample.get('__key__')!s}")
 
     def chw(a: np.ndarray) -> torch.Tensor:
         return torch.from_numpy(np.ascontiguousarray(a.transpose(2, 0, 1)))
@@ -386,7 +386,8 @@ def build_shard_data(config: Any, world: int) -> tuple[ShardTrainSet, ShardSampl
         if not is_shard_source(d.val_source):
             raise ValueError(f"data.val_source: with shards, expected shards or an index.json, got {d.val_source!r}")
         vs = resolve_shards(d.val_source)
-        train_idx, val = list(range(len(stems))), ShardSampleDataset(vs, range(sum(vs.counts)), crop)
+        val: ShardSampleDataset | None = ShardSampleDataset(vs, range(sum(vs.counts)), crop)
+        train_idx = list(range(len(stems)))
     else:
         train_idx, val_idx = split_by_stem(stems, d.val_fraction, config.seed)
         val = ShardSampleDataset(ss, val_idx, crop) if val_idx else None
