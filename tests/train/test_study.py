@@ -108,6 +108,9 @@ def test_shipped_study_configs() -> None:
     assert base.model.variant == "small"
     shipped = load_yaml(TrainConfig, root / "train-small-cpu.yaml")
     assert arm_config(base, study.arms[-1], "X") == merge(shipped, {"out": str(Path("X") / "models" / "proposed")})
+    pair, pair_base = load_study(root / "study-basic-vs-proposed-cpu.yaml")  # the paper's study minus its middle arm
+    assert [a.name for a in pair.arms] == ["basic", "proposed"] and pair.arms == (study.arms[0], study.arms[-1])
+    assert pair_base == base and pair.eval == study.eval
 
 
 def test_a_killed_arm_resumes_to_the_same_weights(tmp_path: Path) -> None:
