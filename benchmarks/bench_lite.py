@@ -11,9 +11,11 @@ restorer; median over interleaved rounds so that machine noise hits every method
   baseline of the speed-ups.
 Weights: ``--checkpoint``, else the shipped ``lite.pt``, else random weights with trained-like statistics (the
 speed of a convolutional network does not depend on the values). MACs: convolutions, linear layers and attention
-products counted by ``torch.utils.flop_counter`` (FLOPs / 2); the lite network's per-pixel work at full
-resolution (bilinear x4 of 6 coefficient maps, 4 MACs per value; ``gain * x + offset``, 1 MAC per value) is
-added analytically; other element-wise work and pooling are not counted.
+products counted by ``torch.utils.flop_counter`` (FLOPs / 2; the lite network's convolutions run on the working
+image, about 128x160); the lite network's per-pixel work at full resolution (the luma guide, 3 MACs per pixel;
+bilinear upsampling of the 12 guided-filter maps, 4 MACs per value; the 6 coefficients ``a * Y + b``, 1 MAC each;
+``gain * x + offset``, 1 MAC per value) is added analytically; other element-wise work, the downsampling to the
+working image and pooling are not counted.
 """
 
 from __future__ import annotations
@@ -68,8 +70,9 @@ def macs_per_frame(model: torch.nn.Module, x: torch.Tensor) -> int:
 
 
 def lite_full_res_macs(h: int, w: int) -> int:
-    """Bilinear x4 of the 6 coefficient maps (4 MACs per output value) and ``gain * x + offset`` (1 per value)."""
-    return 6 * h * w * 4 + 3 * h * w
+    """Per full-resolution pixel: luma (3), bilinear upsampling of 12 maps (4 each), 6 coefficients ``a * Y + b``
+    (1 each), ``gain * x + offset`` (3)."""
+    return (3 + 12 * 4 + 6 + 3) * h * w
 
 
 def main() -> None:

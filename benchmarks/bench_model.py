@@ -1,6 +1,7 @@
 """The shipped murk-trained Joint-ID (or any checkpoint): quality on held-out data and CPU speed.
 
-Run: PYTHONPATH=src python benchmarks/bench_model.py [--checkpoint FILE] [--scenes 64] [--json OUT.json]
+Run: PYTHONPATH=src python benchmarks/bench_model.py [--method jointid|lite] [--checkpoint FILE] [--scenes 64]
+     [--json OUT.json]
 
 1. Held-out procedural scenes (never seen in training: their own seed): 64 scenes, 320x240, degraded with all
    three stages and the synthesis settings of configs/train-small-cpu.yaml. PSNR/SSIM of the degraded input and
@@ -9,7 +10,10 @@ Run: PYTHONPATH=src python benchmarks/bench_model.py [--checkpoint FILE] [--scen
    (artefact energy ratios, structure GMS, luminance contrast ratio, colour cast, luminance ratio, bright and
    dark particle residue), averaged over the images, and the targets of the "working model" issue checked.
 3. CPU speed at 640x480 with 2 threads: the restorer end to end (numpy frame in, enhanced + depth out) in fp32
-   and bf16 autocast, median of interleaved rounds; the ratio bf16/fp32 is the speed claim.
+   and bf16 autocast, median of interleaved rounds; the ratio bf16/fp32 is the speed claim (Joint-ID only:
+   ``lite`` runs in fp32; its speed is benchmarks/bench_lite.py's).
+
+``--method lite`` measures the shipped ``lite`` network (or ``--checkpoint``) on the same data.
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ import numpy as np
 import torch
 
 from murk._config import load_yaml, merge
-from murk.data import sample_underwater_images, shipped_jointid_weights
+from murk.data import sample_underwater_images, shipped_jointid_weights, shipped_lite_weights
 from murk.enhance.restorer import create
 from murk.io import read_rgb
 from murk.metrics import restoration_measures
@@ -76,18 +80,21 @@ def speed(checkpoint: str, repeats: int) -> dict[str, float]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--checkpoint", default=str(shipped_jointid_weights()))
+    ap.add_argument("--method", choices=["jointid", "lite"], default="jointid")
+    ap.add_argument("--checkpoint", default=None, help="default: the shipped weights of --method")
     ap.add_argument("--scenes", type=int, default=64)
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
     args = ap.parse_args()
+    if args.checkpoint is None:
+        args.checkpoint = str(shipped_jointid_weights() if args.method == "jointid" else shipped_lite_weights())
     torch.set_num_threads(2)
-    figures: dict[str, object] = {"checkpoint": args.checkpoint}
+    figures: dict[str, object] = {"method": args.method, "checkpoint": args.checkpoint}
 
     train_cfg = load_yaml(TrainConfig, ROOT / "configs" / "train-small-cpu.yaml")
     synthesis = merge(train_cfg.data.synthesis, {"stages": ["basic", "forward_scatter", "marine_snow"]})
     data = make_heldout(args.scenes, seed=HELDOUT_SEED, size_hw=(240, 320), synthesis=synthesis)
-    restorer = create("jointid", checkpoint=args.checkpoint)
+    restorer = create(args.method, checkpoint=args.checkpoint)
     scores = score_heldout(data, {"model": restorer})
     figures["heldout"] = scores
     print(f"== held-out: {args.scenes} procedural scenes, 320x240, three stages, seed {HELDOUT_SEED}")
@@ -120,6 +127,10 @@ def main() -> None:
         f"dark {real['particles_dark_in']:.0f} -> {real['particles_dark_out']:.0f})"
     )
 
+    if args.method != "jointid":
+        if args.json:
+            Path(args.json).write_text(json.dumps(figures, indent=2) + "\n")
+        return
     sp = speed(args.checkpoint, args.repeats)
     figures["speed_640x480_2threads"] = sp
     print(

@@ -43,7 +43,9 @@ def test_lite_restores_any_size_without_depth(lite_ckpt: Path) -> None:
     assert np.array_equal(t.images.permute(0, 2, 3, 1).numpy(), out.images)
     assert np.array_equal(r.restore(imgs).images, out.images)  # deterministic
     per_frame = np.concatenate([create("lite", checkpoint=str(lite_ckpt), batch=1).restore(imgs).images])
-    np.testing.assert_allclose(per_frame, out.images, atol=1e-6)
+    # Batched and single-frame convolutions round differently; the guided upsampling's a = cov / (var + eps)
+    # scales that float noise up a little.
+    np.testing.assert_allclose(per_frame, out.images, atol=2e-5)
 
 
 def test_lite_plus_post_is_post_after_lite(lite_ckpt: Path) -> None:
@@ -68,6 +70,10 @@ def test_onnx_backend_matches_torch(lite_ckpt: Path, tmp_path: Path) -> None:
     assert via_onnx.model is None and weights_of(via_onnx) == str(onnx_path)
     np.testing.assert_allclose(via_onnx.restore(imgs).images, ref, atol=1e-4)
     np.testing.assert_allclose(create("lite", onnx=str(onnx_path)).restore(imgs).images, ref, atol=1e-4)
+    large = _images(1, 150, 211)  # above the working area: a downsampled working image, no padding
+    ref = create("lite", checkpoint=str(lite_ckpt)).restore(large).images
+    assert ref.shape == large.shape
+    np.testing.assert_allclose(via_onnx.restore(large).images, ref, atol=1e-4)
 
 
 def test_without_checkpoint_uses_the_shipped_file_or_says_there_is_none(

@@ -3,6 +3,7 @@ ONNX round trip, determinism, checkpoints, and errors."""
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import pytest
@@ -17,7 +18,16 @@ from murk.models.lite.checkpoint import (
     save_lite_checkpoint,
     slim_lite_checkpoint,
 )
-from murk.models.lite.network import LiteConfig, LiteNet, build_lite, parameter_count, reparameterize
+from murk.models.lite.network import (
+    LiteConfig,
+    LiteNet,
+    build_lite,
+    guided_upsample,
+    parameter_count,
+    reparameterize,
+    work_image,
+    work_size,
+)
 
 MAX_INFERENCE_PARAMETERS = 100_000
 """The issue's budget for the folded network."""
@@ -139,6 +149,82 @@ def test_errors() -> None:
     assert isinstance(build_lite("tiny"), LiteNet)
 
 
+# ------------------------------------------------------------------------------------- working resolution
+
+
+def test_work_size_keeps_the_training_area_and_the_aspect() -> None:
+    area = LiteConfig().work_area_px
+    assert area == 128 * 160
+    assert work_size(128, 160, area) is None and work_size(96, 128, area) is None  # small frames: themselves
+    assert work_size(480, 640, area) == (128, 160)
+    assert work_size(240, 320, area) == (128, 160)
+    assert work_size(720, 1280, area) == (112, 192)
+    assert work_size(1080, 1920, area) == (112, 192)
+    assert work_size(4000, 20, area) == (2016, 16)  # at least one multiple of 16 per side
+    assert work_size(480, 640, 0) is None
+
+
+def test_a_large_frame_is_seen_at_the_training_scale() -> None:
+    """A frame and the same frame at twice the size give the same working image, hence the same coefficients:
+    the output at twice the size, reduced back, equals the output at the first size (up to the bilinear
+    upsampling of smooth coefficient maps)."""
+    net = reparameterize(_trained_like("base"))
+    x = torch.rand(1, 3, 256, 320, generator=torch.Generator().manual_seed(3))
+    x = torch.nn.functional.avg_pool2d(x, 5, 1, 2, count_include_pad=False)  # some spatial structure
+    x2 = torch.nn.functional.interpolate(x, scale_factor=2, mode="nearest")
+    w1, w2 = work_image(x, net.config.work_area_px), work_image(x2, net.config.work_area_px)
+    assert w1.shape == (1, 3, 128, 160) and torch.allclose(w1, w2, atol=1e-6)
+    with torch.no_grad():
+        y, y2 = net(x), net(x2)
+        assert y2.shape == x2.shape
+        assert (torch.nn.functional.avg_pool2d(y2, 2) - y).abs().mean() < 2e-3
+        bilinear = _with_config(net, guide_radius=0)
+        direct = torch.nn.functional.interpolate(
+            net.coefficients(work_image(x, net.config.work_area_px)), size=(256, 320), mode="bilinear"
+        )
+        assert torch.allclose(bilinear(x), direct[:, 3:] + direct[:, :3] * x, atol=1e-6)
+        # Without a working resolution the same network sees the large frame at its own scale: another output.
+        assert (_with_config(net, work_area_px=0)(x2) - y2).abs().mean() > 1e-2
+
+
+def _with_config(net: LiteNet, **changes: object) -> LiteNet:
+    """A folded copy of ``net`` with the same weights and other (weight-free) configuration values."""
+    other = LiteNet(LiteConfig.from_dict({**net.config.to_dict(), **changes}), folded=True)
+    other.load_state_dict(net.state_dict())
+    return other.eval()
+
+
+def test_guided_upsampling_follows_the_frame_edges() -> None:
+    """Coefficients that are a linear function of the (pooled) luma are reproduced at full resolution with the
+    frame's sharp edge; bilinear upsampling smears the step over several pixels."""
+    guide = torch.full((1, 1, 64, 64), 0.2)
+    guide[..., 30:] = 0.8  # a vertical edge, off the 4-pixel grid
+    guide_lo = torch.nn.functional.avg_pool2d(guide, 4)
+    coeffs = torch.cat([1.0 + 2.0 * guide_lo, 0.5 - guide_lo], dim=1)
+    exact = torch.cat([1.0 + 2.0 * guide, 0.5 - guide], dim=1)
+    guided = guided_upsample(coeffs, guide_lo, guide, radius=2, eps=1e-8)
+    bilinear = guided_upsample(coeffs, guide_lo, guide, radius=0, eps=1e-3)
+    assert (guided - exact).abs().max() < 1e-3
+    assert (bilinear - exact).abs().max() > 0.3
+    flat = guided_upsample(torch.full((1, 2, 16, 16), 0.7), guide_lo, guide, radius=2, eps=1e-3)
+    assert torch.allclose(flat, torch.full_like(flat, 0.7), atol=1e-6)  # constant maps stay constant
+    with pytest.raises(ValueError, match="guide_radius"):
+        LiteConfig(guide_radius=-1)
+    with pytest.raises(ValueError, match="guide_eps"):
+        LiteConfig(guide_eps=0.0)
+
+
+def test_a_large_frame_of_any_size_needs_no_padding() -> None:
+    net = _trained_like("tiny")
+    x = torch.rand(2, 3, 150, 211)
+    with torch.no_grad():
+        assert net(x).shape == x.shape
+    with pytest.raises(ShapeError, match="working image"):
+        net(x, torch.rand(2, 3, 40, 50))
+    with pytest.raises(ValueError, match="work_area_px"):
+        LiteConfig(work_area_px=100)
+
+
 # --------------------------------------------------------------------------------------------- checkpoints
 
 
@@ -194,9 +280,20 @@ def test_onnx_round_trip(tmp_path: Path) -> None:
     assert "BatchNormalization" not in ops  # exported folded
     runner = OnnxLite(path, threads=1)
     folded = reparameterize(net)
-    for hw in ((64, 96), (48, 80), (96, 32)):  # dynamic height and width (multiples of 16)
+    assert runner.work_area_px == net.config.work_area_px  # stored in the model's metadata
+    # dynamic height and width: small frames (multiples of 16, their own working image) and large ones of any
+    # size (a downsampled working image)
+    for hw in ((64, 96), (48, 80), (96, 32), (150, 211), (480, 640)):
         x = torch.rand(2, 3, *hw, generator=torch.Generator().manual_seed(hw[0]))
         with torch.no_grad():
             assert (runner(x) - folded(x)).abs().max().item() <= 1e-4
     with pytest.raises(ValueError, match="multiples of 16"):
         export_lite_onnx(net, tmp_path / "x.onnx", sample_size=(40, 64))
+    # An export with the earlier single input is refused with what to do.
+    old = tmp_path / "old.onnx"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        torch.onnx.export(folded, (torch.zeros(1, 3, 32, 32),), str(old), dynamo=False, input_names=["image"],
+                          output_names=["enhanced"])  # fmt: skip
+    with pytest.raises(InputFileError, match="export it again"):
+        OnnxLite(old)

@@ -1,7 +1,10 @@
 """The ``lite`` restorer: the small real-time network (:mod:`murk.models.lite`) for images of any size.
 
-Pipeline per batch: reflect-pad to multiples of 16 -> the folded (re-parameterised) network, or its ONNX export
-run by ONNX Runtime -> crop back -> clamp to [0, 1]. Frames are never resized. No depth.
+Pipeline per batch: the working image (a frame larger than the network's ``work_area_px``, 128x160 for the
+shipped weights, is area-downsampled to about that many pixels; a smaller frame is reflect-padded to multiples of
+16 and used itself) -> the folded (re-parameterised) network, or its ONNX export run by ONNX Runtime, computes
+gain and offset maps from it -> upsampled to the frame -> ``gain * frame + offset`` -> clamp to [0, 1]. The frame
+itself is never resampled. No depth.
 
 Registry options (``murk.enhance.create("lite", **options)``; any other option is an error):
 ``checkpoint`` (a ``murk train`` checkpoint with ``model.kind: lite``, or an ``.onnx`` export; default: the
@@ -20,7 +23,7 @@ from torch import Tensor, nn
 
 from murk.enhance.restorer import RestoredTensor, Restorer, register
 from murk.errors import ShapeError
-from murk.models.lite.network import SIZE_MULTIPLE, reparameterize, unwrap
+from murk.models.lite.network import SIZE_MULTIPLE, reparameterize, unwrap, work_image, work_size
 from murk.models.padding import pad_to_multiple
 
 
@@ -53,6 +56,7 @@ class LiteRestorer(Restorer):
             self.device = torch.device("cpu")
             self.model: nn.Module | None = None
             self._backend: Any = model
+            self.work_area_px = model.work_area_px
             return
         if not isinstance(model, nn.Module):
             raise TypeError(f"model: expected a LiteNet or an OnnxLite, got {type(model).__name__}")
@@ -68,6 +72,8 @@ class LiteRestorer(Restorer):
         channels_last = net.float().to(dev).to(memory_format=torch.channels_last)  # type: ignore[call-overload]
         self.model = channels_last.eval()  # (valid: torch's stubs lack memory_format on Module.to)
         self._backend = self.model
+        self.work_area_px = net.config.work_area_px
+        """Frames with more pixels are area-downsampled to about this many for the coefficients (0: never)."""
 
     def restore_tensor(self, images: Tensor) -> RestoredTensor:
         """Enhance a batch (B, 3, H, W) in [0, 1] of any H, W >= 1.
@@ -81,13 +87,20 @@ class LiteRestorer(Restorer):
         if images.ndim != 4 or images.shape[1] != 3 or images.shape[0] < 1:
             raise ShapeError(f"images: expected shape (B, 3, H, W), got {tuple(images.shape)}")
         with torch.inference_mode():
-            x, pad = pad_to_multiple(images.to(self.device, torch.float32), SIZE_MULTIPLE, "reflect")
+            x = images.to(self.device, torch.float32)
+            native = work_size(x.shape[-2], x.shape[-1], self.work_area_px) is None
+            if native:  # the frame itself is the working image: its sides must be multiples of 16
+                x, pad = pad_to_multiple(x, SIZE_MULTIPLE, "reflect")
             if self.model is not None:
                 x = x.contiguous(memory_format=torch.channels_last)
             step = self.batch or x.shape[0]
-            outs = [self._backend(x[i : i + step]) for i in range(0, x.shape[0], step)]
+            outs = []
+            for i in range(0, x.shape[0], step):
+                chunk = x[i : i + step]
+                outs.append(self._backend(chunk, chunk if native else work_image(chunk, self.work_area_px)))
             out = outs[0] if len(outs) == 1 else torch.cat(outs)
-            enhanced = pad.crop(out.clamp_(0.0, 1.0))
+            out = out.clamp_(0.0, 1.0)
+            enhanced = pad.crop(out) if native else out
         return RestoredTensor(enhanced, None)
 
     def __repr__(self) -> str:

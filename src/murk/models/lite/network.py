@@ -7,11 +7,28 @@ backscatter ``B_c``, ``J_c = I_c / t_c - B_c (1 - t_c) / t_c``, a gain and an of
 vary smoothly with distance. Working at 1/4 resolution keeps the convolutions cheap; full-resolution detail
 is never resampled (it passes through the per-pixel affine map), so there is no sub-pixel grid to draw.
 
+Working resolution (as HDRNet's fixed low-resolution input): a frame larger than ``work_area_px`` (the area of
+the training crops, 128x160) is first area-downsampled to about that many pixels (:func:`work_size`: multiples
+of 16, aspect kept to within the rounding), the coefficients are computed from that small image and upsampled
+bilinearly to the frame. The network therefore sees a 640x480 or 1280x720 frame at the scale of its training
+crops, whatever the frame size, and its cost hardly grows with the frame. Without this, its fixed receptive
+field saw an ever smaller part of the scene as frames grew (measured: held-out scenes at 640x480 went from
+17.9 dB in to 16.0 dB out; with it, 24.2 dB). Frames up to ``work_area_px`` run at their own resolution.
+
+Edge-aware upsampling (the fast guided filter: He, Sun, Tang, "Guided Image Filtering", IEEE TPAMI 35(6), 2013,
+doi:10.1109/TPAMI.2012.213, upsampled as in He and Sun, "Fast Guided Filter", arXiv:1505.00996): plain bilinear
+upsampling of coarse coefficient maps smears them across object outlines and leaves halos (a dark or
+bright rim a few coefficient cells wide around a diver or a fish). Instead, on the coefficient grid each map is
+fitted locally (box of ``2 guide_radius + 1`` cells) as a linear function ``a * Y + b`` of the luma ``Y`` of the
+pooled working image; ``a`` and ``b`` are box-averaged, upsampled bilinearly and evaluated with the luma of the
+full-resolution frame, so the coefficients change where the frame's luma changes. ``guide_radius: 0`` gives
+plain bilinear upsampling.
+
 Structure (``widths = (c1, c2, c3)`` channels at 1/4, 1/8, 1/16 resolution; ``blocks`` per scale):
 ``avg_pool x4 -> stem -> c1 blocks -> down -> c2 blocks -> down -> c3 blocks -> + global context ->
 1x1, bilinear x2, + skip -> block -> 1x1, bilinear x2, + skip -> block -> 1x1 head (6 channels) -> bounded
-log-gain and offset -> bilinear x4 -> gain * x + offset``. Every block is a :class:`~murk.models.lite.blocks.RepConv`
-while training and one 3x3 convolution after :func:`reparameterize`.
+log-gain and offset -> guided upsampling to the frame -> gain * x + offset``. Every block is a
+:class:`~murk.models.lite.blocks.RepConv` while training and one 3x3 convolution after :func:`reparameterize`.
 
 ``forward`` takes RGB in [0, 1] (no normalisation), height and width multiples of :data:`SIZE_MULTIPLE`, and
 returns the enhanced image, not clamped (the restorer clamps; training sees the unclamped values). No depth.
@@ -58,6 +75,13 @@ class LiteConfig:
     """The gain is ``exp(g)`` with ``|g| <= max_log_gain`` (soft bound by tanh): 0.14x to 7.4x."""
     max_offset: float = 1.0
     """The offset is soft-bounded to ``[-max_offset, max_offset]`` (tanh)."""
+    guide_radius: int = 2
+    """Box radius (coefficient cells) of the guided upsampling; 0: plain bilinear."""
+    guide_eps: float = 1e-3
+    """Regularisation of the guided upsampling (luma variance units): larger is closer to bilinear."""
+    work_area_px: int = 128 * 160
+    """Larger frames are area-downsampled to about this many pixels for the coefficients (:func:`work_size`);
+    the area of the training crops (``data.crop_hw``). 0: always the frame's own resolution."""
 
     def __post_init__(self) -> None:
         if len(self.widths) != 3 or any(int(w) < 1 for w in self.widths):
@@ -66,6 +90,14 @@ class LiteConfig:
             raise ValueError(f"blocks: expected three block counts >= 0, got {self.blocks}")
         if not self.max_log_gain > 0 or not self.max_offset > 0:
             raise ValueError(f"max_log_gain, max_offset: expected > 0, got {self.max_log_gain}, {self.max_offset}")
+        if isinstance(self.guide_radius, bool) or int(self.guide_radius) != self.guide_radius or self.guide_radius < 0:
+            raise ValueError(f"guide_radius: expected an integer >= 0, got {self.guide_radius!r}")
+        if not self.guide_eps > 0:
+            raise ValueError(f"guide_eps: expected > 0, got {self.guide_eps}")
+        if isinstance(self.work_area_px, bool) or int(self.work_area_px) != self.work_area_px:
+            raise ValueError(f"work_area_px: expected an integer, got {self.work_area_px!r}")
+        if self.work_area_px != 0 and self.work_area_px < SIZE_MULTIPLE**2:
+            raise ValueError(f"work_area_px: expected 0 or at least {SIZE_MULTIPLE**2}, got {self.work_area_px}")
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict (lists and numbers only), safe for ``torch.load(weights_only=True)`` and JSON."""
@@ -95,6 +127,59 @@ def variant_name(config: LiteConfig) -> str | None:
 
 def _up(x: Tensor, factor: int) -> Tensor:
     return F.interpolate(x, scale_factor=factor, mode="bilinear", align_corners=False)
+
+
+LUMA = (0.299, 0.587, 0.114)
+"""BT.601 luma weights of the guide."""
+
+
+def _luma(x: Tensor) -> Tensor:
+    return LUMA[0] * x[:, 0:1] + LUMA[1] * x[:, 1:2] + LUMA[2] * x[:, 2:3]
+
+
+def _box(x: Tensor, radius: int) -> Tensor:
+    """Mean over a (2 radius + 1)^2 box, the window cut at the borders (only pixels inside are averaged)."""
+    return F.avg_pool2d(x, 2 * radius + 1, 1, radius, count_include_pad=False)
+
+
+def guided_upsample(coeffs: Tensor, guide_lo: Tensor, guide: Tensor, radius: int, eps: float) -> Tensor:
+    """Upsample ``coeffs`` (B, C, h, w) to ``guide``'s size (B, 1, H, W) following ``guide``'s edges.
+
+    ``guide_lo`` (B, 1, h, w) is the guide at the coefficients' resolution. Per box of radius ``radius``:
+    ``a = cov(guide_lo, coeffs) / (var(guide_lo) + eps)``, ``b = mean(coeffs) - a mean(guide_lo)``; the box means
+    of ``a`` and ``b`` are upsampled bilinearly and the result is ``a * guide + b``. ``radius == 0``: bilinear.
+    """
+    size = guide.shape[-2:]
+    if radius == 0:
+        return F.interpolate(coeffs, size=size, mode="bilinear", align_corners=False)
+    mean_g, mean_c = _box(guide_lo, radius), _box(coeffs, radius)
+    cov = _box(guide_lo * coeffs, radius) - mean_g * mean_c
+    var = _box(guide_lo * guide_lo, radius) - mean_g * mean_g
+    a = cov / (var + eps)
+    b = mean_c - a * mean_g
+    n = coeffs.shape[1]
+    ab = F.interpolate(_box(torch.cat([a, b], dim=1), radius), size=size, mode="bilinear", align_corners=False)
+    return torch.addcmul(ab[:, n:], ab[:, :n], guide)
+
+
+def work_size(height: int, width: int, work_area_px: int) -> tuple[int, int] | None:
+    """(h, w) of the working image for a ``height`` x ``width`` frame, or None to use the frame itself.
+
+    None when ``work_area_px`` is 0 or the frame has at most that many pixels. Otherwise the frame scaled by
+    ``s = sqrt(work_area_px / (height * width))``, each side rounded to the nearest multiple of
+    :data:`SIZE_MULTIPLE` (at least one multiple). Examples with the default 20,480 px: 640x480 -> 160x128,
+    1280x720 -> 192x112.
+    """
+    if work_area_px <= 0 or height * width <= work_area_px:
+        return None
+    s = (work_area_px / (height * width)) ** 0.5
+    return tuple(max(SIZE_MULTIPLE, round(n * s / SIZE_MULTIPLE) * SIZE_MULTIPLE) for n in (height, width))  # type: ignore[return-value]
+
+
+def work_image(x: Tensor, work_area_px: int) -> Tensor:
+    """The working image of a batch (B, 3, H, W): area-downsampled to :func:`work_size`, or ``x`` itself."""
+    size = work_size(int(x.shape[-2]), int(x.shape[-1]), work_area_px)
+    return x if size is None else F.interpolate(x, size=size, mode="area")
 
 
 class LiteNet(nn.Module):
@@ -146,17 +231,36 @@ class LiteNet(nn.Module):
         offset = o * torch.tanh(h[:, 3:] / o)
         return torch.cat([gain, offset], dim=1)
 
-    def forward(self, x: Tensor) -> Tensor:
-        """Enhance (B, 3, H, W) RGB in [0, 1] (H, W multiples of 16): ``gain * x + offset``, not clamped.
+    def forward(self, x: Tensor, work: Tensor | None = None) -> Tensor:
+        """Enhance (B, 3, H, W) RGB in [0, 1]: ``gain * x + offset``, not clamped.
+
+        Args:
+            x: the frames. H and W must be multiples of 16 when the frame is used at its own resolution (at most
+                ``work_area_px`` pixels); larger frames may have any size.
+            work: the working image (B, 3, h, w), h and w multiples of 16, from which the coefficients are
+                computed; default :func:`work_image` of ``x`` (the ONNX export takes it as a second input).
 
         Raises:
-            ShapeError: not (B, 3, H, W) with H and W multiples of 16.
+            ShapeError: not (B, 3, H, W), or a working image whose sides are not multiples of 16.
         """
-        if x.ndim != 4 or x.shape[1] != 3 or x.shape[2] % SIZE_MULTIPLE or x.shape[3] % SIZE_MULTIPLE:
+        if x.ndim != 4 or x.shape[1] != 3:
+            raise ShapeError(f"x: expected (B, 3, H, W), got {tuple(x.shape)}")
+        if work is None:
+            work = work_image(x, self.config.work_area_px)
+        if (
+            work.ndim != 4
+            or work.shape[:2] != x.shape[:2]
+            or work.shape[2] % SIZE_MULTIPLE
+            or work.shape[3] % SIZE_MULTIPLE
+        ):
             raise ShapeError(
-                f"x: expected (B, 3, H, W) with H and W multiples of {SIZE_MULTIPLE}, got {tuple(x.shape)}"
+                f"x: expected (B, 3, H, W) with H and W multiples of {SIZE_MULTIPLE} (or a working image of such a "
+                f"size), got {tuple(x.shape)}" + ("" if work is x else f" with a working image {tuple(work.shape)}")
             )
-        c = _up(self.coefficients(x), POOL)
+        cfg = self.config
+        guide_lo = _luma(F.avg_pool2d(work, POOL)) if cfg.guide_radius else work
+        guide = _luma(x) if cfg.guide_radius else x  # (radius 0: only its size is used)
+        c = guided_upsample(self.coefficients(work), guide_lo, guide, cfg.guide_radius, cfg.guide_eps)
         return torch.addcmul(c[:, 3:], c[:, :3], x)  # Eq. (1) inverted: J = I / t - B (1 - t) / t, per channel
 
 

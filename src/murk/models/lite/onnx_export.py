@@ -1,8 +1,10 @@
-"""ONNX export of the folded ``lite`` network (dynamic batch, height and width: multiples of 16) and an ONNX
-Runtime runner.
+"""ONNX export of the folded ``lite`` network (dynamic batch, height and width) and an ONNX Runtime runner.
 
-The graph takes ``image``, RGB in [0, 1] (B, 3, H, W) (no normalisation), and returns ``enhanced``
-(B, 3, H, W), not clamped (as the torch network). The TorchScript-based exporter is used (``dynamo=False``: no
+The graph takes ``image``, RGB in [0, 1] (B, 3, H, W) (no normalisation), and ``work``, its working image
+(B, 3, h, w) with h and w multiples of 16 (:func:`~murk.models.lite.network.work_image`: the image itself when it
+has at most ``work_area_px`` pixels, else area-downsampled; the runner makes it), and returns ``enhanced``
+(B, 3, H, W), not clamped (as the torch network). The network's ``work_area_px`` is stored in the model's
+metadata (key ``murk.work_area_px``). The TorchScript-based exporter is used (``dynamo=False``: no
 extra package needed). Operators: Conv, LeakyRelu, AveragePool, ReduceMean, Resize (bilinear), Tanh, Exp,
 Mul, Add, Slice, Concat.
 """
@@ -20,10 +22,12 @@ from torch import Tensor, nn
 
 from murk.errors import InputFileError
 from murk.io.atomic import atomic_path
-from murk.models.lite.network import SIZE_MULTIPLE, LiteNet, reparameterize, unwrap
+from murk.models.lite.network import SIZE_MULTIPLE, LiteNet, reparameterize, unwrap, work_image
 
 INPUT_NAME = "image"
+WORK_NAME = "work"
 OUTPUT_NAME = "enhanced"
+WORK_AREA_KEY = "murk.work_area_px"
 DEFAULT_OPSET = 17
 VERIFY_TOLERANCE = 1e-4
 """Max absolute difference (enhanced, in [0, 1] units) allowed between ONNX Runtime and torch."""
@@ -45,7 +49,8 @@ def export_lite_onnx(
         model: a LiteNet, optionally wrapped.
         path: the ``.onnx`` file to write.
         opset: ONNX opset (>= 11).
-        sample_size: (H, W) of the tracing input, multiples of 16; the graph accepts any multiple of 16.
+        sample_size: (H, W) of the tracing input, multiples of 16; the graph accepts any size (the working
+            image: multiples of 16).
 
     Raises:
         ValueError: opset < 11 or a sample size that is not a positive multiple of 16.
@@ -57,21 +62,30 @@ def export_lite_onnx(
         raise ValueError(f"sample_size: expected positive multiples of {SIZE_MULTIPLE}, got {sample_size}")
     net = _inference_copy(model)
     axes = {0: "batch", 2: "height", 3: "width"}
+    work_axes = {0: "batch", 2: "work_height", 3: "work_width"}
     path = Path(path)
     with atomic_path(path) as tmp, warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)  # the legacy exporter announces its successor
         warnings.simplefilter("ignore", torch.jit.TracerWarning)  # the input shape check
+        # Traced with a working image of another size than the frame, so that the upsampling to the frame's
+        # size is recorded from the frame's shape, not as a fixed scale.
         torch.onnx.export(
             net,
-            (torch.zeros(1, 3, h, w),),
+            (torch.zeros(1, 3, 2 * h, 2 * w), torch.zeros(1, 3, h, w)),
             str(tmp),
             dynamo=False,
-            input_names=[INPUT_NAME],
+            input_names=[INPUT_NAME, WORK_NAME],
             output_names=[OUTPUT_NAME],
-            dynamic_axes={INPUT_NAME: axes, OUTPUT_NAME: axes},
+            dynamic_axes={INPUT_NAME: axes, WORK_NAME: work_axes, OUTPUT_NAME: axes},
             opset_version=opset,
             do_constant_folding=True,
         )
+        import onnx
+
+        graph = onnx.load(str(tmp))
+        entry = graph.metadata_props.add()
+        entry.key, entry.value = WORK_AREA_KEY, str(net.config.work_area_px)
+        onnx.save(graph, str(tmp))
     return path
 
 
@@ -106,18 +120,32 @@ class OnnxLite:
             raise InputFileError(path, f"not a loadable ONNX model ({type(exc).__name__}: {exc})") from exc
         ins = [i.name for i in self.session.get_inputs()]
         outs = [o.name for o in self.session.get_outputs()]
-        if ins != [INPUT_NAME] or outs != [OUTPUT_NAME]:
+        if ins == [INPUT_NAME] and outs == [OUTPUT_NAME]:
             raise InputFileError(
-                path, f"not a murk lite export (inputs {ins}, outputs {outs}; expected image -> enhanced)"
+                path, "a lite export from an earlier murk (no working-image input); export it again with 'murk export'"
             )
+        if ins != [INPUT_NAME, WORK_NAME] or outs != [OUTPUT_NAME]:
+            raise InputFileError(
+                path, f"not a murk lite export (inputs {ins}, outputs {outs}; expected image, work -> enhanced)"
+            )
+        meta = self.session.get_modelmeta().custom_metadata_map
+        try:
+            self.work_area_px = int(meta[WORK_AREA_KEY])
+        except (KeyError, ValueError) as exc:
+            raise InputFileError(path, f"not a murk lite export (no valid {WORK_AREA_KEY!r} metadata)") from exc
         self.path = path
 
-    def run_numpy(self, x: np.ndarray) -> np.ndarray:
-        """(B, 3, H, W) float32 RGB in [0, 1] -> enhanced (B, 3, H, W) float32."""
-        return self.session.run([OUTPUT_NAME], {INPUT_NAME: np.ascontiguousarray(x, np.float32)})[0]
+    def run_numpy(self, x: np.ndarray, work: np.ndarray | None = None) -> np.ndarray:
+        """(B, 3, H, W) float32 RGB in [0, 1] (and its working image; default: made here) -> enhanced
+        (B, 3, H, W) float32."""
+        if work is None:
+            work = work_image(torch.from_numpy(np.asarray(x, np.float32)), self.work_area_px).numpy()
+        feeds = {INPUT_NAME: np.ascontiguousarray(x, np.float32), WORK_NAME: np.ascontiguousarray(work, np.float32)}
+        return self.session.run([OUTPUT_NAME], feeds)[0]
 
-    def __call__(self, x: Tensor) -> Tensor:
-        return torch.from_numpy(self.run_numpy(x.detach().float().cpu().numpy())).to(x.device)
+    def __call__(self, x: Tensor, work: Tensor | None = None) -> Tensor:
+        w = None if work is None else work.detach().float().cpu().numpy()
+        return torch.from_numpy(self.run_numpy(x.detach().float().cpu().numpy(), w)).to(x.device)
 
     def __repr__(self) -> str:
         return f"OnnxLite({str(self.path)!r})"
@@ -162,7 +190,7 @@ def export_lite_checkpoint(
     if verify:
         runner = OnnxLite(out)
         g = torch.Generator().manual_seed(0)
-        for h, w in ((64, 96), (96, 64)):
+        for h, w in ((64, 96), (96, 64), (192, 320)):  # the last one larger than the working area
             x = torch.rand(2, 3, h, w, generator=g)
             with torch.inference_mode():
                 ref = model(x)
