@@ -109,3 +109,23 @@ def test_errors(lite_ckpt: Path, tmp_path: Path) -> None:
 
     with pytest.raises(ShapeError, match=r"\(B, 3, H, W\)"):
         r.restore_tensor(torch.zeros(3, 8, 8))
+
+
+@pytest.mark.parametrize("hw", [(37, 53), (150, 211), (480, 640)])
+def test_the_opencv_upsampling_path_equals_the_network(lite_ckpt: Path, hw: tuple[int, int]) -> None:
+    """On the CPU the restorer upsamples the coefficient maps with OpenCV; the result equals the torch network's
+    forward (bilinear, half-pixel centres) to float rounding (the interpolation weights round differently)."""
+    from murk.models.lite.checkpoint import load_lite
+    from murk.models.padding import pad_to_multiple
+
+    net = load_lite(lite_ckpt)
+    imgs = _images(2, *hw)
+    got = create("lite", checkpoint=str(lite_ckpt)).restore(imgs).images
+    x = torch.from_numpy(imgs).permute(0, 3, 1, 2)
+    with torch.no_grad():
+        if hw[0] * hw[1] <= net.config.work_area_px:
+            xp, pad = pad_to_multiple(x, 16, "reflect")
+            ref = pad.crop(net(xp))
+        else:
+            ref = net(x)
+    np.testing.assert_allclose(got, ref.clamp(0, 1).permute(0, 2, 3, 1).numpy(), atol=5e-5)

@@ -23,7 +23,7 @@ from torch import Tensor, nn
 
 from murk.enhance.restorer import RestoredTensor, Restorer, register
 from murk.errors import ShapeError
-from murk.models.lite.network import SIZE_MULTIPLE, reparameterize, unwrap, work_image, work_size
+from murk.models.lite.network import SIZE_MULTIPLE, apply_maps_hwc, reparameterize, unwrap, work_image, work_size
 from murk.models.padding import pad_to_multiple
 
 
@@ -97,7 +97,11 @@ class LiteRestorer(Restorer):
             outs = []
             for i in range(0, x.shape[0], step):
                 chunk = x[i : i + step]
-                outs.append(self._backend(chunk, chunk if native else work_image(chunk, self.work_area_px)))
+                work = chunk if native else work_image(chunk, self.work_area_px)
+                if self.model is not None and self.device.type == "cpu":
+                    outs.append(_forward_cpu(self.model, chunk, work))
+                else:
+                    outs.append(self._backend(chunk, work))
             out = outs[0] if len(outs) == 1 else torch.cat(outs)
             out = out.clamp_(0.0, 1.0)
             enhanced = pad.crop(out) if native else out
@@ -106,6 +110,31 @@ class LiteRestorer(Restorer):
     def __repr__(self) -> str:
         backend = self._backend if self.model is None else "LiteNet (folded)"
         return f"LiteRestorer({backend}, device={self.device}, batch={self.batch})"
+
+
+def _forward_cpu(model: nn.Module, x: Tensor, work: Tensor) -> Tensor:
+    """The network's forward on the CPU with the full-resolution upsampling done by OpenCV: the same result as
+    ``model(x, work)`` (bilinear with half-pixel centres, as torch's; equal within 5e-5, pinned by tests) and
+    about 9x faster for the 12 maps of a 1280x720 frame than ``F.interpolate`` on 2 threads. The maps are applied
+    in strips of :data:`STRIP_ROWS` rows so that the temporaries stay in the cache (2x faster at 1280x720)."""
+    import cv2
+
+    maps = model.maps(work)  # type: ignore[operator]
+    h, w = x.shape[-2:]
+    out = torch.empty((x.shape[0], h, w, 3), dtype=x.dtype)
+    for i in range(x.shape[0]):
+        lo = maps[i].permute(1, 2, 0).contiguous().numpy()
+        up = torch.from_numpy(cv2.resize(lo, (w, h), interpolation=cv2.INTER_LINEAR))
+        frame = x[i].permute(1, 2, 0)
+        for r0 in range(0, h, STRIP_ROWS):
+            rows = slice(r0, r0 + STRIP_ROWS)
+            out[i, rows] = apply_maps_hwc(up[rows], frame[rows])
+    return out.permute(0, 3, 1, 2)  # (B, 3, H, W) in channels-last memory
+
+
+STRIP_ROWS = 128
+"""Rows per strip when the coefficient maps are applied on the CPU (measured: 16-128 rows all about 2x faster
+than the whole frame at 1280x720; 128 the fastest)."""
 
 
 @register("lite")

@@ -142,24 +142,46 @@ def _box(x: Tensor, radius: int) -> Tensor:
     return F.avg_pool2d(x, 2 * radius + 1, 1, radius, count_include_pad=False)
 
 
-def guided_upsample(coeffs: Tensor, guide_lo: Tensor, guide: Tensor, radius: int, eps: float) -> Tensor:
-    """Upsample ``coeffs`` (B, C, h, w) to ``guide``'s size (B, 1, H, W) following ``guide``'s edges.
+def guided_maps(coeffs: Tensor, guide_lo: Tensor, radius: int, eps: float) -> Tensor:
+    """The low-resolution maps of the guided upsampling: (B, 2C, h, w), ``a`` (C maps) then ``b`` (C maps).
 
     ``guide_lo`` (B, 1, h, w) is the guide at the coefficients' resolution. Per box of radius ``radius``:
-    ``a = cov(guide_lo, coeffs) / (var(guide_lo) + eps)``, ``b = mean(coeffs) - a mean(guide_lo)``; the box means
-    of ``a`` and ``b`` are upsampled bilinearly and the result is ``a * guide + b``. ``radius == 0``: bilinear.
+    ``a = cov(guide_lo, coeffs) / (var(guide_lo) + eps)``, ``b = mean(coeffs) - a mean(guide_lo)``; both are
+    box-averaged. At full resolution the coefficients are ``up(a) * guide + up(b)`` (:func:`apply_maps`).
+    ``radius == 0``: ``a = 0``, ``b = coeffs`` (plain bilinear upsampling).
     """
-    size = guide.shape[-2:]
     if radius == 0:
-        return F.interpolate(coeffs, size=size, mode="bilinear", align_corners=False)
+        return torch.cat([torch.zeros_like(coeffs), coeffs], dim=1)
     mean_g, mean_c = _box(guide_lo, radius), _box(coeffs, radius)
     cov = _box(guide_lo * coeffs, radius) - mean_g * mean_c
     var = _box(guide_lo * guide_lo, radius) - mean_g * mean_g
     a = cov / (var + eps)
     b = mean_c - a * mean_g
+    return _box(torch.cat([a, b], dim=1), radius)
+
+
+def guided_upsample(coeffs: Tensor, guide_lo: Tensor, guide: Tensor, radius: int, eps: float) -> Tensor:
+    """Upsample ``coeffs`` (B, C, h, w) to ``guide``'s size (B, 1, H, W) following ``guide``'s edges
+    (:func:`guided_maps`, upsampled bilinearly, ``a * guide + b``). ``radius == 0``: bilinear."""
+    ab = F.interpolate(guided_maps(coeffs, guide_lo, radius, eps), size=guide.shape[-2:], mode="bilinear")
     n = coeffs.shape[1]
-    ab = F.interpolate(_box(torch.cat([a, b], dim=1), radius), size=size, mode="bilinear", align_corners=False)
     return torch.addcmul(ab[:, n:], ab[:, :n], guide)
+
+
+def apply_maps(maps: Tensor, x: Tensor) -> Tensor:
+    """The enhanced frame from the 12 upsampled maps (B, 12, H, W) of :meth:`LiteNet.maps` and the frame x
+    (B, 3, H, W): coefficients ``c = a * luma(x) + b`` (gain in channels 0-2, offset in 3-5), then
+    ``gain * x + offset``."""
+    c = torch.addcmul(maps[:, 6:], maps[:, :6], _luma(x))
+    return torch.addcmul(c[:, 3:], c[:, :3], x)  # Eq. (1) inverted: J = I / t - B (1 - t) / t, per channel
+
+
+def apply_maps_hwc(maps: Tensor, x: Tensor) -> Tensor:
+    """:func:`apply_maps` for one frame in (H, W, C) layout: maps (H, W, 12), x (H, W, 3) -> (H, W, 3)."""
+    y = LUMA[0] * x[..., 0:1] + LUMA[1] * x[..., 1:2] + LUMA[2] * x[..., 2:3]
+    gain = torch.addcmul(maps[..., 6:9], maps[..., 0:3], y)
+    offset = torch.addcmul(maps[..., 9:12], maps[..., 3:6], y)
+    return torch.addcmul(offset, gain, x)
 
 
 def work_size(height: int, width: int, work_area_px: int) -> tuple[int, int] | None:
@@ -257,11 +279,16 @@ class LiteNet(nn.Module):
                 f"x: expected (B, 3, H, W) with H and W multiples of {SIZE_MULTIPLE} (or a working image of such a "
                 f"size), got {tuple(x.shape)}" + ("" if work is x else f" with a working image {tuple(work.shape)}")
             )
+        maps = F.interpolate(self.maps(work), size=x.shape[-2:], mode="bilinear", align_corners=False)
+        return apply_maps(maps, x)
+
+    def maps(self, work: Tensor) -> Tensor:
+        """The 12 low-resolution maps (B, 12, h/4, w/4) of the guided upsampling (:func:`guided_maps`) for the
+        working image ``work`` (B, 3, h, w): upsampled bilinearly to the frame and applied by
+        :func:`apply_maps`, they give :meth:`forward`'s output."""
         cfg = self.config
-        guide_lo = _luma(F.avg_pool2d(work, POOL)) if cfg.guide_radius else work
-        guide = _luma(x) if cfg.guide_radius else x  # (radius 0: only its size is used)
-        c = guided_upsample(self.coefficients(work), guide_lo, guide, cfg.guide_radius, cfg.guide_eps)
-        return torch.addcmul(c[:, 3:], c[:, :3], x)  # Eq. (1) inverted: J = I / t - B (1 - t) / t, per channel
+        guide_lo = _luma(F.avg_pool2d(work, POOL)) if cfg.guide_radius else work[:, :1]
+        return guided_maps(self.coefficients(work), guide_lo, cfg.guide_radius, cfg.guide_eps)
 
 
 def build_lite(variant: LiteVariant | str = "base", **overrides: Any) -> LiteNet:
