@@ -5,12 +5,9 @@ Run: PYTHONPATH=src python benchmarks/bench_enhance.py [--seconds 2]
 CPU figures use ONE core (cv2.setNumThreads(1), torch.set_num_threads(1)). The baseline, measured in the same
 run, is the plain OpenCV recipe a user would write for Eq. (9): uint8 RGB -> YCrCb, cv2.equalizeHist on Y, back
 to RGB, then a float LoG as GaussianBlur(sigma 1) + Laplacian and the subtraction. murk's path adds the exact
-float definition (16-bit safe, torch-twinned); the ratio says what that costs. ``murk post`` is measured as the
-``post`` restorer and the video pipeline call it (one :class:`~murk.enhance.post.PostWorkspace` reused from frame
-to frame); ``one-off`` is a single ``post_process`` call without one (new intermediate arrays every time). Each
-size is measured twice: interleaved (the functions called in turn) and each alone in its own loop. With CUDA,
-the torch twin runs batched on the GPU (tensor already on the device, and end to end from numpy through pinned
-memory), compared with the one-core OpenCV path.
+float definition (16-bit safe, torch-twinned); the ratio says what that costs. With CUDA, the torch twin runs
+batched on the GPU (tensor already on the device, and end to end from numpy through pinned memory), compared
+with the one-core OpenCV path.
 """
 
 from __future__ import annotations
@@ -33,7 +30,7 @@ from _common import Figure, Recorder
 from murk.data import sample_underwater_images
 from murk.enhance.pipeline import OutputOptions, enhance_frames
 from murk.enhance.pipeline import restore_batch as _restore
-from murk.enhance.post import PostRestorer, PostWorkspace, post_process, post_process_torch
+from murk.enhance.post import PostRestorer, post_process, post_process_torch
 from murk.io import read_rgb
 from murk.io.video import CaptureSource
 
@@ -84,39 +81,22 @@ def interleaved_s(fns: dict[str, Callable[[], object]], seconds: float) -> dict[
     return {k: (min(v), statistics.median(v)) for k, v in times.items()}
 
 
-def alone_s(fn: Callable[[], object], seconds: float) -> tuple[float, float]:
-    """(fastest, median) CPU seconds of this thread per call with ``fn`` called alone in its own loop, as a
-    per-frame loop calls it. Unlike :func:`interleaved_s` (where the functions' temporary arrays keep the
-    allocator's freed memory warm for each other), every fresh multi-megabyte array here costs what it costs
-    in such a loop: new pages that the kernel maps and zeroes."""
-    fn()
-    times: list[float] = []
-    start = time.perf_counter()
-    while time.perf_counter() - start < seconds or len(times) < 10:
-        t0 = time.thread_time()
-        fn()
-        times.append(time.thread_time() - t0)
-    return min(times), statistics.median(times)
-
-
 def bench_cpu(seconds: float) -> None:
     cv2.setNumThreads(1)
     torch.set_num_threads(1)
     print("== CPU, one core: frames/s of one image at a time (fastest call; median in brackets)")
-    print(f"{'size':>10} {'opencv recipe':>18} {'murk post (y)':>18} {'ratio':>6} {'one-off':>8} {'post rgb':>9}"
-          f" {'post clahe':>11} {'torch twin':>11}")  # fmt: skip
+    print(f"{'size':>10} {'opencv recipe':>18} {'murk post (y)':>18} {'ratio':>6} {'post rgb':>9} {'post clahe':>11}"
+          f" {'torch twin':>11}")  # fmt: skip
     for label, (h, w) in SIZES.items():
         img = sample_frame(h, w)
         u8 = (img * 255 + 0.5).astype(np.uint8)
         t = torch.from_numpy(img).permute(2, 0, 1)[None].contiguous()
-        ws = PostWorkspace()
         r = interleaved_s(
             {
                 "recipe": lambda u8=u8: opencv_recipe(u8),
-                "y": lambda img=img, ws=ws: post_process(img, workspace=ws),
-                "one-off": lambda img=img: post_process(img),
-                "rgb": lambda img=img, ws=ws: post_process(img, he="rgb", workspace=ws),
-                "clahe": lambda img=img, ws=ws: post_process(img, he="clahe", workspace=ws),
+                "y": lambda img=img: post_process(img),
+                "rgb": lambda img=img: post_process(img, he="rgb"),
+                "clahe": lambda img=img: post_process(img, he="clahe"),
                 "twin": lambda t=t: post_process_torch(t),
             },
             seconds,
@@ -124,19 +104,7 @@ def bench_cpu(seconds: float) -> None:
         fps = {k: (1 / v[0], 1 / v[1]) for k, v in r.items()}
         print(
             f"{label:>10} {fps['recipe'][0]:8.1f} ({fps['recipe'][1]:6.1f}) {fps['y'][0]:8.1f} ({fps['y'][1]:6.1f})"
-            f" {r['recipe'][0] / r['y'][0]:6.2f} {fps['one-off'][0]:8.1f} {fps['rgb'][0]:9.1f} {fps['clahe'][0]:11.1f}"
-            f" {fps['twin'][0]:11.1f}   (interleaved)"
-        )
-        alone = {
-            "recipe": alone_s(lambda u8=u8: opencv_recipe(u8), seconds),
-            "y": alone_s(lambda img=img, ws=ws: post_process(img, workspace=ws), seconds),
-            "one-off": alone_s(lambda img=img: post_process(img), seconds),
-        }
-        fa = {k: (1 / v[0], 1 / v[1]) for k, v in alone.items()}
-        print(
-            f"{label:>10} {fa['recipe'][0]:8.1f} ({fa['recipe'][1]:6.1f}) {fa['y'][0]:8.1f} ({fa['y'][1]:6.1f})"
-            f" {alone['recipe'][0] / alone['y'][0]:6.2f} {fa['one-off'][0]:8.1f} {'':>9} {'':>11} {'':>11}"
-            "   (each alone in its loop)"
+            f" {r['recipe'][0] / r['y'][0]:6.2f} {fps['rgb'][0]:9.1f} {fps['clahe'][0]:11.1f} {fps['twin'][0]:11.1f}"
         )
 
 

@@ -277,26 +277,3 @@ def test_half_way_luma_values_fall_in_the_even_bin_as_in_the_torch_twin() -> Non
     assert np.any(np.abs(y255 * 255 - np.floor(y255 * 255) - 0.5) < 1e-4)  # the ties are really there
     np.testing.assert_array_equal(equalize(grey, "y"), _n(equalize_torch(_t(grey), "y")))
     np.testing.assert_array_equal(equalize(grey, "rgb"), _n(equalize_torch(_t(grey), "rgb")))
-
-
-@pytest.mark.parametrize("he", ["y", "rgb", "clahe"])
-def test_a_reused_workspace_and_an_output_array_give_the_same_result(rng: np.random.Generator, he: str) -> None:
-    from murk.enhance.post import PostWorkspace
-
-    ws = PostWorkspace()
-    frames = [_smooth_image(rng, 48, 64), _smooth_image(rng, 48, 64), _smooth_image(rng, 30, 41)]
-    for lam in (0.3, 0.0):
-        for frame in frames:  # two frames of one size, then another size: buffers reused, then new ones
-            ref = post_process(frame, he=he, lam=lam)
-            out = np.full(frame.shape, np.nan, np.float32)
-            got = post_process(frame, he=he, lam=lam, out=out, workspace=ws)
-            assert got is out and np.array_equal(out, ref)
-            assert np.array_equal(post_process(frame, he=he, lam=lam, workspace=ws), ref)
-    # The restorer keeps a workspace per thread and writes straight into its batch.
-    batch = np.stack(frames[:2])
-    restored = PostRestorer(PostParams(he=he)).restore(batch).images
-    assert np.array_equal(restored, np.stack([post_process(f, he=he) for f in frames[:2]]))
-    with pytest.raises(ValueError, match="out: expected a C-contiguous float32 array of shape"):
-        post_process(frames[0], out=np.empty((48, 64, 3), np.float64))
-    with pytest.raises(ValueError, match="out: expected"):
-        equalize(frames[0], out=np.empty((48, 63, 3), np.float32))

@@ -31,7 +31,6 @@ agree to float rounding (the LoG sums are accumulated in a different order; see 
 from __future__ import annotations
 
 import math
-import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -88,38 +87,6 @@ class PostParams:
             "clahe_clip": self.clahe_clip,
             "clahe_tiles": self.clahe_tiles,
         }
-
-
-class PostWorkspace:
-    """Reusable intermediate buffers of :func:`post_process` (a few full-size float32 arrays per frame size).
-
-    A video is post-processed frame after frame at one size; allocating the intermediates anew for every frame
-    costs more than the arithmetic (each new multi-megabyte array is fresh memory the kernel must map and zero:
-    measured at 640x480, one core, about half of the time of :func:`post_process`). Passing the same workspace
-    to every call reuses them; the results are identical. Not thread-safe: one workspace per thread
-    (:class:`PostRestorer` keeps one per thread).
-    """
-
-    def __init__(self) -> None:
-        self._buffers: dict[tuple[str, tuple[int, ...], str], np.ndarray] = {}
-
-    def get(self, name: str, shape: tuple[int, ...], dtype: Any = np.float32) -> np.ndarray:
-        """The buffer ``name`` of this shape and dtype (contents undefined), made on first use."""
-        key = (name, tuple(shape), np.dtype(dtype).str)
-        buf = self._buffers.get(key)
-        if buf is None:
-            if len(self._buffers) > 64:  # many frame sizes: start over rather than grow without bound
-                self._buffers.clear()
-            buf = self._buffers[key] = np.empty(shape, dtype)
-        return buf
-
-
-class _Fresh:
-    """The no-workspace case: every buffer is a new array."""
-
-    @staticmethod
-    def get(name: str, shape: tuple[int, ...], dtype: Any = np.float32) -> np.ndarray:
-        return np.empty(shape, dtype)
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -205,8 +172,6 @@ def equalize(
     *,
     clahe_clip: float = CLAHE_CLIP,
     clahe_tiles: int | tuple[int, int] = CLAHE_TILES,
-    out: np.ndarray | None = None,
-    workspace: PostWorkspace | None = None,
 ) -> np.ndarray:
     """The histogram-equalised image ``I_HE`` of Eq. (9) (OpenCV/numpy path); see the module docstring.
 
@@ -215,44 +180,31 @@ def equalize(
         he: ``"y"`` (luma, chroma kept), ``"rgb"`` (per channel) or ``"clahe"`` (CLAHE on the luma).
         clahe_clip: CLAHE clip limit (``he="clahe"`` only).
         clahe_tiles: CLAHE grid, int or (columns, rows) (``he="clahe"`` only).
-        out: float32 C-contiguous (H, W, 3) array to write the result to (default: a new array).
-        workspace: reusable intermediate buffers (:class:`PostWorkspace`); the result is the same without.
 
     Returns:
-        float32 (H, W, 3) in [0, 1] (``out`` when given).
+        float32 (H, W, 3) in [0, 1].
     """
     image = check_rgb("image", image)
     if he not in HE_MODES:
         raise ValueError(f"he: expected one of {', '.join(HE_MODES)}, got {he!r}")
-    ws: PostWorkspace | _Fresh = workspace if workspace is not None else _Fresh()
-    h, w = image.shape[:2]
-    if out is None:
-        out = np.empty((h, w, 3), np.float32)
-    elif out.shape != (h, w, 3) or out.dtype != np.float32 or not out.flags.c_contiguous:
-        raise ValueError(
-            f"out: expected a C-contiguous float32 array of shape {(h, w, 3)}, got {out.shape} {out.dtype}"
-        )
-    x = np.clip(image, 0.0, 1.0, out=ws.get("x", (h, w, 3)))
+    x = np.clip(image, 0.0, 1.0)
     if he == "rgb":
-        planes = cv2.split(x)
-        return cv2.merge([_equalize_channel(c, ws, f"eq{i}") for i, c in enumerate(planes)], dst=out)
-    y = _luma(x, ws)
+        return np.stack([_equalize_channel(x[:, :, i]) for i in range(3)], axis=-1)
+    y = _luma(x)
     if he == "y":
-        y_he = _equalize_channel(y, ws, "y_he")
+        y_he = _equalize_channel(y)
     else:
         tiles = _tiles(clahe_tiles)
         clahe = cv2.createCLAHE(clipLimit=check_positive("clahe_clip", clahe_clip), tileGridSize=tiles)
         y_he = clahe.apply(_quantise(y).astype(np.uint8)).astype(np.float32) * _INV255
     y_he -= y  # the luma shift, added to every channel (chroma kept)
-    shift = cv2.cvtColor(y_he, cv2.COLOR_GRAY2RGB, dst=ws.get("shift", (h, w, 3)))  # copies, 3x faster than a broadcast
-    cv2.add(x, shift, dst=out)
+    out = cv2.add(x, cv2.merge((y_he, y_he, y_he)))  # the same float32 sum as a broadcast add, 3x faster
     return np.clip(out, 0.0, 1.0, out=out)
 
 
-def _luma(x: np.ndarray, ws: PostWorkspace | _Fresh) -> np.ndarray:
+def _luma(x: np.ndarray) -> np.ndarray:
     """BT.601 luma ``(0.299 R + 0.587 G) + 0.114 B`` in float32, in that order (the torch twin's order)."""
-    h, w = x.shape[:2]
-    r, g, b = cv2.split(x, [ws.get(f"plane{i}", (h, w)) for i in range(3)])  # contiguous planes: 2x faster
+    r, g, b = cv2.split(np.ascontiguousarray(x, dtype=np.float32))  # contiguous planes: 2x faster than strides
     y = np.multiply(r, np.float32(_LUMA[0]), out=r)
     y += np.multiply(g, np.float32(_LUMA[1]), out=g)
     y += np.multiply(b, np.float32(_LUMA[2]), out=b)
@@ -264,27 +216,22 @@ def _quantise(c: np.ndarray) -> np.ndarray:
     return np.rint(np.clip(c, 0.0, 1.0) * _F255).astype(np.int64)
 
 
-def _equalize_channel(c: np.ndarray, ws: PostWorkspace | _Fresh | None = None, out_name: str = "eq") -> np.ndarray:
-    """256-bin float equalisation of one channel in [0, 1] (float32 out: the workspace buffer ``out_name``)."""
-    ws = ws if ws is not None else _Fresh()
-    shape = c.shape
-    y255 = np.clip(c, 0.0, 1.0, out=ws.get("y255", shape))
-    y255 *= _F255
-    q = cv2.convertScaleAbs(y255, dst=ws.get("q", shape, np.uint8))  # round half to even, as np.rint (tested)
+def _equalize_channel(c: np.ndarray) -> np.ndarray:
+    """256-bin float equalisation of one channel in [0, 1] (float32 out)."""
+    y255 = np.clip(c, 0.0, 1.0) * _F255
+    q = cv2.convertScaleAbs(y255)  # the 8-bit bin of each pixel: round half to even, as np.rint (pinned by tests)
     hist = cv2.calcHist([q], [0], None, [256], [0, 256]).ravel().astype(np.int64)
     lut = equalize_lut(hist)
     # Linear interpolation lut[i0] + (lut[i0 + 1] - lut[i0]) * frac, with one gather from a (value, step) table.
     table = np.zeros((256, 2), np.float32)
     table[:, 0] = lut
     table[:255, 1] = lut[1:] - lut[:-1]
-    i0 = ws.get("i0", shape, np.intp)
-    np.copyto(i0, y255, casting="unsafe")  # truncation == floor, y255 >= 0
+    i0 = y255.astype(np.intp)  # truncation == floor, y255 >= 0
     np.minimum(i0, 254, out=i0)
-    frac = np.subtract(y255, i0, dtype=np.float32, out=ws.get("frac", shape))
-    pairs = table.view(np.float64).ravel().take(i0, out=ws.get("pairs", shape, np.float64))
-    pairs2 = pairs.view(np.float32).reshape(*shape, 2)
-    out = np.multiply(pairs2[..., 1], frac, out=ws.get(out_name, shape))
-    out += pairs2[..., 0]
+    frac = np.subtract(y255, i0, dtype=np.float32)
+    pairs = table.view(np.float64).ravel().take(i0).view(np.float32).reshape(*c.shape, 2)
+    out = np.multiply(pairs[..., 1], frac, out=frac)
+    out += pairs[..., 0]
     out *= _INV255
     return out
 
@@ -425,8 +372,6 @@ def post_process(
     he: HEMode = "y",
     clahe_clip: float = CLAHE_CLIP,
     clahe_tiles: int | tuple[int, int] = CLAHE_TILES,
-    out: np.ndarray | None = None,
-    workspace: PostWorkspace | None = None,
 ) -> np.ndarray:
     """Post-process one image: histogram equalisation, then LoG edge enhancement. Implements Eq. (9).
 
@@ -437,45 +382,25 @@ def post_process(
         he: equalisation mode, see :func:`equalize`.
         clahe_clip: CLAHE clip limit (``he="clahe"``).
         clahe_tiles: CLAHE grid (``he="clahe"``).
-        out: float32 C-contiguous (H, W, 3) array to write the result to (default: a new array).
-        workspace: reusable intermediate buffers for a sequence of frames (:class:`PostWorkspace`; same result,
-            less time).
 
     Returns:
-        float32 (H, W, 3) in [0, 1] (``out`` when given).
+        float32 (H, W, 3) in [0, 1].
 
     Raises:
         TypeError: ``image`` is not a float numpy array.
         ShapeError: ``image`` is not (H, W, 3).
-        ValueError: a parameter is out of range, or ``out`` of the wrong shape or type.
+        ValueError: a parameter is out of range.
     """
     params = PostParams(sigma_px, lam, he, clahe_clip, clahe_tiles)
+    i_he = equalize(image, params.he, clahe_clip=params.clahe_clip, clahe_tiles=params.clahe_tiles)
     if params.lam == 0.0:
-        return equalize(
-            image, params.he, clahe_clip=params.clahe_clip, clahe_tiles=params.clahe_tiles, out=out, workspace=workspace
-        )
-    ws: PostWorkspace | _Fresh = workspace if workspace is not None else _Fresh()
-    image = check_rgb("image", image)
-    shape = image.shape
-    i_he = equalize(
-        image,
-        params.he,
-        clahe_clip=params.clahe_clip,
-        clahe_tiles=params.clahe_tiles,
-        out=ws.get("i_he", shape),
-        workspace=workspace,
-    )
-    if out is None:
-        out = np.empty(shape, np.float32)
-    elif out.shape != shape or out.dtype != np.float32 or not out.flags.c_contiguous:
-        raise ValueError(f"out: expected a C-contiguous float32 array of shape {shape}, got {out.shape} {out.dtype}")
+        return i_he
     # Eq. (9): I_HE - lambda (LoG * I_HE), with -lambda folded into the second-derivative taps (one pass each
     # for the two separable terms and two adds; the same sum as the unscaled LoG to float rounding).
     g, g2 = log_kernels(params.sigma_px)
     g2 = g2 * np.float32(-params.lam)
-    cv2.sepFilter2D(i_he, cv2.CV_32F, g2, g, dst=out, borderType=cv2.BORDER_REFLECT_101)
-    d2y = cv2.sepFilter2D(i_he, cv2.CV_32F, g, g2, dst=ws.get("d2y", shape), borderType=cv2.BORDER_REFLECT_101)
-    cv2.add(out, d2y, dst=out)
+    out = cv2.sepFilter2D(i_he, cv2.CV_32F, g2, g, borderType=cv2.BORDER_REFLECT_101)
+    cv2.add(out, cv2.sepFilter2D(i_he, cv2.CV_32F, g, g2, borderType=cv2.BORDER_REFLECT_101), dst=out)
     cv2.add(out, i_he, dst=out)
     return np.clip(out, 0.0, 1.0, out=out)
 
@@ -514,18 +439,12 @@ class PostRestorer(Restorer):
     def __init__(self, params: PostParams | None = None, device: str | torch.device = "cpu") -> None:
         self.params = params or PostParams()
         self.device = torch.device(device)
-        self._local = threading.local()  # one PostWorkspace per calling thread
 
     def restore(self, images: np.ndarray) -> Restored:
         batch = _check_numpy_batch(images)
         if self.device.type != "cpu":
             return super().restore(batch)
-        ws = getattr(self._local, "workspace", None)
-        if ws is None:
-            ws = self._local.workspace = PostWorkspace()
-        out = np.empty(batch.shape, np.float32)
-        for im, dst in zip(batch, out, strict=True):
-            post_process(im, **self.params._kwargs(), out=dst, workspace=ws)
+        out = np.stack([post_process(im, **self.params._kwargs()) for im in batch])
         return Restored(out)
 
     def restore_tensor(self, images: torch.Tensor) -> RestoredTensor:
