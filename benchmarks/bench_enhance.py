@@ -5,7 +5,8 @@ Run: PYTHONPATH=src python benchmarks/bench_enhance.py [--seconds 2]
 CPU figures use ONE core (cv2.setNumThreads(1), torch.set_num_threads(1)). The baseline, measured in the same
 run, is the plain OpenCV recipe a user would write for Eq. (9): uint8 RGB -> YCrCb, cv2.equalizeHist on Y, back
 to RGB, then a float LoG as GaussianBlur(sigma 1) + Laplacian and the subtraction. murk's path adds the exact
-float definition (16-bit safe, torch-twinned); the ratio says what that costs. With CUDA, the torch twin runs
+float definition (16-bit safe, torch-twinned); the ratio says what that costs. Each size is measured twice:
+interleaved (the functions called in turn) and each alone in its own loop. With CUDA, the torch twin runs
 batched on the GPU (tensor already on the device, and end to end from numpy through pinned memory), compared
 with the one-core OpenCV path.
 """
@@ -81,6 +82,20 @@ def interleaved_s(fns: dict[str, Callable[[], object]], seconds: float) -> dict[
     return {k: (min(v), statistics.median(v)) for k, v in times.items()}
 
 
+def alone_s(fn: Callable[[], object], seconds: float) -> tuple[float, float]:
+    """(fastest, median) CPU seconds of this thread per call with ``fn`` called alone in its own loop, as a
+    per-frame loop calls it (in :func:`interleaved_s` the functions' temporary arrays share the allocator's
+    freed memory)."""
+    fn()
+    times: list[float] = []
+    start = time.perf_counter()
+    while time.perf_counter() - start < seconds or len(times) < 10:
+        t0 = time.thread_time()
+        fn()
+        times.append(time.thread_time() - t0)
+    return min(times), statistics.median(times)
+
+
 def bench_cpu(seconds: float) -> None:
     cv2.setNumThreads(1)
     torch.set_num_threads(1)
@@ -105,6 +120,16 @@ def bench_cpu(seconds: float) -> None:
         print(
             f"{label:>10} {fps['recipe'][0]:8.1f} ({fps['recipe'][1]:6.1f}) {fps['y'][0]:8.1f} ({fps['y'][1]:6.1f})"
             f" {r['recipe'][0] / r['y'][0]:6.2f} {fps['rgb'][0]:9.1f} {fps['clahe'][0]:11.1f} {fps['twin'][0]:11.1f}"
+            "   (interleaved)"
+        )
+        alone = {
+            "recipe": alone_s(lambda u8=u8: opencv_recipe(u8), seconds),
+            "y": alone_s(lambda img=img: post_process(img), seconds),
+        }
+        fa = {k: (1 / v[0], 1 / v[1]) for k, v in alone.items()}
+        print(
+            f"{label:>10} {fa['recipe'][0]:8.1f} ({fa['recipe'][1]:6.1f}) {fa['y'][0]:8.1f} ({fa['y'][1]:6.1f})"
+            f" {alone['recipe'][0] / alone['y'][0]:6.2f}   (each alone in its loop)"
         )
 
 
