@@ -38,19 +38,31 @@ from murk.io.video import CaptureSource
 SIZES = {"1920x1080": (1080, 1920), "640x480": (480, 640)}
 
 
-def per_call_s(fn: Callable[[], object], seconds: float, sync: Callable[[], None] = lambda: None) -> float:
-    """Median seconds per call over repeated calls lasting about ``seconds`` (after two warm-up calls)."""
+def call_times_s(
+    fn: Callable[[], object],
+    seconds: float,
+    *,
+    clock: Callable[[], float] = time.perf_counter,
+    sync: Callable[[], None] = lambda: None,
+    min_calls: int = 5,
+) -> list[float]:
+    """Seconds (by ``clock``) of each of repeated calls lasting about ``seconds`` in all, after two warm-up calls."""
     fn()
     fn()
     sync()
     times: list[float] = []
     start = time.perf_counter()
-    while time.perf_counter() - start < seconds or len(times) < 5:
-        t0 = time.perf_counter()
+    while time.perf_counter() - start < seconds or len(times) < min_calls:
+        t0 = clock()
         fn()
         sync()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+        times.append(clock() - t0)
+    return times
+
+
+def per_call_s(fn: Callable[[], object], seconds: float, sync: Callable[[], None] = lambda: None) -> float:
+    """Median wall seconds per call (:func:`call_times_s`)."""
+    return statistics.median(call_times_s(fn, seconds, sync=sync))
 
 
 def opencv_recipe(rgb_u8: np.ndarray, sigma_px: float = 1.0, lam: float = 0.3) -> np.ndarray:
@@ -86,13 +98,7 @@ def alone_s(fn: Callable[[], object], seconds: float) -> tuple[float, float]:
     """(fastest, median) CPU seconds of this thread per call with ``fn`` called alone in its own loop, as a
     per-frame loop calls it (in :func:`interleaved_s` the functions' temporary arrays share the allocator's
     freed memory)."""
-    fn()
-    times: list[float] = []
-    start = time.perf_counter()
-    while time.perf_counter() - start < seconds or len(times) < 10:
-        t0 = time.thread_time()
-        fn()
-        times.append(time.thread_time() - t0)
+    times = call_times_s(fn, seconds, clock=time.thread_time, min_calls=10)
     return min(times), statistics.median(times)
 
 
