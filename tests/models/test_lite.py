@@ -61,8 +61,16 @@ def test_folded_equals_training_form_in_eval_mode(variant: str, hw: tuple[int, i
     x = torch.rand(2, 3, *hw, generator=torch.Generator().manual_seed(1))
     with torch.no_grad():
         ref, out = net(x), folded(x)
+        coeffs_ref, coeffs = net.coefficients(x), folded.coefficients(x)
+        bilinear_ref = _with_config(net, guide_radius=0, folded=False)(x)
+        bilinear = _with_config(folded, guide_radius=0)(x)
     assert (ref - x).abs().max() > 1e-2  # not the identity: the comparison means something
-    assert (out - ref).abs().max().item() <= 1e-5
+    # The convolutional network (what folding changes) within 1e-5, with either upsampling. The guided
+    # upsampling's a = cov / (var + eps) amplifies float differences of the coefficients by up to
+    # 1 / (2 sqrt(eps)) = 16x, hence the looser bound on its output.
+    assert (coeffs - coeffs_ref).abs().max().item() <= 1e-5
+    assert (bilinear - bilinear_ref).abs().max().item() <= 1e-5
+    assert (out - ref).abs().max().item() <= 5e-5
 
 
 def test_one_block_folds_exactly_with_and_without_identity() -> None:
@@ -187,9 +195,10 @@ def test_a_large_frame_is_seen_at_the_training_scale() -> None:
         assert (_with_config(net, work_area_px=0)(x2) - y2).abs().mean() > 1e-2
 
 
-def _with_config(net: LiteNet, **changes: object) -> LiteNet:
-    """A folded copy of ``net`` with the same weights and other (weight-free) configuration values."""
-    other = LiteNet(LiteConfig.from_dict({**net.config.to_dict(), **changes}), folded=True)
+def _with_config(net: LiteNet, folded: bool = True, **changes: object) -> LiteNet:
+    """A copy of ``net`` (folded or training form, as ``net``) with the same weights and other (weight-free)
+    configuration values."""
+    other = LiteNet(LiteConfig.from_dict({**net.config.to_dict(), **changes}), folded=folded)
     other.load_state_dict(net.state_dict())
     return other.eval()
 
@@ -240,7 +249,8 @@ def test_checkpoint_round_trip_loads_weights_only(tmp_path: Path) -> None:
     assert folded.folded and not training.folded and not training.training
     x = torch.rand(1, 3, 32, 48)
     with torch.no_grad():
-        assert (folded(x) - net(x)).abs().max() <= 1e-5 and torch.equal(training(x), net(x))
+        assert (folded.coefficients(x) - net.coefficients(x)).abs().max() <= 1e-5
+        assert (folded(x) - net(x)).abs().max() <= 5e-5 and torch.equal(training(x), net(x))  # see the fold test
     assert is_lite_checkpoint(path)
     slim = slim_lite_checkpoint(path, tmp_path / "slim.pt", source="test")
     assert read_lite_checkpoint(slim)[1].meta == {"source": "test"}
