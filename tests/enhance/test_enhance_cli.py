@@ -182,3 +182,26 @@ def test_method_options_in_the_spec_and_misspelt_ones(folder: Path, tmp_path: Pa
     res = runner.invoke(app, ["enhance", str(folder), "-o", str(tmp_path / "o2"), "-m", "post?lamda=0.9"])
     assert res.exit_code == 2 and "unknown option 'lamda' (did you mean 'lam'?)" in _out(res)
     assert not (tmp_path / "o2").exists()
+
+
+def test_a_flag_the_method_does_not_take_is_an_error(folder: Path, tmp_path: Path) -> None:
+    from murk.io import read_rgb
+
+    res = runner.invoke(
+        app, ["enhance", str(folder), "-o", str(tmp_path / "o1"), "-r", "-m", "lite", "--lambda", "0.5"]
+    )
+    assert res.exit_code == 2, res.output
+    assert "--lambda is an option of post, not of the method 'lite'" in _out(res) and "'lite+post'" in _out(res)
+    assert not (tmp_path / "o1").exists()
+    res = runner.invoke(app, ["enhance", str(folder), "-o", str(tmp_path / "o2"), "-m", "post", "--tile", "256"])
+    assert res.exit_code == 2 and "--tile is an option of jointid" in _out(res), res.output
+    # The flag reaches the stage that takes it: --lambda 0.5 equals the spec's own option.
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert runner.invoke(app, ["enhance", str(folder), "-o", str(a), "-r", "--lambda", "0.5"]).exit_code == 0
+    assert runner.invoke(app, ["enhance", str(folder), "-o", str(b), "-r", "-m", "post?lam=0.5"]).exit_code == 0
+    c = tmp_path / "c"
+    assert runner.invoke(app, ["enhance", str(folder), "-o", str(c), "-r"]).exit_code == 0
+    files = sorted(p.relative_to(a) for p in a.rglob("*.png"))
+    assert files and files == sorted(p.relative_to(b) for p in b.rglob("*.png"))
+    assert all((read_rgb(a / f) == read_rgb(b / f)).all() for f in files)
+    assert any((read_rgb(a / f) != read_rgb(c / f)).any() for f in files)  # the default lambda (0.3) differs

@@ -236,6 +236,12 @@ def test_misspelt_and_foreign_options_are_errors_naming_the_valid_ones() -> None
     no_method = r"shared setting 'devise' \(did you mean 'device'\?\) is an option of no registered method"
     with pytest.raises(ValueError, match=no_method):
         restorer_mod.create("post", shared={"devise": "cpu"})  # a shared setting no method declares
+    # A shared setting the user set explicitly (``given``) must be taken by some stage; unset ones are ignored.
+    with pytest.raises(ValueError, match=r"--tile is an option of jointid, udaformer, ursct, not of the method 'post'"):
+        restorer_mod.create("post", shared={"device": "cpu", "tile": 256}, given={"tile": "--tile"})
+    assert restorer_mod.create("post", shared={"device": "cpu", "tile": 256}).params.lam == 0.3
+    chain = restorer_mod.create("lite+post", shared={"lam": 0.5}, given={"lam": "--lambda"})
+    assert chain.stages[1].params.lam == 0.5  # type: ignore[attr-defined]
     with pytest.raises(ValueError, match=r"method post: option lam: expected float, got 'abc'"):
         restorer_mod.create("post?lam=abc")  # values are checked against the declared types
     with pytest.raises(ValueError, match=r"method post: option he: expected one of 'y', 'rgb', 'clahe', got 'hsv'"):

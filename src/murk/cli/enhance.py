@@ -19,42 +19,31 @@ from murk.enhance.choices import BagStorage, HEMode, ImageFormat, Policy, Precis
 EXIT_INTERRUPTED = 130
 
 
-def method_options(
-    *,
-    device: str,
-    batch: int,
-    he: str,
-    sigma_px: float,
-    lam: float,
-    clahe_clip: float,
-    clahe_tiles: int,
-    checkpoint: str | None = None,
-    precision: str = "fp32",
-    tile: int | None = None,
-    overlap: int = 64,
-    trust_checkpoint: bool = False,
-    compile: bool = False,
-    policy: str = "native",
-) -> dict[str, Any]:
-    """The command's settings handed to ``--method`` as ``shared`` (each stage takes the ones it declares;
-    options written after ``?`` in the spec must be declared). New method options (checkpoint, precision,
-    tiling, ...) are added here and in :func:`enhance`."""
-    return {
-        "device": device,
-        "batch": batch,
-        "he": he,
-        "sigma_px": sigma_px,
-        "lam": lam,
-        "clahe_clip": clahe_clip,
-        "clahe_tiles": clahe_tiles,
-        "checkpoint": checkpoint,
-        "precision": precision,
-        "tile": tile,
-        "overlap": overlap,
-        "trust_checkpoint": trust_checkpoint,
-        "compile": compile,
-        "policy": policy,
-    }
+FLAGS = {
+    "he": "--he",
+    "sigma_px": "--sigma-px",
+    "lam": "--lambda",
+    "clahe_clip": "--clahe-clip",
+    "clahe_tiles": "--clahe-tiles",
+    "checkpoint": "--checkpoint",
+    "precision": "--precision",
+    "tile": "--tile",
+    "overlap": "--overlap",
+    "trust_checkpoint": "--trust-checkpoint",
+    "compile": "--compile",
+    "policy": "--policy",
+}
+"""Method options the command has flags for, by option name."""
+
+
+def method_options(*, device: str, batch: int, **given: Any) -> dict[str, Any]:
+    """The command's settings handed to ``--method`` as ``shared``: device and batch, plus the method flags the
+    user set (None, or False for a switch, means not set: the method's own default applies). Each stage takes
+    the ones it declares; a set flag that no stage declares is an error (``create(..., given=...)``)."""
+    unknown = set(given) - set(FLAGS)
+    if unknown:
+        raise ValueError(f"method_options: no flag for {sorted(unknown)}")
+    return {"device": device, "batch": batch} | {k: v for k, v in given.items() if v is not None and v is not False}
 
 
 def enhance(
@@ -100,12 +89,21 @@ def enhance(
         bool, typer.Option("--overwrite", help="Redo outputs that exist (default: skip them, so reruns resume).")
     ] = False,
     he: Annotated[
-        HEMode, typer.Option("--he", help="post: equalise luma (y, colours kept), each channel (rgb), or CLAHE.")
-    ] = "y",
-    sigma_px: Annotated[float, typer.Option("--sigma-px", min=0.0, help="post: LoG sigma in pixels (Eq. 9).")] = 1.0,
-    lam: Annotated[float, typer.Option("--lambda", min=0.0, help="post: edge-enhancement weight (Eq. 9).")] = 0.3,
-    clahe_clip: Annotated[float, typer.Option("--clahe-clip", min=0.0, help="post --he clahe: clip limit.")] = 2.0,
-    clahe_tiles: Annotated[int, typer.Option("--clahe-tiles", min=1, help="post --he clahe: tiles per side.")] = 8,
+        HEMode | None,
+        typer.Option("--he", help="post: equalise luma (y, colours kept; default), each channel (rgb), or CLAHE."),
+    ] = None,
+    sigma_px: Annotated[
+        float | None, typer.Option("--sigma-px", min=0.0, help="post: LoG sigma in pixels (Eq. 9; default 1.0).")
+    ] = None,
+    lam: Annotated[
+        float | None, typer.Option("--lambda", min=0.0, help="post: edge-enhancement weight (Eq. 9; default 0.3).")
+    ] = None,
+    clahe_clip: Annotated[
+        float | None, typer.Option("--clahe-clip", min=0.0, help="post --he clahe: clip limit (default 2.0).")
+    ] = None,
+    clahe_tiles: Annotated[
+        int | None, typer.Option("--clahe-tiles", min=1, help="post --he clahe: tiles per side (default 8).")
+    ] = None,
     checkpoint: Annotated[
         Path | None,
         typer.Option(
@@ -116,12 +114,14 @@ def enhance(
         ),
     ] = None,
     precision: Annotated[
-        Precision, typer.Option("--precision", help="jointid: fp32, or bf16/fp16 autocast (GPU).")
-    ] = "fp32",
+        Precision | None, typer.Option("--precision", help="jointid: fp32 (default), or bf16/fp16 autocast (GPU).")
+    ] = None,
     tile: Annotated[
         int | None, typer.Option("--tile", min=32, help="jointid: run large frames in tiles of this size (px).")
     ] = None,
-    overlap: Annotated[int, typer.Option("--overlap", min=0, help="jointid: tile overlap in px (blended).")] = 64,
+    overlap: Annotated[
+        int | None, typer.Option("--overlap", min=0, help="jointid: tile overlap in px (blended; default 64).")
+    ] = None,
     trust_checkpoint: Annotated[
         bool,
         typer.Option(
@@ -133,13 +133,13 @@ def enhance(
         bool, typer.Option("--compile", help="jointid: torch.compile the network (GPU; slow first frames).")
     ] = False,
     policy: Annotated[
-        Policy,
+        Policy | None,
         typer.Option(
             "--policy",
-            help="udaformer/ursct: native (any size, output at the input size) or official (the published test "
-            "script: resized to 256x256, output 256x256; docs/baselines.md).",
+            help="udaformer/ursct: native (default: any size, output at the input size) or official (the published "
+            "test script: resized to 256x256, output 256x256; docs/baselines.md).",
         ),
-    ] = "native",
+    ] = None,
     depth: Annotated[
         bool,
         typer.Option("--depth/--no-depth", help="Write depth/ and depth_preview/ when the method estimates depth."),
@@ -189,25 +189,22 @@ def enhance(
     from murk.enhance.run import BagOptions, run_enhance, weights_line
 
     dev = resolve_device(device)
-    restorer = create(
-        method,
-        shared=method_options(
-            device=dev,
-            batch=batch,
-            he=he,
-            sigma_px=sigma_px,
-            lam=lam,
-            clahe_clip=clahe_clip,
-            clahe_tiles=clahe_tiles,
-            checkpoint=None if checkpoint is None else str(checkpoint),
-            precision=precision,
-            tile=tile,
-            overlap=overlap,
-            trust_checkpoint=trust_checkpoint,
-            compile=compile_model,
-            policy=policy,
-        ),
-    )
+    given = {
+        "he": he,
+        "sigma_px": sigma_px,
+        "lam": lam,
+        "clahe_clip": clahe_clip,
+        "clahe_tiles": clahe_tiles,
+        "checkpoint": None if checkpoint is None else str(checkpoint),
+        "precision": precision,
+        "tile": tile,
+        "overlap": overlap,
+        "trust_checkpoint": trust_checkpoint,
+        "compile": compile_model,
+        "policy": policy,
+    }
+    shared = method_options(device=dev, batch=batch, **given)
+    restorer = create(method, shared=shared, given={k: FLAGS[k] for k in shared if k in FLAGS})
     options = OutputOptions(
         format=format,
         side_by_side=side_by_side,

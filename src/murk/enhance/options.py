@@ -115,6 +115,31 @@ def unknown_option_error(method: str, name: str, valid: Iterable[str]) -> ValueE
     )
 
 
+def check_given(
+    method: str,
+    stages: Sequence[Mapping[str, Option]],
+    given: Mapping[str, str],
+    registry: Mapping[str, Mapping[str, Option]],
+) -> None:
+    """Refuse settings the user set explicitly (``given``: option name -> how the user wrote it) that no stage
+    of ``method`` declares, naming the methods that take them.
+
+    Raises:
+        ValueError: e.g. ``--lambda is an option of post, not of the method 'jointid' (its options: ...)``.
+    """
+    declared = set().union(*(set(s) for s in stages)) if stages else set()
+    for name, label in given.items():
+        if name in declared:
+            continue
+        owners = sorted(m for m, opts in registry.items() if name in opts)
+        where = f"an option of {', '.join(owners)}" if owners else "an option of no method"
+        raise ValueError(
+            f"{label} is {where}, not of the method {method!r} (its options: {', '.join(sorted(declared))}); "
+            "leave it out, or use a method that takes it"
+            + (f" (e.g. '{method}+post')" if "post" in owners and "post" not in method.split("+") else "")
+        )
+
+
 def route_options(
     method: str,
     stages: Sequence[Mapping[str, Option]],

@@ -18,7 +18,7 @@ Two entry points per restorer:
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,7 +26,7 @@ import numpy as np
 import torch
 
 from murk._suggest import did_you_mean
-from murk.enhance.options import Option, declared_options, parse_spec, route_options
+from murk.enhance.options import Option, check_given, declared_options, parse_spec, route_options
 
 
 @dataclass(frozen=True)
@@ -150,13 +150,17 @@ def options_of(name: str) -> dict[str, Option]:
     return declared_options(_REGISTRY[name])
 
 
-def create(spec: str, *, shared: dict[str, Any] | None = None, **options: Any) -> Restorer:
+def create(
+    spec: str, *, shared: dict[str, Any] | None = None, given: Mapping[str, str] | None = None, **options: Any
+) -> Restorer:
     """Build the restorer for ``spec`` (``"post"``, ``"jointid"``, ``"jointid+post"``, ``"post?lam=0.9"``, ...).
 
     Args:
         spec: method names chained with ``+``, optionally followed by ``?KEY=VALUE,...`` options.
         shared: settings of the calling command (device, batch size, ...); each stage takes the ones it
             declares. A name that no registered method declares is an error.
+        given: names in ``shared`` that the user set explicitly, with how the user wrote them (``{"lam":
+            "--lambda"}``): each must be declared by a stage of ``spec`` (a flag the method ignores is an error).
         **options: method options (the spec's own win on a clash); each must be declared by at least one
             stage, and goes to every stage that declares it.
 
@@ -176,6 +180,7 @@ def create(spec: str, *, shared: dict[str, Any] | None = None, **options: Any) -
         )
     declared = [declared_options(_REGISTRY[n]) for n in names]
     known = {o for f in _REGISTRY.values() for o in declared_options(f)}
+    check_given(spec, declared, given or {}, {n: declared_options(f) for n, f in _REGISTRY.items()})
     kwargs = route_options(spec, declared, {**options, **spec_options}, shared or {}, known)
     stages = [_REGISTRY[n](**kw) for n, kw in zip(names, kwargs, strict=True)]
     return stages[0] if len(stages) == 1 else Chain(stages)
