@@ -37,8 +37,13 @@ def test_shipped_lite_restores_heldout_scenes_and_keeps_real_images_sane() -> No
     data = make_heldout(3, seed=4243, size_hw=(480, 640), synthesis=synthesis)
     scores = score_heldout(data, {"lite": restorer})
     assert scores["lite"]["psnr"] > scores["input"]["psnr"] + 3.0, scores
-    img = read_rgb(sample_underwater_images()[0])
-    out = np.clip(restorer.restore(img[None]).images[0], 0, 1)
-    m = restoration_measures(img, out)
+    # The real images: the targets, on the means over the 13 shipped images (single images vary: the
+    # mean luminance ratio of single images runs from 0.80 to 1.37).
+    rows = []
+    for path in sample_underwater_images():
+        img = read_rgb(path)
+        rows.append(restoration_measures(img, np.clip(restorer.restore(img[None]).images[0], 0, 1)))
+    m = {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
     assert m["contrast_ratio"] > 0.5 and m["luminance_ratio"] > 0.9, m
-    assert m["artefact_periodic_ratio"] < 2.0, m
+    assert m["artefact_periodic_ratio"] < 1.3 and m["artefact_isolated_ratio"] < 1.3, m
+    assert m["particle_residue_ratio"] < 1.0 and m["cast_out"] < m["cast_in"], m
