@@ -19,6 +19,7 @@ from murk.synth.config import SynthConfig
 from murk.synth.runner import run_synthesis
 from murk.train.config import TrainConfig
 from murk.train.loop import detect_kind, epoch_batches, train
+from tests.train._rgbd import write_rgbd
 
 TINY = {
     "model": {"variant": "tiny"},
@@ -32,17 +33,7 @@ TINY = {
 @pytest.fixture(scope="module")
 def synth_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A small murk synth output: 4 clean images x 2 variants, 48x64."""
-    root = tmp_path_factory.mktemp("rgbd")
-    import cv2
-
-    (root / "rgb").mkdir()
-    (root / "depth").mkdir()
-    g = np.random.default_rng(0)
-    for i in range(4):
-        yy, xx = np.mgrid[0:48, 0:64]
-        base = (np.sin(xx / (3 + i)) * 0.5 + 0.5)[..., None] * np.array([0.9, 0.6, 0.3]) + g.random((48, 64, 3)) * 0.1
-        cv2.imwrite(str(root / "rgb" / f"s{i}.png"), (np.clip(base, 0, 1) * 255).astype(np.uint8))
-        cv2.imwrite(str(root / "depth" / f"s{i}.png"), (800 + 40 * xx + 20 * yy + 100 * i).astype(np.uint16))
+    root = write_rgbd(tmp_path_factory.mktemp("rgbd"))
     out = tmp_path_factory.mktemp("synth")
     sources, _ = discover(root)
     run_synthesis(sources, out, SynthConfig(variants=2))

@@ -17,6 +17,7 @@ from murk.train.config import TrainConfig
 from murk.train.loop import detect_kind, train
 from murk.train.networks import read_network_checkpoint
 from murk.train.shard_data import build_shard_data, resolve_shards, shuffle_buffer_order
+from tests.train._rgbd import write_rgbd
 
 pytest.importorskip("webdataset", reason="the webdataset package is needed to read tar shards")
 
@@ -32,16 +33,7 @@ TINY = {
 @pytest.fixture(scope="module")
 def shard_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """4 clean 48x64 images x 4 variants = 16 samples in 8 shards of 2."""
-    import cv2
-
-    root = tmp_path_factory.mktemp("rgbd")
-    (root / "rgb").mkdir()
-    (root / "depth").mkdir()
-    g = np.random.default_rng(0)
-    for i in range(4):
-        yy, xx = np.mgrid[0:48, 0:64]
-        cv2.imwrite(str(root / "rgb" / f"s{i}.png"), (g.random((48, 64, 3)) * 255).astype(np.uint8))
-        cv2.imwrite(str(root / "depth" / f"s{i}.png"), (800 + 40 * xx + 20 * yy + 100 * i).astype(np.uint16))
+    root = write_rgbd(tmp_path_factory.mktemp("rgbd"))
     out = tmp_path_factory.mktemp("shards")
     sources, _ = discover(root)
     write_shards(sources, out, SynthConfig(variants=4), samples_per_shard=2)

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -45,6 +46,31 @@ from murk.io.rosbag_writer import BagSink, remove_stale_bags
 from murk.io.video import VIDEO_SUFFIXES
 
 FRAMES_FILE = "frames.jsonl"
+
+
+@dataclass(frozen=True)
+class BagOptions:
+    """ROS bag input and output choices (``murk enhance dive.bag --topic ...``): the input topic and frame step,
+    and for a bag output the topics, the ROS 2 storage and the topics to copy (see the module docstring)."""
+
+    topic: str | None = None
+    every: int = 1
+    out_topic: str | None = None
+    depth_topic: str | None = None
+    storage: Storage | None = None
+    copy_topics: tuple[str, ...] = ()
+
+    def output_flags(self) -> list[str]:
+        """The command-line names of the bag-output choices that are set."""
+        pairs = (
+            ("--out-topic", self.out_topic),
+            ("--depth-topic", self.depth_topic),
+            ("--storage", self.storage),
+            ("--copy-topics", self.copy_topics),
+        )
+        return [name for name, value in pairs if value]
+
+
 _RESTORE_ERRORS = (ValueError, RuntimeError, MemoryError)
 
 
@@ -119,16 +145,14 @@ def enhance_bag_to_bag(
     out: Path,
     options: OutputOptions | None = None,
     *,
-    out_topic: str | None = None,
-    depth_topic: str | None = None,
-    storage: Storage | None = None,
-    copy_topics: Sequence[str] = (),
+    bag: BagOptions | None = None,
     batch: int = 1,
     max_frames: int | None = None,
     on_progress: ProgressFn | None = None,
     should_stop: StopFn | None = None,
 ) -> EnhanceReport:
-    """Restore the frames of ``source`` into a new bag at ``out`` (see the module docstring).
+    """Restore the frames of ``source`` into a new bag at ``out`` (see the module docstring); ``bag`` gives the
+    output topics, storage and topics to copy (its ``topic`` and ``every`` were used to open ``source``).
 
     Raises:
         ValueError: a bad option (``storage`` for a ROS 1 bag, an output topic equal to the input topic, ...).
@@ -136,6 +160,8 @@ def enhance_bag_to_bag(
         OutputError: no space left on the device; the temporary bag is deleted.
     """
     options = options or OutputOptions()
+    bag = bag or BagOptions()
+    storage = bag.storage
     if batch < 1:
         raise ValueError(f"batch: expected >= 1, got {batch}")
     if max_frames is not None and max_frames < 1:
@@ -145,15 +171,15 @@ def enhance_bag_to_bag(
     if storage is not None and storage not in STORAGES:
         raise ValueError(f"--storage: expected one of {', '.join(STORAGES)}, got {storage!r}")
     d_out, d_depth = default_topics(source.topic, source.msgtype)
-    out_topic = out_topic or d_out
-    depth_topic = depth_topic or d_depth
+    out_topic = bag.out_topic or d_out
+    depth_topic = bag.depth_topic or d_depth
     if source.topic in (out_topic, depth_topic) or out_topic == depth_topic:
         raise ValueError(
             f"output topics {out_topic}, {depth_topic} must differ from each other and from {source.topic}"
         )
     if out.resolve() == source.path.resolve():
         raise ValueError(f"--out {out}: is the input bag")
-    copies = resolve_copy_topics(source, copy_topics, skip=(out_topic, depth_topic))
+    copies = resolve_copy_topics(source, bag.copy_topics, skip=(out_topic, depth_topic))
     report = EnhanceReport(
         total=source.frame_count if max_frames is None else min(source.frame_count or max_frames, max_frames)
     )
@@ -294,10 +320,7 @@ def enhance_bag(
     out: Path,
     options: OutputOptions | None = None,
     *,
-    out_topic: str | None = None,
-    depth_topic: str | None = None,
-    storage: Storage | None = None,
-    copy_topics: Sequence[str] = (),
+    bag: BagOptions | None = None,
     batch: int = 1,
     max_frames: int | None = None,
     on_progress: ProgressFn | None = None,
@@ -306,44 +329,19 @@ def enhance_bag(
     """Restore a bag topic into a bag or into numbered frames, as ``out`` says (:func:`writes_bag`).
 
     Raises:
-        ValueError: bag-only options (``out_topic``, ``storage``, ``copy_topics``) with a frames output, or see
-            :func:`enhance_bag_to_bag`.
+        ValueError: bag-output choices (``out_topic``, ``depth_topic``, ``storage``, ``copy_topics``) with a
+            frames output, or see :func:`enhance_bag_to_bag`.
     """
     options = options or OutputOptions()
+    bag = bag or BagOptions()
     if writes_bag(out, source.family, options.format):
         return enhance_bag_to_bag(
-            source,
-            restorer,
-            out,
-            options,
-            out_topic=out_topic,
-            depth_topic=depth_topic,
-            storage=storage,
-            copy_topics=copy_topics,
-            batch=batch,
-            max_frames=max_frames,
-            on_progress=on_progress,
+            source, restorer, out, options, bag=bag, batch=batch, max_frames=max_frames, on_progress=on_progress,
             should_stop=should_stop,
-        )
-    given = [
-        n
-        for n, v in (
-            ("--out-topic", out_topic),
-            ("--depth-topic", depth_topic),
-            ("--storage", storage),
-            ("--copy-topics", list(copy_topics)),
-        )
-        if v
-    ]
-    if given:
-        raise ValueError(f"{', '.join(given)}: apply to a bag output; --out {out} writes numbered images")
+        )  # fmt: skip
+    if bag.output_flags():
+        raise ValueError(f"{', '.join(bag.output_flags())}: apply to a bag output; --out {out} writes numbered images")
     return enhance_bag_to_frames(
-        source,
-        restorer,
-        out,
-        options,
-        batch=batch,
-        max_frames=max_frames,
-        on_progress=on_progress,
+        source, restorer, out, options, batch=batch, max_frames=max_frames, on_progress=on_progress,
         should_stop=should_stop,
-    )
+    )  # fmt: skip

@@ -6,11 +6,10 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable
 from contextlib import AbstractContextManager
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
-from murk.enhance.choices import BagStorage
+from murk.enhance.bag import BagOptions
 from murk.enhance.frame_job import enhance_frames
 from murk.enhance.image_job import enhance_images
 from murk.enhance.inputs import EnhanceInput, plan_images, resolve_input
@@ -22,18 +21,6 @@ class ProgressDisplay(Protocol):
     """What shows a run's progress: called with the report after every batch."""
 
     def update(self, report: EnhanceReport) -> Any: ...
-
-
-@dataclass(frozen=True)
-class BagOptions:
-    """ROS bag input and output choices (``murk enhance dive.bag --topic ...``; see :mod:`murk.enhance.bag`)."""
-
-    topic: str | None = None
-    every: int = 1
-    out_topic: str | None = None
-    depth_topic: str | None = None
-    storage: BagStorage | None = None
-    copy_topics: tuple[str, ...] = ()
 
 
 DisplayFactory = Callable[[str, str, int | None, bool], AbstractContextManager[ProgressDisplay | None]]
@@ -128,10 +115,7 @@ def _run_bag(
                 restorer,
                 out,
                 options,
-                out_topic=bag.out_topic,
-                depth_topic=bag.depth_topic,
-                storage=bag.storage,
-                copy_topics=bag.copy_topics,
+                bag=bag,
                 batch=batch,
                 max_frames=max_frames,
                 on_progress=None if d is None else d.update,
