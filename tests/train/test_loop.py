@@ -197,3 +197,50 @@ def test_scenes_source_trains_and_matches_murk_scenes(tmp_path: Path) -> None:
     )
     summary = train(cfg)
     assert summary.steps_done == 2 and "val_psnr" in summary.last_eval
+
+
+def test_depth_head_parameters_feed_only_the_depth_output() -> None:
+    from murk.models.jointid import build_jointid, depth_head_parameter_names
+
+    torch.manual_seed(0)
+    model = build_jointid("tiny")
+    model(torch.rand(1, 3, 32, 64)).enhanced.mean().backward()
+    head = set(depth_head_parameter_names(model))
+    assert head and all(model.get_parameter(n).grad is None for n in head)
+    model.zero_grad(set_to_none=True)
+    model(torch.rand(1, 3, 32, 64)).depth_m.mean().backward()
+    assert all(model.get_parameter(n).grad is not None for n in head)
+
+
+def test_trainable_depth_head_changes_depth_and_leaves_the_enhanced_image_exact(
+    synth_folder: Path, tmp_path: Path
+) -> None:
+    from murk.models.jointid import build_jointid, save_checkpoint
+
+    torch.manual_seed(3)
+    start = tmp_path / "start.pt"
+    save_checkpoint(build_jointid("tiny"), start)
+    cfg = _config(
+        tmp_path / "run",
+        synth_folder,
+        steps=4,
+        model={"variant": "tiny", "init_checkpoint": str(start), "trainable": "depth_head"},
+        optim={"lr": 1e-2, "min_lr": 1e-2},
+    )
+    train(cfg)
+    before, after = load_checkpoint(start), load_checkpoint(tmp_path / "run" / "latest.pt")
+    a, b = _params(start), _params(tmp_path / "run" / "latest.pt")
+    changed = {k for k in a if not torch.equal(a[k], b[k])}
+    assert changed and all(k.startswith("depth_structure.decoder.") for k in changed)
+    x = torch.rand(2, 3, 32, 64)
+    with torch.no_grad():
+        ob, oa = before(x), after(x)
+    assert torch.equal(ob.enhanced, oa.enhanced)
+    assert not torch.equal(ob.depth_m, oa.depth_m)
+
+
+def test_trainable_depth_head_needs_a_checkpoint_and_a_jointid() -> None:
+    with pytest.raises(ValueError, match="init_checkpoint"):
+        merge(TrainConfig(), {"model": {"trainable": "depth_head"}})
+    with pytest.raises(ValueError, match="jointid only"):
+        merge(TrainConfig(), {"model": {"kind": "lite", "trainable": "depth_head", "init_checkpoint": "x.pt"}})

@@ -28,6 +28,11 @@ class ModelConfig:
     """Random initialisation: the recipe's, or with ICNR for the convolutions before pixel shuffles
     (:func:`murk.models.jointid.network.icnr_init_`; no sub-pixel grid at the start; jointid only)."""
     trust_checkpoint: bool = False
+    trainable: Literal["all", "depth_head"] = "all"
+    """``all``, or ``depth_head``: train only the depth decoder's skip convolutions and head
+    (:func:`murk.models.jointid.depth_head_parameter_names`), the parameters that feed nothing but the depth
+    output, so the enhanced image of ``init_checkpoint`` stays exactly as it was (jointid only; needs
+    ``init_checkpoint``)."""
 
     def __post_init__(self) -> None:
         if self.kind == "lite":
@@ -35,6 +40,14 @@ class ModelConfig:
                 raise ValueError(f"variant: expected base or tiny for model.kind lite, got {self.variant!r}")
             if self.init != "original":
                 raise ValueError(f"init: {self.init!r} applies to model.kind jointid only (lite has no pixel shuffle)")
+            if self.trainable != "all":
+                raise ValueError(
+                    f"trainable: {self.trainable!r} applies to model.kind jointid only (lite has no depth)"
+                )
+        if self.trainable == "depth_head" and not self.init_checkpoint:
+            raise ValueError(
+                "trainable: depth_head trains the depth head of existing weights; set model.init_checkpoint"
+            )
 
 
 @dataclass(frozen=True)

@@ -64,6 +64,15 @@ def frozen_parameter_names(kind: str, model: nn.Module) -> list[str]:
     return list(unused_parameter_names(model))
 
 
+def trainable_parameter_names(config: ModelConfig, model: nn.Module) -> set[str]:
+    """The parameters ``config.trainable`` lets the optimiser change: all, or the depth head's."""
+    if config.trainable == "depth_head":
+        from murk.models.jointid import depth_head_parameter_names
+
+        return set(depth_head_parameter_names(model))
+    return {n for n, _ in model.named_parameters()}
+
+
 def run_network(kind: str, net: nn.Module, images: Tensor) -> tuple[Tensor, Tensor | None]:
     """``(enhanced, depth_m or None)`` of ``net`` for a batch (B, 3, H, W) of RGB in [0, 1]."""
     if kind == "lite":

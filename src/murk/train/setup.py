@@ -179,14 +179,15 @@ def plan_steps(config: TrainConfig, n_train: int, world: int) -> tuple[int, int,
 
 def build_model(config: TrainConfig, device: torch.device) -> torch.nn.Module:
     """The network of ``config.model``, seeded by ``config.seed``, on ``device``; checkpoint-only parameters
-    (never used in forward) are frozen."""
-    from murk.train.networks import build_network, frozen_parameter_names
+    (never used in forward) are frozen, and with ``model.trainable: depth_head`` everything but the depth head."""
+    from murk.train.networks import build_network, frozen_parameter_names, trainable_parameter_names
 
     torch.manual_seed(config.seed)
     model = build_network(config.model)
     unused = set(frozen_parameter_names(config.model.kind, model))
+    trainable = trainable_parameter_names(config.model, model)
     for name, p in model.named_parameters():
-        if name in unused:
+        if name in unused or name not in trainable:
             p.requires_grad_(False)
     model.to(device)
     if config.channels_last:

@@ -210,6 +210,30 @@ def unused_parameter_names(model: nn.Module) -> list[str]:
     return [n for n, _ in model.named_parameters() if ".norm_layer_2." in n]
 
 
+DEPTH_HEAD_MODULES = (
+    "up_skip_conv_c1",
+    "up_skip_conv_c2",
+    "up_skip_conv_c3",
+    "up_skip_conv_c4",
+    "up_skip_conv",
+    "linear_pred1",
+)
+"""The depth decoder's modules that feed only the depth output: the skip convolutions and the head. Everything
+else in the depth branch also reaches the enhanced image through the ``eh`` joint blocks."""
+
+
+def depth_head_parameter_names(model: nn.Module) -> list[str]:
+    """Names of the parameters that affect the depth output and nothing else (:data:`DEPTH_HEAD_MODULES` of the
+    depth decoder). Training only these (``model.trainable: depth_head``) leaves the enhanced image unchanged
+    bit for bit."""
+    prefix = "depth_structure.decoder."
+    return [
+        n
+        for n, _ in model.named_parameters()
+        if n.startswith(prefix) and n[len(prefix) :].split(".")[0] in DEPTH_HEAD_MODULES
+    ]
+
+
 def init_weights(model: JointID) -> JointID:
     """Initialise for training from scratch (no pretrained backbone), as the training recipe does.
 
