@@ -213,7 +213,15 @@ def test_validation_errors(rng: np.random.Generator) -> None:
 
 def test_post_is_registered_and_takes_its_declared_options(rng: np.random.Generator) -> None:
     assert "post" in restorer_mod.available()
-    assert set(restorer_mod.options_of("post")) == {"device", "sigma_px", "lam", "he", "clahe_clip", "clahe_tiles"}
+    assert set(restorer_mod.options_of("post")) == {
+        "device",
+        "sigma_px",
+        "lam",
+        "he",
+        "clahe_clip",
+        "clahe_tiles",
+        "he_smoothing",
+    }
     assert str(restorer_mod.options_of("post")["lam"]) == "lam: float = 0.3"
     shared = {"checkpoint": "x.pt", "tile": 512, "precision": "bf16", "batch": 4}  # a command's settings for others
     r = restorer_mod.create("post", device="cpu", he="rgb", lam=0.1, shared=shared)
@@ -226,7 +234,7 @@ def test_post_is_registered_and_takes_its_declared_options(rng: np.random.Genera
 
 
 def test_misspelt_and_foreign_options_are_errors_naming_the_valid_ones() -> None:
-    valid = "options of post: clahe_clip, clahe_tiles, device, he, lam, sigma_px"
+    valid = "options of post: clahe_clip, clahe_tiles, device, he, he_smoothing, lam, sigma_px"
     with pytest.raises(ValueError, match=rf"unknown option 'lamda' \(did you mean 'lam'\?\); {valid}"):
         restorer_mod.create("post?lamda=0.9")
     with pytest.raises(ValueError, match=rf"unknown option 'lamda' \(did you mean 'lam'\?\); {valid}"):

@@ -25,6 +25,7 @@ FLAGS = {
     "lam": "--lambda",
     "clahe_clip": "--clahe-clip",
     "clahe_tiles": "--clahe-tiles",
+    "he_smoothing": "--he-smoothing",
     "checkpoint": "--checkpoint",
     "precision": "--precision",
     "tile": "--tile",
@@ -103,6 +104,16 @@ def enhance(
     ] = None,
     clahe_tiles: Annotated[
         int | None, typer.Option("--clahe-tiles", min=1, help="post --he clahe: tiles per side (default 8).")
+    ] = None,
+    he_smoothing: Annotated[
+        float | None,
+        typer.Option(
+            "--he-smoothing",
+            min=0.0,
+            max=0.99,
+            help="post, videos/cameras/streams/bags: weight of the previous frames' equalisation (0 = per frame, "
+            "the paper's, default; 0.8 steadies the brightness of a live picture, ~5-frame time constant).",
+        ),
     ] = None,
     checkpoint: Annotated[
         Path | None,
@@ -195,6 +206,7 @@ def enhance(
         "lam": lam,
         "clahe_clip": clahe_clip,
         "clahe_tiles": clahe_tiles,
+        "he_smoothing": he_smoothing,
         "checkpoint": None if checkpoint is None else str(checkpoint),
         "precision": precision,
         "tile": tile,

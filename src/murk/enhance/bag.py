@@ -335,10 +335,11 @@ def enhance_bag(
     options = options or OutputOptions()
     bag = bag or BagOptions()
     if writes_bag(out, source.family, options.format):
-        return enhance_bag_to_bag(
-            source, restorer, out, options, bag=bag, batch=batch, max_frames=max_frames, on_progress=on_progress,
-            should_stop=should_stop,
-        )  # fmt: skip
+        with restorer.sequence():  # the topic's frames are one video (enhance_frames enters it for frames)
+            return enhance_bag_to_bag(
+                source, restorer, out, options, bag=bag, batch=batch, max_frames=max_frames,
+                on_progress=on_progress, should_stop=should_stop,
+            )  # fmt: skip
     if bag.output_flags():
         raise ValueError(f"{', '.join(bag.output_flags())}: apply to a bag output; --out {out} writes numbered images")
     return enhance_bag_to_frames(

@@ -238,37 +238,38 @@ def enhance_frames(
     complete = False
     n_read = 0
     reader: FrameSource = ReadAhead(source) if read_ahead else source
-    try:
-        while True:
-            if should_stop and should_stop():
-                report.stopped = True
-                break
-            if max_frames is not None and n_read >= max_frames:
-                break
-            t0 = time.perf_counter()
-            frame = reader.read()
-            if frame is None:
+    with restorer.sequence():  # one video: methods with state over time carry it from frame to frame
+        try:
+            while True:
+                if should_stop and should_stop():
+                    report.stopped = True
+                    break
+                if max_frames is not None and n_read >= max_frames:
+                    break
+                t0 = time.perf_counter()
+                frame = reader.read()
+                if frame is None:
+                    report.read_s += time.perf_counter() - t0
+                    break
+                n_read += 1
+                item = _FrameItem(frame.index, None if frame.image is None else to_float(frame.image), frame.error)
                 report.read_s += time.perf_counter() - t0
-                break
-            n_read += 1
-            item = _FrameItem(frame.index, None if frame.image is None else to_float(frame.image), frame.error)
-            report.read_s += time.perf_counter() - t0
-            if not writer.as_video and item.image is not None:
-                item.dst = writer.frame_path(frame.index)
-                if item.dst.exists() and not options.overwrite:
-                    report.skipped += 1
-                    continue
-            items.append(item)
-            if sum(it.image is not None for it in items) >= batch:
-                flush()
-        flush()
-        complete = source.live or not report.stopped
-    finally:
-        if isinstance(reader, ReadAhead):
-            reader.stop()
-            report.dropped = reader.dropped
-        writer.finish(complete)
-        report.tick()
+                if not writer.as_video and item.image is not None:
+                    item.dst = writer.frame_path(frame.index)
+                    if item.dst.exists() and not options.overwrite:
+                        report.skipped += 1
+                        continue
+                items.append(item)
+                if sum(it.image is not None for it in items) >= batch:
+                    flush()
+            flush()
+            complete = source.live or not report.stopped
+        finally:
+            if isinstance(reader, ReadAhead):
+                reader.stop()
+                report.dropped = reader.dropped
+            writer.finish(complete)
+            report.tick()
     if report.dropped:
         report.note(
             f"{label}: {report.dropped} frame(s) dropped: the source delivered them faster than {restorer.name} "

@@ -30,7 +30,9 @@ agree to float rounding (the LoG sums are accumulated in a different order; see 
 
 from __future__ import annotations
 
+import contextlib
 import math
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -87,6 +89,62 @@ class PostParams:
             "clahe_clip": self.clahe_clip,
             "clahe_tiles": self.clahe_tiles,
         }
+
+
+TableHook = Callable[[Any], Any]
+"""Replaces equalisation tables: numpy (C, 256) -> (C, 256) for one image, torch (B, C, 256) -> (B, C, 256) for a
+batch of consecutive images; values are output levels in 0..255 (C = 1 for the luma, 3 for ``he="rgb"``)."""
+
+
+class TableSmoother:
+    """Temporal smoothing of the equalisation tables over the frames of one video: frame ``t`` is equalised
+    with ``T_t = s T_(t-1) + (1 - s) L_t``, where ``L_t`` is its own table (:func:`equalize_lut`), ``T_0 = L_0``
+    and ``s`` is ``smoothing``. Equalisation recomputed per frame makes the brightness of a steady scene jump
+    whenever the histogram shifts a little (a fish or a particle cloud crossing the frame); an exponential
+    average of the tables keeps the mapping steady and follows real changes with a time constant of about
+    ``1 / (1 - s)`` frames (s = 0.8: 5 frames, 0.17 s at 30 frames/s). A mix of monotone tables is monotone,
+    so the order of grey levels is never inverted. Works as a :data:`TableHook` for both twins (same float32
+    arithmetic, pinned equal by tests); :meth:`reset` starts a new video.
+
+    Raises:
+        ValueError: ``smoothing`` outside [0, 1).
+    """
+
+    def __init__(self, smoothing: float) -> None:
+        if isinstance(smoothing, bool) or not 0.0 <= float(smoothing) < 1.0:
+            raise ValueError(f"he_smoothing: expected a weight in [0, 1), got {smoothing!r}")
+        self.smoothing = float(smoothing)
+        self._keep = np.float32(self.smoothing)
+        self._take = np.float32(1.0) - self._keep
+        self._last: np.ndarray | torch.Tensor | None = None
+
+    def reset(self) -> None:
+        """Forget the previous frames (the next frame is the first of a video)."""
+        self._last = None
+
+    def __call__(self, luts: Any) -> Any:
+        if isinstance(luts, torch.Tensor):
+            return self._torch(luts)
+        cur = np.asarray(luts, np.float32)
+        prev = self._last
+        last = cur.copy() if prev is None else self._keep * _numpy(prev) + self._take * cur
+        self._last = last
+        return last
+
+    def _torch(self, luts: torch.Tensor) -> torch.Tensor:
+        """Tables of B consecutive frames (B, C, 256), oldest first."""
+        out = torch.empty_like(luts, dtype=torch.float32)
+        last = None if self._last is None else torch.as_tensor(self._last, device=luts.device)
+        for i in range(luts.shape[0]):
+            cur = luts[i].float()
+            last = cur if last is None else float(self._keep) * last + float(self._take) * cur
+            out[i] = last
+        self._last = last
+        return out
+
+
+def _numpy(a: np.ndarray | torch.Tensor) -> np.ndarray:
+    return a.cpu().numpy() if isinstance(a, torch.Tensor) else a
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -172,6 +230,7 @@ def equalize(
     *,
     clahe_clip: float = CLAHE_CLIP,
     clahe_tiles: int | tuple[int, int] = CLAHE_TILES,
+    tables: TableHook | None = None,
 ) -> np.ndarray:
     """The histogram-equalised image ``I_HE`` of Eq. (9) (OpenCV/numpy path); see the module docstring.
 
@@ -180,6 +239,8 @@ def equalize(
         he: ``"y"`` (luma, chroma kept), ``"rgb"`` (per channel) or ``"clahe"`` (CLAHE on the luma).
         clahe_clip: CLAHE clip limit (``he="clahe"`` only).
         clahe_tiles: CLAHE grid, int or (columns, rows) (``he="clahe"`` only).
+        tables: ``he="y"``/``"rgb"``: called with the image's own look-up tables, (C, 256) float32 in 0..255
+            (C = 1 luma or 3 channels), returns the tables to apply instead (:class:`TableSmoother` for video).
 
     Returns:
         float32 (H, W, 3) in [0, 1].
@@ -188,11 +249,13 @@ def equalize(
     if he not in HE_MODES:
         raise ValueError(f"he: expected one of {', '.join(HE_MODES)}, got {he!r}")
     x = np.clip(image, 0.0, 1.0)
+    if tables is not None and he == "clahe":
+        raise ValueError("tables: CLAHE has a table per tile; table smoothing applies to he 'y' and 'rgb'")
     if he == "rgb":
-        return np.stack([_equalize_channel(x[:, :, i]) for i in range(3)], axis=-1)
+        return np.stack(_equalize_channels([x[:, :, i] for i in range(3)], tables), axis=-1)
     y = _luma(x)
     if he == "y":
-        y_he = _equalize_channel(y)
+        (y_he,) = _equalize_channels([y], tables)
     else:
         tiles = _tiles(clahe_tiles)
         clahe = cv2.createCLAHE(clipLimit=check_positive("clahe_clip", clahe_clip), tileGridSize=tiles)
@@ -216,12 +279,30 @@ def _quantise(c: np.ndarray) -> np.ndarray:
     return np.rint(np.clip(c, 0.0, 1.0) * _F255).astype(np.int64)
 
 
-def _equalize_channel(c: np.ndarray) -> np.ndarray:
-    """256-bin float equalisation of one channel in [0, 1] (float32 out)."""
-    y255 = np.clip(c, 0.0, 1.0) * _F255
+def _equalize_channels(channels: list[np.ndarray], tables: TableHook | None) -> list[np.ndarray]:
+    """256-bin float equalisation of channels in [0, 1] (float32 out), each by its own table, or by the tables
+    ``tables`` returns for them."""
+    y255s = [np.clip(c, 0.0, 1.0) * _F255 for c in channels]
+    luts = np.stack([equalize_lut(_histogram(y255)) for y255 in y255s])
+    if tables is not None:
+        luts = _checked_tables(tables(luts), luts.shape)
+    return [_apply_lut(y255, lut) for y255, lut in zip(y255s, luts, strict=True)]
+
+
+def _histogram(y255: np.ndarray) -> np.ndarray:
     q = cv2.convertScaleAbs(y255)  # the 8-bit bin of each pixel: round half to even, as np.rint (pinned by tests)
-    hist = cv2.calcHist([q], [0], None, [256], [0, 256]).ravel().astype(np.int64)
-    lut = equalize_lut(hist)
+    return cv2.calcHist([q], [0], None, [256], [0, 256]).ravel().astype(np.int64)
+
+
+def _checked_tables(luts: Any, shape: tuple[int, ...]) -> Any:
+    if tuple(luts.shape) != tuple(shape):
+        raise ShapeError(f"tables: the hook must return tables of shape {tuple(shape)}, got {tuple(luts.shape)}")
+    return luts
+
+
+def _apply_lut(y255: np.ndarray, lut: np.ndarray) -> np.ndarray:
+    """``lut`` (256 values in 0..255) at ``y255`` by linear interpolation, divided by 255."""
+    lut = np.asarray(lut, np.float32)
     # Linear interpolation lut[i0] + (lut[i0 + 1] - lut[i0]) * frac, with one gather from a (value, step) table.
     table = np.zeros((256, 2), np.float32)
     table[:, 0] = lut
@@ -229,7 +310,7 @@ def _equalize_channel(c: np.ndarray) -> np.ndarray:
     i0 = y255.astype(np.intp)  # truncation == floor, y255 >= 0
     np.minimum(i0, 254, out=i0)
     frac = np.subtract(y255, i0, dtype=np.float32)
-    pairs = table.view(np.float64).ravel().take(i0).view(np.float32).reshape(*c.shape, 2)
+    pairs = table.view(np.float64).ravel().take(i0).view(np.float32).reshape(*y255.shape, 2)
     out = np.multiply(pairs[..., 1], frac, out=frac)
     out += pairs[..., 0]
     out *= _INV255
@@ -245,18 +326,22 @@ def equalize_torch(
     *,
     clahe_clip: float = CLAHE_CLIP,
     clahe_tiles: int | tuple[int, int] = CLAHE_TILES,
+    tables: TableHook | None = None,
 ) -> torch.Tensor:
-    """Torch twin of :func:`equalize` on a batch (B, 3, H, W) in [0, 1]; every image has its own histogram."""
+    """Torch twin of :func:`equalize` on a batch (B, 3, H, W) in [0, 1]; every image has its own histogram.
+    ``tables`` gets the batch's tables as (B, C, 256) float32, the images in order."""
     _check_batch(images, channels=3)
     if he not in HE_MODES:
         raise ValueError(f"he: expected one of {', '.join(HE_MODES)}, got {he!r}")
+    if tables is not None and he == "clahe":
+        raise ValueError("tables: CLAHE has a table per tile; table smoothing applies to he 'y' and 'rgb'")
     x = images.float().clamp(0.0, 1.0)
     b, _, h, w = x.shape
     if he == "rgb":
-        return _equalize_channels_torch(x.reshape(b * 3, h, w)).reshape(b, 3, h, w)
+        return _equalize_channels_torch(x.reshape(b * 3, h, w), tables, per_image=3).reshape(b, 3, h, w)
     y = _LUMA[0] * x[:, 0] + _LUMA[1] * x[:, 1] + _LUMA[2] * x[:, 2]
     if he == "y":
-        y_he = _equalize_channels_torch(y)
+        y_he = _equalize_channels_torch(y, tables, per_image=1)
     else:
         q = _quantise_torch(y)
         y_he = _clahe_torch(q, check_positive("clahe_clip", clahe_clip), _tiles(clahe_tiles)).float() * _INV255.item()
@@ -283,13 +368,17 @@ def _equalize_luts_torch(hist: torch.Tensor) -> torch.Tensor:
     return torch.where(constant, bins[None].float().expand_as(lut), lut)
 
 
-def _equalize_channels_torch(c: torch.Tensor) -> torch.Tensor:
-    """Equalise N independent channels (N, H, W) in [0, 1]."""
+def _equalize_channels_torch(c: torch.Tensor, tables: TableHook | None = None, per_image: int = 1) -> torch.Tensor:
+    """Equalise N independent channels (N, H, W) in [0, 1]; ``tables`` sees them as (N / per_image, per_image,
+    256)."""
     n = c.shape[0]
     q = _quantise_torch(c).reshape(n, -1)
     offsets = (torch.arange(n, device=c.device) * 256)[:, None]
     hist = torch.bincount((q + offsets).reshape(-1), minlength=n * 256).reshape(n, 256)
     lut = _equalize_luts_torch(hist)
+    if tables is not None:
+        shape = (n // per_image, per_image, 256)
+        lut = _checked_tables(tables(lut.reshape(shape)), shape).reshape(n, 256).float()
     step = torch.zeros_like(lut)
     step[:, :255] = lut[:, 1:] - lut[:, :-1]
     y255 = c.clamp(0.0, 1.0).reshape(n, -1) * 255.0
@@ -372,6 +461,7 @@ def post_process(
     he: HEMode = "y",
     clahe_clip: float = CLAHE_CLIP,
     clahe_tiles: int | tuple[int, int] = CLAHE_TILES,
+    tables: TableHook | None = None,
 ) -> np.ndarray:
     """Post-process one image: histogram equalisation, then LoG edge enhancement. Implements Eq. (9).
 
@@ -382,6 +472,7 @@ def post_process(
         he: equalisation mode, see :func:`equalize`.
         clahe_clip: CLAHE clip limit (``he="clahe"``).
         clahe_tiles: CLAHE grid (``he="clahe"``).
+        tables: replaces the equalisation tables (``he="y"``/``"rgb"``; see :func:`equalize`).
 
     Returns:
         float32 (H, W, 3) in [0, 1].
@@ -392,7 +483,7 @@ def post_process(
         ValueError: a parameter is out of range.
     """
     params = PostParams(sigma_px, lam, he, clahe_clip, clahe_tiles)
-    i_he = equalize(image, params.he, clahe_clip=params.clahe_clip, clahe_tiles=params.clahe_tiles)
+    i_he = equalize(image, params.he, clahe_clip=params.clahe_clip, clahe_tiles=params.clahe_tiles, tables=tables)
     if params.lam == 0.0:
         return i_he
     # Eq. (9): I_HE - lambda (LoG * I_HE), with -lambda folded into the second-derivative taps (one pass each
@@ -413,11 +504,14 @@ def post_process_torch(
     he: HEMode = "y",
     clahe_clip: float = CLAHE_CLIP,
     clahe_tiles: int | tuple[int, int] = CLAHE_TILES,
+    tables: TableHook | None = None,
 ) -> torch.Tensor:
     """Torch twin of :func:`post_process` on a batch (B, 3, H, W) in [0, 1], on the input's device.
     Implements Eq. (9)."""
     params = PostParams(sigma_px, lam, he, clahe_clip, clahe_tiles)
-    i_he = equalize_torch(images, params.he, clahe_clip=params.clahe_clip, clahe_tiles=params.clahe_tiles)
+    i_he = equalize_torch(
+        images, params.he, clahe_clip=params.clahe_clip, clahe_tiles=params.clahe_tiles, tables=tables
+    )
     if params.lam == 0.0:
         return i_he
     return (i_he - float(np.float32(params.lam)) * laplacian_of_gaussian_torch(i_he, params.sigma_px)).clamp(
@@ -432,23 +526,55 @@ def post_process_torch(
 
 class PostRestorer(Restorer):
     """Eq. (9) as a :class:`~murk.enhance.restorer.Restorer`: OpenCV per image on CPU, the torch twin in
-    batches on CUDA (and always for :meth:`restore_tensor`). Returns no depth."""
+    batches on CUDA (and always for :meth:`restore_tensor`). Returns no depth.
+
+    With ``he_smoothing`` > 0, frames restored inside :meth:`sequence` are equalised with tables smoothed over
+    time (:class:`TableSmoother`); images restored outside it are each equalised on their own, as without it.
+
+    Raises:
+        ValueError: ``he_smoothing`` outside [0, 1), or set with ``he="clahe"``.
+    """
 
     name = "post"
 
-    def __init__(self, params: PostParams | None = None, device: str | torch.device = "cpu") -> None:
+    def __init__(
+        self, params: PostParams | None = None, device: str | torch.device = "cpu", he_smoothing: float = 0.0
+    ) -> None:
         self.params = params or PostParams()
         self.device = torch.device(device)
+        smoother = TableSmoother(he_smoothing)
+        if smoother.smoothing > 0 and self.params.he == "clahe":
+            raise ValueError("he_smoothing: applies to he 'y' and 'rgb' (CLAHE has a table per tile)")
+        self._smoother = smoother if smoother.smoothing > 0 else None
+        self._in_sequence = False
+
+    @property
+    def he_smoothing(self) -> float:
+        return 0.0 if self._smoother is None else self._smoother.smoothing
+
+    @contextlib.contextmanager
+    def sequence(self) -> Iterator[None]:
+        if self._smoother is not None:
+            self._smoother.reset()
+        self._in_sequence = True
+        try:
+            yield
+        finally:
+            self._in_sequence = False
+
+    def _tables(self) -> TableHook | None:
+        return self._smoother if self._in_sequence else None
 
     def restore(self, images: np.ndarray) -> Restored:
         batch = _check_numpy_batch(images)
         if self.device.type != "cpu":
             return super().restore(batch)
-        out = np.stack([post_process(im, **self.params._kwargs()) for im in batch])
+        kw = self.params._kwargs()
+        out = np.stack([post_process(im, **kw, tables=self._tables()) for im in batch])
         return Restored(out)
 
     def restore_tensor(self, images: torch.Tensor) -> RestoredTensor:
-        return RestoredTensor(post_process_torch(images, **self.params._kwargs()))
+        return RestoredTensor(post_process_torch(images, **self.params._kwargs(), tables=self._tables()))
 
 
 @register("post")
@@ -460,9 +586,13 @@ def make_post(
     he: HEMode = "y",
     clahe_clip: float = CLAHE_CLIP,
     clahe_tiles: int | tuple[int, int] = CLAHE_TILES,
+    he_smoothing: float = 0.0,
 ) -> PostRestorer:
-    """Factory of the ``post`` method (Eq. 9 with these parameters; see :func:`post_process`)."""
-    return PostRestorer(PostParams(sigma_px, lam, he, clahe_clip, clahe_tiles), device=device)
+    """Factory of the ``post`` method (Eq. 9 with these parameters; see :func:`post_process`); ``he_smoothing``
+    smooths the equalisation over the frames of a video (:class:`TableSmoother`; 0 = off, the paper's)."""
+    return PostRestorer(
+        PostParams(sigma_px, lam, he, clahe_clip, clahe_tiles), device=device, he_smoothing=he_smoothing
+    )
 
 
 # ----------------------------------------------------------------------------------------------------------

@@ -18,7 +18,8 @@ Two entry points per restorer:
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+import contextlib
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -74,6 +75,13 @@ class Restorer:
     def __call__(self, images: np.ndarray) -> Restored:
         return self.restore(images)
 
+    @contextlib.contextmanager
+    def sequence(self) -> Iterator[None]:
+        """Frames restored inside this block are consecutive frames of one video, in order: a method with
+        state over time (``post`` with ``he_smoothing``) carries it from frame to frame, starting afresh at
+        entry. Outside, every image is restored on its own. Most methods have no such state."""
+        yield
+
 
 class Chain(Restorer):
     """Stages applied left to right; keeps the last depth any stage produced."""
@@ -98,6 +106,13 @@ class Chain(Restorer):
             out = stage.restore_tensor(images.to(stage.device))
             images, depth = out.images, out.depth_m if out.depth_m is not None else depth
         return RestoredTensor(images, depth)
+
+    @contextlib.contextmanager
+    def sequence(self) -> Iterator[None]:
+        with contextlib.ExitStack() as stack:
+            for stage in self.stages:
+                stack.enter_context(stage.sequence())
+            yield
 
 
 Factory = Callable[..., Restorer]
