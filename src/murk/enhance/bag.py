@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from murk.enhance.frame_job import enhance_frames
-from murk.enhance.job import EnhanceReport, OutputOptions, ProgressFn, StopFn, restore_batch
+from murk.enhance.job import EnhanceReport, OutputOptions, ProgressFn, StopFn, restore_batch, should_end
 from murk.enhance.preview import side_by_side
 from murk.enhance.restorer import Restorer
 from murk.errors import InputFileError
@@ -238,10 +238,7 @@ def enhance_bag_to_bag(
     n_read = 0
     try:
         while True:
-            if should_stop and should_stop():
-                report.stopped = True
-                break
-            if max_frames is not None and n_read >= max_frames:
+            if should_end(report, should_stop, max_frames, n_read):
                 break
             t0 = time.perf_counter()
             frame = source.read()

@@ -22,6 +22,7 @@ from murk.enhance.job import (
     ProgressFn,
     StopFn,
     restore_batch,
+    should_end,
     write_depth_outputs,
 )
 from murk.enhance.preview import colorize_depth, side_by_side
@@ -241,10 +242,7 @@ def enhance_frames(
     with restorer.sequence():  # one video: methods with state over time carry it from frame to frame
         try:
             while True:
-                if should_stop and should_stop():
-                    report.stopped = True
-                    break
-                if max_frames is not None and n_read >= max_frames:
+                if should_end(report, should_stop, max_frames, n_read):
                     break
                 t0 = time.perf_counter()
                 frame = reader.read()

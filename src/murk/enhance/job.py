@@ -101,6 +101,15 @@ INPUT_ERRORS = (InputFileError, ValueError, OSError)
 RESTORE_ERRORS = (ValueError, RuntimeError, MemoryError)
 
 
+def should_end(report: EnhanceReport, should_stop: StopFn | None, max_frames: int | None, n_read: int) -> bool:
+    """Whether a frame loop ends before reading the next frame: a stop request (``report.stopped`` is set)
+    or ``max_frames`` already read."""
+    if should_stop and should_stop():
+        report.stopped = True
+        return True
+    return max_frames is not None and n_read >= max_frames
+
+
 def restore_batch(restorer: Restorer, images: np.ndarray) -> Restored:
     """Run the restorer on a numpy batch; on CUDA through the tensor path (pinned upload, one download)."""
     device = getattr(restorer, "device", torch.device("cpu"))
