@@ -213,11 +213,11 @@ def test_a_flag_the_method_does_not_take_is_an_error(folder: Path, tmp_path: Pat
     assert any((read_rgb(a / f) != read_rgb(c / f)).any() for f in files)  # the default lambda (0.3) differs
 
 
-def test_he_smoothing_flag_reaches_post_for_videos_only(folder: Path, tmp_path: Path) -> None:
+def test_temporal_flag_reaches_post_for_videos_only(folder: Path, tmp_path: Path) -> None:
     video = make_video(tmp_path / "clip.avi", 8, fps=8.0)
     runs = {
-        "flag": ["--he-smoothing", "0.8"],
-        "spec": ["-m", "post?he_smoothing=0.8"],
+        "flag": ["--temporal", "0.8"],
+        "spec": ["-m", "post?temporal=0.8"],
         "plain": [],
     }
     for name, extra in runs.items():
@@ -228,11 +228,7 @@ def test_he_smoothing_flag_reaches_post_for_videos_only(folder: Path, tmp_path: 
     assert all((a == b).all() for a, b in zip(frames["flag"], frames["spec"], strict=True))
     assert (frames["flag"][0] == frames["plain"][0]).all()  # the first frame has no history
     assert any((a != b).any() for a, b in zip(frames["flag"][1:], frames["plain"][1:], strict=True))
-    res = runner.invoke(
-        app, ["enhance", str(folder), "-o", str(tmp_path / "j"), "-m", "jointid", "--he-smoothing", "0.8"]
-    )
-    assert res.exit_code == 2 and "--he-smoothing is an option of post" in _out(res), res.output
-    res = runner.invoke(
-        app, ["enhance", str(video), "-o", str(tmp_path / "c"), "--he", "clahe", "--he-smoothing", "0.5"]
-    )
+    res = runner.invoke(app, ["enhance", str(folder), "-o", str(tmp_path / "j"), "-m", "jointid", "--temporal", "0.8"])
+    assert res.exit_code == 2 and "--temporal is an option of" in _out(res), res.output
+    res = runner.invoke(app, ["enhance", str(video), "-o", str(tmp_path / "c"), "--he", "clahe", "--temporal", "0.5"])
     assert res.exit_code == 2 and "CLAHE" in _out(res), res.output

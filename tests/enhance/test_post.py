@@ -220,7 +220,7 @@ def test_post_is_registered_and_takes_its_declared_options(rng: np.random.Genera
         "he",
         "clahe_clip",
         "clahe_tiles",
-        "he_smoothing",
+        "temporal",
     }
     assert str(restorer_mod.options_of("post")["lam"]) == "lam: float = 0.3"
     shared = {"checkpoint": "x.pt", "tile": 512, "precision": "bf16", "batch": 4}  # a command's settings for others
@@ -234,7 +234,7 @@ def test_post_is_registered_and_takes_its_declared_options(rng: np.random.Genera
 
 
 def test_misspelt_and_foreign_options_are_errors_naming_the_valid_ones() -> None:
-    valid = "options of post: clahe_clip, clahe_tiles, device, he, he_smoothing, lam, sigma_px"
+    valid = "options of post: clahe_clip, clahe_tiles, device, he, lam, sigma_px, temporal"
     with pytest.raises(ValueError, match=rf"unknown option 'lamda' \(did you mean 'lam'\?\); {valid}"):
         restorer_mod.create("post?lamda=0.9")
     with pytest.raises(ValueError, match=rf"unknown option 'lamda' \(did you mean 'lam'\?\); {valid}"):

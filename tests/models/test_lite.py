@@ -299,6 +299,10 @@ def test_onnx_round_trip(tmp_path: Path) -> None:
             assert (runner(x) - folded(x)).abs().max().item() <= 1e-4
     with pytest.raises(ValueError, match="multiples of 16"):
         export_lite_onnx(net, tmp_path / "x.onnx", sample_size=(40, 64))
+    from murk.enhance.lite_restorer import LiteRestorer
+
+    with pytest.raises(ValueError, match="temporal: needs the torch network"):
+        LiteRestorer(runner, temporal=0.5)
     # An export with the earlier single input is refused with what to do.
     old = tmp_path / "old.onnx"
     with warnings.catch_warnings():

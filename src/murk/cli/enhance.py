@@ -25,7 +25,7 @@ FLAGS = {
     "lam": "--lambda",
     "clahe_clip": "--clahe-clip",
     "clahe_tiles": "--clahe-tiles",
-    "he_smoothing": "--he-smoothing",
+    "temporal": "--temporal",
     "checkpoint": "--checkpoint",
     "precision": "--precision",
     "tile": "--tile",
@@ -105,14 +105,15 @@ def enhance(
     clahe_tiles: Annotated[
         int | None, typer.Option("--clahe-tiles", min=1, help="post --he clahe: tiles per side (default 8).")
     ] = None,
-    he_smoothing: Annotated[
+    temporal: Annotated[
         float | None,
         typer.Option(
-            "--he-smoothing",
+            "--temporal",
             min=0.0,
             max=0.99,
-            help="post, videos/cameras/streams/bags: weight of the previous frames' equalisation (0 = per frame, "
-            "the paper's, default; 0.8 steadies the brightness of a live picture, ~5-frame time constant).",
+            help="lite, post; videos, cameras, streams, bags: weight of the previous frames in an average of the "
+            "per-frame estimates (lite's maps, post's equalisation); 0 = each frame on its own (default); 0.8 "
+            "steadies a live picture (~5-frame time constant).",
         ),
     ] = None,
     checkpoint: Annotated[
@@ -206,7 +207,7 @@ def enhance(
         "lam": lam,
         "clahe_clip": clahe_clip,
         "clahe_tiles": clahe_tiles,
-        "he_smoothing": he_smoothing,
+        "temporal": temporal,
         "checkpoint": None if checkpoint is None else str(checkpoint),
         "precision": precision,
         "tile": tile,

@@ -30,9 +30,8 @@ agree to float rounding (the LoG sums are accumulated in a different order; see 
 
 from __future__ import annotations
 
-import contextlib
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -44,6 +43,7 @@ import torch.nn.functional as F
 from murk._checks import check_positive, check_rgb
 from murk.enhance.choices import HE_MODES, HEMode
 from murk.enhance.restorer import Restored, RestoredTensor, Restorer, register
+from murk.enhance.temporal import FrameEMA
 from murk.errors import ShapeError
 
 SIGMA_PX = 1.0
@@ -93,58 +93,9 @@ class PostParams:
 
 TableHook = Callable[[Any], Any]
 """Replaces equalisation tables: numpy (C, 256) -> (C, 256) for one image, torch (B, C, 256) -> (B, C, 256) for a
-batch of consecutive images; values are output levels in 0..255 (C = 1 for the luma, 3 for ``he="rgb"``)."""
-
-
-class TableSmoother:
-    """Temporal smoothing of the equalisation tables over the frames of one video: frame ``t`` is equalised
-    with ``T_t = s T_(t-1) + (1 - s) L_t``, where ``L_t`` is its own table (:func:`equalize_lut`), ``T_0 = L_0``
-    and ``s`` is ``smoothing``. Equalisation recomputed per frame makes the brightness of a steady scene jump
-    whenever the histogram shifts a little (a fish or a particle cloud crossing the frame); an exponential
-    average of the tables keeps the mapping steady and follows real changes with a time constant of about
-    ``1 / (1 - s)`` frames (s = 0.8: 5 frames, 0.17 s at 30 frames/s). A mix of monotone tables is monotone,
-    so the order of grey levels is never inverted. Works as a :data:`TableHook` for both twins (same float32
-    arithmetic, pinned equal by tests); :meth:`reset` starts a new video.
-
-    Raises:
-        ValueError: ``smoothing`` outside [0, 1).
-    """
-
-    def __init__(self, smoothing: float) -> None:
-        if isinstance(smoothing, bool) or not 0.0 <= float(smoothing) < 1.0:
-            raise ValueError(f"he_smoothing: expected a weight in [0, 1), got {smoothing!r}")
-        self.smoothing = float(smoothing)
-        self._keep = np.float32(self.smoothing)
-        self._take = np.float32(1.0) - self._keep
-        self._last: np.ndarray | torch.Tensor | None = None
-
-    def reset(self) -> None:
-        """Forget the previous frames (the next frame is the first of a video)."""
-        self._last = None
-
-    def __call__(self, luts: Any) -> Any:
-        if isinstance(luts, torch.Tensor):
-            return self._torch(luts)
-        cur = np.asarray(luts, np.float32)
-        prev = self._last
-        last = cur.copy() if prev is None else self._keep * _numpy(prev) + self._take * cur
-        self._last = last
-        return last
-
-    def _torch(self, luts: torch.Tensor) -> torch.Tensor:
-        """Tables of B consecutive frames (B, C, 256), oldest first."""
-        out = torch.empty_like(luts, dtype=torch.float32)
-        last = None if self._last is None else torch.as_tensor(self._last, device=luts.device)
-        for i in range(luts.shape[0]):
-            cur = luts[i].float()
-            last = cur if last is None else float(self._keep) * last + float(self._take) * cur
-            out[i] = last
-        self._last = last
-        return out
-
-
-def _numpy(a: np.ndarray | torch.Tensor) -> np.ndarray:
-    return a.cpu().numpy() if isinstance(a, torch.Tensor) else a
+batch of consecutive images; values are output levels in 0..255 (C = 1 for the luma, 3 for ``he="rgb"``).
+:class:`murk.enhance.temporal.FrameEMA` is one: averaged over a video's frames, the tables change gradually (a
+mix of monotone tables is monotone, so grey levels never swap order)."""
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -240,7 +191,7 @@ def equalize(
         clahe_clip: CLAHE clip limit (``he="clahe"`` only).
         clahe_tiles: CLAHE grid, int or (columns, rows) (``he="clahe"`` only).
         tables: ``he="y"``/``"rgb"``: called with the image's own look-up tables, (C, 256) float32 in 0..255
-            (C = 1 luma or 3 channels), returns the tables to apply instead (:class:`TableSmoother` for video).
+            (C = 1 luma or 3 channels), returns the tables to apply instead (:data:`TableHook`).
 
     Returns:
         float32 (H, W, 3) in [0, 1].
@@ -528,53 +479,35 @@ class PostRestorer(Restorer):
     """Eq. (9) as a :class:`~murk.enhance.restorer.Restorer`: OpenCV per image on CPU, the torch twin in
     batches on CUDA (and always for :meth:`restore_tensor`). Returns no depth.
 
-    With ``he_smoothing`` > 0, frames restored inside :meth:`sequence` are equalised with tables smoothed over
-    time (:class:`TableSmoother`); images restored outside it are each equalised on their own, as without it.
+    With ``temporal`` > 0, frames restored inside :meth:`sequence` are equalised with their tables averaged over
+    time (:class:`murk.enhance.temporal.FrameEMA`); images restored outside it are each equalised on their own.
 
     Raises:
-        ValueError: ``he_smoothing`` outside [0, 1), or set with ``he="clahe"``.
+        ValueError: ``temporal`` outside [0, 1), or set with ``he="clahe"``.
     """
 
     name = "post"
 
     def __init__(
-        self, params: PostParams | None = None, device: str | torch.device = "cpu", he_smoothing: float = 0.0
+        self, params: PostParams | None = None, device: str | torch.device = "cpu", temporal: float = 0.0
     ) -> None:
         self.params = params or PostParams()
         self.device = torch.device(device)
-        smoother = TableSmoother(he_smoothing)
-        if smoother.smoothing > 0 and self.params.he == "clahe":
-            raise ValueError("he_smoothing: applies to he 'y' and 'rgb' (CLAHE has a table per tile)")
-        self._smoother = smoother if smoother.smoothing > 0 else None
-        self._in_sequence = False
-
-    @property
-    def he_smoothing(self) -> float:
-        return 0.0 if self._smoother is None else self._smoother.smoothing
-
-    @contextlib.contextmanager
-    def sequence(self) -> Iterator[None]:
-        if self._smoother is not None:
-            self._smoother.reset()
-        self._in_sequence = True
-        try:
-            yield
-        finally:
-            self._in_sequence = False
-
-    def _tables(self) -> TableHook | None:
-        return self._smoother if self._in_sequence else None
+        ema = FrameEMA(temporal)
+        if ema.weight > 0 and self.params.he == "clahe":
+            raise ValueError("temporal: applies to he 'y' and 'rgb' (CLAHE has a table per tile)")
+        self.temporal_state = ema if ema.weight > 0 else None
 
     def restore(self, images: np.ndarray) -> Restored:
         batch = _check_numpy_batch(images)
         if self.device.type != "cpu":
             return super().restore(batch)
         kw = self.params._kwargs()
-        out = np.stack([post_process(im, **kw, tables=self._tables()) for im in batch])
+        out = np.stack([post_process(im, **kw, tables=self.temporal_hook()) for im in batch])
         return Restored(out)
 
     def restore_tensor(self, images: torch.Tensor) -> RestoredTensor:
-        return RestoredTensor(post_process_torch(images, **self.params._kwargs(), tables=self._tables()))
+        return RestoredTensor(post_process_torch(images, **self.params._kwargs(), tables=self.temporal_hook()))
 
 
 @register("post")
@@ -586,13 +519,12 @@ def make_post(
     he: HEMode = "y",
     clahe_clip: float = CLAHE_CLIP,
     clahe_tiles: int | tuple[int, int] = CLAHE_TILES,
-    he_smoothing: float = 0.0,
+    temporal: float = 0.0,
 ) -> PostRestorer:
-    """Factory of the ``post`` method (Eq. 9 with these parameters; see :func:`post_process`); ``he_smoothing``
-    smooths the equalisation over the frames of a video (:class:`TableSmoother`; 0 = off, the paper's)."""
-    return PostRestorer(
-        PostParams(sigma_px, lam, he, clahe_clip, clahe_tiles), device=device, he_smoothing=he_smoothing
-    )
+    """Factory of the ``post`` method (Eq. 9 with these parameters; see :func:`post_process`); ``temporal``
+    averages the equalisation tables over the frames of a video (:mod:`murk.enhance.temporal`; 0 = per frame,
+    the paper's)."""
+    return PostRestorer(PostParams(sigma_px, lam, he, clahe_clip, clahe_tiles), device=device, temporal=temporal)
 
 
 # ----------------------------------------------------------------------------------------------------------

@@ -28,6 +28,7 @@ import torch
 
 from murk._suggest import did_you_mean
 from murk.enhance.options import Option, check_given, declared_options, parse_spec, route_options
+from murk.enhance.temporal import FrameEMA
 
 
 @dataclass(frozen=True)
@@ -75,12 +76,26 @@ class Restorer:
     def __call__(self, images: np.ndarray) -> Restored:
         return self.restore(images)
 
+    temporal_state: FrameEMA | None = None
+    """Set by methods with a ``temporal`` option > 0: their per-frame estimate's average over time."""
+    _in_sequence: bool = False
+
     @contextlib.contextmanager
     def sequence(self) -> Iterator[None]:
-        """Frames restored inside this block are consecutive frames of one video, in order: a method with
-        state over time (``post`` with ``he_smoothing``) carries it from frame to frame, starting afresh at
-        entry. Outside, every image is restored on its own. Most methods have no such state."""
-        yield
+        """Frames restored inside this block are consecutive frames of one video, in order: a method with a
+        ``temporal`` weight (``post``, ``lite``) averages its per-frame estimate over them
+        (:mod:`murk.enhance.temporal`), starting afresh at entry. Outside, every image is restored on its own."""
+        if self.temporal_state is not None:
+            self.temporal_state.reset()
+        self._in_sequence = True
+        try:
+            yield
+        finally:
+            self._in_sequence = False
+
+    def temporal_hook(self) -> FrameEMA | None:
+        """The temporal average to apply now: inside :meth:`sequence` with a ``temporal`` weight, else None."""
+        return self.temporal_state if self._in_sequence else None
 
 
 class Chain(Restorer):

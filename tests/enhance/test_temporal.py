@@ -1,7 +1,9 @@
-"""Temporal smoothing of the equalisation tables (``post`` with ``he_smoothing``) over the frames of a video."""
+"""Temporal averaging of per-frame estimates over the frames of a video (``--temporal``): ``post``'s equalisation
+tables and ``lite``'s coefficient maps."""
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 
 import cv2
@@ -11,8 +13,9 @@ import torch
 
 from murk.enhance.frame_job import enhance_frames
 from murk.enhance.job import OutputOptions
-from murk.enhance.post import PostRestorer, TableSmoother, equalize_lut, post_process, post_process_torch
+from murk.enhance.post import PostRestorer, equalize_lut, post_process, post_process_torch
 from murk.enhance.restorer import create
+from murk.enhance.temporal import FrameEMA
 
 from ._enhance_helpers import FakeSource
 
@@ -43,7 +46,7 @@ def _background_means(frames: list[np.ndarray]) -> np.ndarray:
 
 
 def test_smoother_follows_the_recursion_and_starts_at_the_first_table(rng: np.random.Generator) -> None:
-    s = TableSmoother(0.75)
+    s = FrameEMA(0.75)
     luts = [equalize_lut(rng.integers(0, 50, 256))[None] for _ in range(4)]
     out = [s(lut).copy() for lut in luts]
     np.testing.assert_array_equal(out[0], luts[0])
@@ -56,7 +59,7 @@ def test_smoother_follows_the_recursion_and_starts_at_the_first_table(rng: np.ra
 
 def test_smoother_numpy_and_torch_twins_are_equal(rng: np.random.Generator) -> None:
     luts = np.stack([equalize_lut(rng.integers(0, 50, 256))[None] for _ in range(5)])  # (5 frames, 1, 256)
-    a, b = TableSmoother(0.8), TableSmoother(0.8)
+    a, b = FrameEMA(0.8), FrameEMA(0.8)
     one_by_one = np.stack([a(lut) for lut in luts])
     batched = b(torch.from_numpy(luts)).numpy()  # a batch holds consecutive frames, oldest first
     np.testing.assert_array_equal(one_by_one, batched)
@@ -64,10 +67,10 @@ def test_smoother_numpy_and_torch_twins_are_equal(rng: np.random.Generator) -> N
 
 def test_smoothing_weight_is_validated() -> None:
     for bad in (-0.1, 1.0, 2.0, True):
-        with pytest.raises(ValueError, match="he_smoothing"):
-            TableSmoother(bad)  # type: ignore[arg-type]
+        with pytest.raises(ValueError, match="temporal"):
+            FrameEMA(bad)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="CLAHE"):
-        create("post", he="clahe", he_smoothing=0.5)
+        create("post", he="clahe", temporal=0.5)
 
 
 def test_an_identity_hook_changes_nothing(rng: np.random.Generator) -> None:
@@ -84,7 +87,7 @@ def test_smoothing_acts_only_inside_a_sequence_and_steadies_the_background() -> 
     frames = _steady_scene_with_a_passing_object(16)
     batch = np.stack(frames)
     plain = PostRestorer().restore(batch).images
-    smooth = PostRestorer(he_smoothing=0.8)
+    smooth = PostRestorer(temporal=0.8)
     np.testing.assert_array_equal(smooth.restore(batch).images, plain)  # stills: each image on its own
     with smooth.sequence():
         steady = smooth.restore(batch).images
@@ -100,8 +103,8 @@ def test_smoothing_acts_only_inside_a_sequence_and_steadies_the_background() -> 
 @pytest.mark.parametrize("he", ["y", "rgb"])
 def test_sequence_numpy_frames_and_torch_batch_agree(he: str) -> None:
     frames = np.stack(_steady_scene_with_a_passing_object(6))
-    one = create("post", he=he, he_smoothing=0.7)
-    two = create("post", he=he, he_smoothing=0.7)
+    one = create("post", he=he, temporal=0.7)
+    two = create("post", he=he, temporal=0.7)
     with one.sequence():
         by_frame = np.concatenate([one.restore(f[None]).images for f in frames])
     with two.sequence():
@@ -111,7 +114,7 @@ def test_sequence_numpy_frames_and_torch_batch_agree(he: str) -> None:
 
 def test_enhance_frames_smooths_each_video_from_its_own_first_frame(tmp_path: Path) -> None:
     frames = [(f * 255).round().astype(np.uint8) for f in _steady_scene_with_a_passing_object(10)]
-    restorer = create("post?he_smoothing=0.8")
+    restorer = create("post?temporal=0.8")
     opts = OutputOptions(format="png")
     for run in ("a", "b"):  # the same restorer for two inputs: the second starts afresh
         enhance_frames(FakeSource(frames, live=False), restorer, tmp_path / run, opts, batch=3)
@@ -120,10 +123,58 @@ def test_enhance_frames_smooths_each_video_from_its_own_first_frame(tmp_path: Pa
     assert len(out_a) == len(out_b) == 10
     for pa, pb in zip(out_a, out_b, strict=True):
         np.testing.assert_array_equal(cv2.imread(str(pa)), cv2.imread(str(pb)))
-    reference = PostRestorer(he_smoothing=0.8)
+    reference = PostRestorer(temporal=0.8)
     with reference.sequence():
         expected = reference.restore(np.stack([f.astype(np.float32) / 255 for f in frames])).images
     got = np.stack([cv2.imread(str(p))[:, :, ::-1] for p in out_a]).astype(np.float32) / 255
     assert np.abs(got - expected).max() <= 0.5 / 255 + 1e-6  # 8-bit rounding only
     plain = PostRestorer().restore(np.stack([f.astype(np.float32) / 255 for f in frames])).images
     assert np.abs(got[1:] - plain[1:]).max() > 2 / 255  # the smoothing did act on later frames
+
+
+# --- lite: the low-resolution maps --------------------------------------------------------------------------
+
+
+def _pan(n: int, h: int = 150, w: int = 200) -> np.ndarray:
+    """A slow pan (3 px right, 2 px down per frame) over a shipped real image."""
+    from murk.data import sample_underwater_images
+    from murk.io import read_rgb
+
+    img = read_rgb(sample_underwater_images()[0])
+    return np.stack([img[2 * t : 2 * t + h, 3 * t : 3 * t + w] for t in range(n)]).astype(np.float32)
+
+
+def _aligned_flicker(out: np.ndarray) -> float:
+    return float(np.mean([np.abs(a[2:, 3:] - b[:-2, :-3]).mean() for a, b in itertools.pairwise(out)]))
+
+
+def test_lite_averages_its_maps_inside_a_sequence_only() -> None:
+    import torch.nn.functional as F
+
+    from murk.models.lite.network import apply_maps, work_image
+
+    frames = _pan(8)  # 150x200: larger than the working area, so the maps come from a downsampled image
+    plain = create("lite").restore(frames).images
+    lite = create("lite", temporal=0.8)
+    np.testing.assert_array_equal(lite.restore(frames).images, plain)  # stills: each frame on its own
+    with lite.sequence():
+        steady = np.concatenate([lite.restore(f[None]).images for f in frames])  # frame by frame, as a stream
+    np.testing.assert_allclose(steady[0], plain[0], atol=1e-6)  # the first frame has no history
+    # The same as LiteNet's own forward with the maps averaged by hand (the torch formula the CUDA path runs).
+    x = torch.from_numpy(frames).permute(0, 3, 1, 2)
+    with torch.no_grad():
+        maps = lite.model.maps(work_image(x, lite.work_area_px))
+        for t in range(1, len(maps)):
+            maps[t] = 0.8 * maps[t - 1] + 0.2 * maps[t]
+        ref = apply_maps(F.interpolate(maps, size=x.shape[-2:], mode="bilinear"), x).clamp(0, 1)
+    np.testing.assert_allclose(steady, ref.permute(0, 2, 3, 1).numpy(), atol=5e-5)
+    assert _aligned_flicker(steady) < 0.7 * _aligned_flicker(plain)
+    with lite.sequence():  # a new video starts afresh; a batch of consecutive frames equals frame by frame
+        np.testing.assert_allclose(lite.restore(frames).images, steady, atol=1e-5)  # batched convs: float order
+
+
+def test_one_flag_reaches_both_stages_of_a_chain() -> None:
+    chain = create("lite+post", shared={"temporal": 0.7})
+    assert [s.temporal_state.weight for s in chain.stages] == [0.7, 0.7]
+    with pytest.raises(ValueError, match="temporal"):
+        create("jointid", temporal=0.5)
