@@ -22,6 +22,7 @@ def test_shipped_file_is_small_safe_and_the_small_variant() -> None:
     assert obj["variant"] == "small" and obj["config"]["residual_output"] is True
     assert all(v.dtype == torch.float16 for v in obj["state_dict"].values() if v.is_floating_point())
     assert obj["meta"]["command"].startswith("murk train --config configs/train-small-cpu.yaml")
+    assert "murk train --config configs/train-small-depth-cpu.yaml" in obj["meta"]["command"]  # stage 2
 
 
 def test_shipped_model_restores_heldout_scenes_and_keeps_real_images_sane() -> None:
@@ -43,3 +44,23 @@ def test_shipped_model_restores_heldout_scenes_and_keeps_real_images_sane() -> N
     out = restorer.restore(img[None]).images[0]
     m = restoration_measures(img, np.clip(out, 0, 1))
     assert m["contrast_ratio"] > 0.5 and m["luminance_ratio"] > 0.9, m  # no grey collapse, not darkened
+
+
+def test_recorded_run_configs_equal_the_shipped_configs() -> None:
+    """The model cards' recorded configs (written by the runs that made the shipped weights) are the shipped
+    configs' recipes: only the output folder differs."""
+    import dataclasses
+    from pathlib import Path
+
+    from murk._config import load_yaml
+    from murk.train.config import TrainConfig
+
+    root = Path(__file__).resolve().parents[2]
+    pairs = {
+        "configs/train-small-cpu.yaml": "docs/models/jointid-small-config.yaml",
+        "configs/train-small-depth-cpu.yaml": "docs/models/jointid-small-depth-config.yaml",
+        "configs/train-lite-cpu.yaml": "docs/models/lite-config.yaml",
+    }
+    for shipped, recorded in pairs.items():
+        a, b = (load_yaml(TrainConfig, root / p) for p in (shipped, recorded))
+        assert dataclasses.replace(a, out="x") == dataclasses.replace(b, out="x"), shipped
