@@ -230,3 +230,20 @@ def test_without_rosbags_the_error_says_how_to_install(tmp_path: Path, monkeypat
     monkeypatch.setattr(rosbag_mod, "rosbags_available", lambda: False)
     res = _enhance(bag, "--topic", "/cam/rgb", "--out", tmp_path / "o.bag")
     assert res.exit_code == 2 and "pip install 'murk[ros]'" in res.output
+
+
+def test_temporal_averaging_runs_over_a_topic_as_over_a_video(tmp_path: Path) -> None:
+    bag = _make(tmp_path, "ros2", "mcap")
+    outs = {}
+    for name, extra in {"plain": [], "temporal": ["--temporal", "0.8"]}.items():
+        out = tmp_path / f"restored_{name}"
+        res = _enhance(bag, "--topic", "/cam/rgb", "--out", out, *extra)
+        assert res.exit_code == 0, res.output
+        outs[name] = [decode_image_msg(m, IMAGE_MSG) for _, m in read_topic(out, "/cam/rgb/restored")]
+        frames_out = tmp_path / f"frames_{name}"
+        res = _enhance(bag, "--topic", "/cam/rgb", "--out", frames_out, "--format", "png", *extra)
+        assert res.exit_code == 0, res.output
+        as_frames = [cv2.imread(str(p))[:, :, ::-1] for p in sorted(frames_out.glob("*.png"))]
+        assert all(np.array_equal(a, b) for a, b in zip(outs[name], as_frames, strict=True))  # bag == frames
+    assert np.array_equal(outs["plain"][0], outs["temporal"][0])  # the topic's first frame has no history
+    assert any(not np.array_equal(a, b) for a, b in zip(outs["plain"][1:], outs["temporal"][1:], strict=True))
