@@ -159,7 +159,8 @@ def test_lite_averages_its_maps_inside_a_sequence_only() -> None:
     np.testing.assert_array_equal(lite.restore(frames).images, plain)  # stills: each frame on its own
     with lite.sequence():
         steady = np.concatenate([lite.restore(f[None]).images for f in frames])  # frame by frame, as a stream
-    np.testing.assert_allclose(steady[0], plain[0], atol=1e-6)  # the first frame has no history
+    # The first frame has no history; batch of one vs batch of eight: the convolutions sum in another order.
+    np.testing.assert_allclose(steady[0], plain[0], atol=1e-5)
     # The same as LiteNet's own forward with the maps averaged by hand (the torch formula the CUDA path runs).
     x = torch.from_numpy(frames).permute(0, 3, 1, 2)
     with torch.no_grad():
