@@ -225,7 +225,7 @@ def _luma(x: np.ndarray) -> np.ndarray:
     nothing), which reads the interleaved image directly: faster than splitting it into planes first.
     """
     x = np.ascontiguousarray(x, dtype=np.float32)
-    y = cv2.transform(x, _LUMA_ROWS[0])
+    y: np.ndarray = cv2.transform(x, _LUMA_ROWS[0])
     y += cv2.transform(x, _LUMA_ROWS[1])
     y += cv2.transform(x, _LUMA_ROWS[2])
     return y
