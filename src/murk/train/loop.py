@@ -149,11 +149,12 @@ def train(
     spe, total, schedule = plan_steps(config, n_train, world)
     model = build_model(config, device)
     optim = build_optimiser(config, model, schedule.lr(0), device)
-    start, best = 0, {}
+    start = 0
+    best: dict[str, Any] = {}
     latest = out / "latest.pt"
     if resume:
         start, best = resume_state(latest, config, model, optim, device)
-    net = model
+    net: Any = model  # the module itself, its DDP wrapper or its compiled form
     if distributed:
         net = torch.nn.parallel.DistributedDataParallel(
             model, device_ids=[device.index] if device.type == "cuda" else None
@@ -264,7 +265,7 @@ def train(
                         or (value > best["value"] if config.eval.best_mode == "max" else value < best["value"])
                     )
                 )
-                if better:
+                if better and value is not None:
                     best = {"metric": key, "value": float(value), "step": step}
                     summary.best = best
                     save_network(

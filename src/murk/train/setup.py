@@ -64,7 +64,7 @@ def detect_kind(source: str) -> str:
 def build_data(config: TrainConfig) -> DataSetup:
     d = config.data
     kind = d.kind if d.kind != "auto" else detect_kind(d.source)
-    crop = tuple(d.crop_hw)
+    crop = (int(d.crop_hw[0]), int(d.crop_hw[1]))
     online = None
     if kind in ("synth", "list"):
         items = items_from_synth_folder(d.source) if kind == "synth" else items_from_list(d.source, d.list_root)
@@ -97,9 +97,9 @@ def build_data(config: TrainConfig) -> DataSetup:
         online = OnlineDegrader(d.synthesis, seed=config.seed)
         cache = d.cache_scenes and d.workers == 0
         scale = d.scene_scale
-        train = SceneDataset(range(n_val, count), crop, seed=config.seed, cache=cache, scale=scale)
-        val = SceneDataset(range(n_val), crop, seed=config.seed, cache=cache, scale=scale) if n_val else None
-        return DataSetup(train, val, online, kind)
+        scenes = SceneDataset(range(n_val, count), crop, seed=config.seed, cache=cache, scale=scale)
+        scenes_val = SceneDataset(range(n_val), crop, seed=config.seed, cache=cache, scale=scale) if n_val else None
+        return DataSetup(scenes, scenes_val, online, kind)
     raise ValueError(f"data.kind: expected auto, synth, list, rgbd, scenes or shards, got {kind!r}")
 
 
@@ -191,7 +191,7 @@ def build_model(config: TrainConfig, device: torch.device) -> torch.nn.Module:
             p.requires_grad_(False)
     model.to(device)
     if config.channels_last:
-        model = model.to(memory_format=torch.channels_last)
+        model = model.to(memory_format=torch.channels_last)  # type: ignore[call-overload]  # torch stubs lack it
     return model
 
 
@@ -202,7 +202,7 @@ def build_optimiser(
     return torch.optim.AdamW(
         model.parameters(),
         lr=lr,
-        betas=tuple(config.optim.betas),
+        betas=(float(config.optim.betas[0]), float(config.optim.betas[1])),
         eps=config.optim.eps,
         weight_decay=config.optim.weight_decay,
         fused=device.type == "cuda",
