@@ -132,6 +132,31 @@ def test_enhance_frames_smooths_each_video_from_its_own_first_frame(tmp_path: Pa
     assert np.abs(got[1:] - plain[1:]).max() > 2 / 255  # the smoothing did act on later frames
 
 
+@pytest.mark.parametrize("method", ["post?temporal=0.8", "lite+post?temporal=0.8"])
+def test_a_resumed_video_job_gives_the_frames_of_an_uninterrupted_one(tmp_path: Path, method: str) -> None:
+    frames = [(f * 255).round().astype(np.uint8) for f in _pan(12, 96, 128)]
+    opts = OutputOptions(format="png")
+    # batch 1: lite's convolutions sum in another order for another batch size (float rounding, not state)
+    enhance_frames(FakeSource(frames, live=False), create(method), tmp_path / "whole", opts, batch=1)
+    first = enhance_frames(
+        FakeSource(frames, live=False), create(method), tmp_path / "resumed", opts, batch=1, max_frames=5
+    )
+    assert first.processed == 5
+    rest = enhance_frames(FakeSource(frames, live=False), create(method), tmp_path / "resumed", opts, batch=1)
+    assert (rest.processed, rest.skipped) == (7, 5)
+    whole = sorted((tmp_path / "whole").glob("*.png"))
+    resumed = sorted((tmp_path / "resumed").glob("*.png"))
+    assert [p.name for p in whole] == [p.name for p in resumed] and len(whole) == 12
+    for pa, pb in zip(whole, resumed, strict=True):  # byte for byte: the skipped frames fed the running average
+        assert pa.read_bytes() == pb.read_bytes(), pa.name
+    # Without the replay, frame 5 would start a fresh average: far from the uninterrupted frame.
+    fresh = create(method)
+    with fresh.sequence():
+        restarted = fresh.restore(np.stack([f.astype(np.float32) / 255 for f in frames[5:6]])).images[0]
+    got = cv2.imread(str(whole[5]))[:, :, ::-1].astype(np.float32) / 255
+    assert np.abs(got - restarted).mean() > 1 / 255
+
+
 # --- lite: the low-resolution maps --------------------------------------------------------------------------
 
 

@@ -41,6 +41,7 @@ class _FrameItem:
     image: np.ndarray | None  # float32 RGB
     error: str | None = None
     dst: Path | None = None
+    replay: bool = False  # written by an earlier run: restored again only to carry the method's state over time
 
 
 class _FrameWriter:
@@ -215,6 +216,8 @@ def enhance_frames(
         report.restore_s += time.perf_counter() - t0
         t0 = time.perf_counter()
         for it in items:
+            if it.replay:  # its file exists (counted as skipped); restoring it kept the temporal average exact
+                continue
             if it.index not in outputs:
                 repeated = writer.repeat_last()
                 stage = "read" if it.image is None else "restore"
@@ -256,7 +259,9 @@ def enhance_frames(
                     item.dst = writer.frame_path(frame.index)
                     if item.dst.exists() and not options.overwrite:
                         report.skipped += 1
-                        continue
+                        if not restorer.carries_state:
+                            continue
+                        item.replay = True  # the next frames' average over time includes this one
                 items.append(item)
                 if sum(it.image is not None for it in items) >= batch:
                     flush()

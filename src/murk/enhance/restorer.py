@@ -93,6 +93,12 @@ class Restorer:
         finally:
             self._in_sequence = False
 
+    @property
+    def carries_state(self) -> bool:
+        """Whether a frame's output inside :meth:`sequence` depends on the frames before it (a ``temporal``
+        weight): a resumed video job must then restore the frames it skips, so that the rest comes out the same."""
+        return self.temporal_state is not None
+
     def temporal_hook(self) -> FrameEMA | None:
         """The temporal average to apply now: inside :meth:`sequence` with a ``temporal`` weight, else None."""
         return self.temporal_state if self._in_sequence else None
@@ -121,6 +127,10 @@ class Chain(Restorer):
             out = stage.restore_tensor(images.to(stage.device))
             images, depth = out.images, out.depth_m if out.depth_m is not None else depth
         return RestoredTensor(images, depth)
+
+    @property
+    def carries_state(self) -> bool:
+        return any(stage.carries_state for stage in self.stages)
 
     @contextlib.contextmanager
     def sequence(self) -> Iterator[None]:
