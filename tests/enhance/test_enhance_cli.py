@@ -181,6 +181,16 @@ def test_bombs_are_recorded_and_the_batch_goes_on(folder: Path, tmp_path: Path) 
     assert "declares 32x24 = 768 pixels, over the limit of 100" in record["error"]
 
 
+@pytest.mark.parametrize("value", ["abc", "0"])
+def test_a_bad_pixel_limit_in_the_environment_is_a_usage_error(
+    folder: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, value: str
+) -> None:
+    monkeypatch.setenv("MURK_MAX_PIXELS", value)
+    res = runner.invoke(app, ["enhance", str(folder), "--out", str(tmp_path / "out")])
+    assert res.exit_code == 2 and f"MURK_MAX_PIXELS: expected a positive integer, got '{value}'" in _out(res)
+    assert not (tmp_path / "out").exists()  # refused before any image was read, nothing recorded as failed
+
+
 def test_method_options_in_the_spec_and_misspelt_ones(folder: Path, tmp_path: Path) -> None:
     out = tmp_path / "o"
     res = runner.invoke(app, ["enhance", str(folder), "-o", str(out), "-r", "-m", "post?lam=0.5,he=rgb"])

@@ -52,10 +52,12 @@ def _root(
 ) -> None:
     """murk: realistic underwater data synthesis, restoration and metrics for underwater robots."""
     from murk._perf import tune_allocator
+    from murk.io.images import max_pixels as pixel_limit
     from murk.io.images import set_max_pixels
 
     tune_allocator()
     set_max_pixels(max_pixels)
+    pixel_limit()  # a bad MURK_MAX_PIXELS is a usage error now, not a failure of every image later
 
 
 app.command("synth")(_synth.synth)
