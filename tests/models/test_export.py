@@ -46,7 +46,7 @@ def test_a_difference_above_the_tolerance_is_an_error_naming_the_file_and_shape(
 
 def test_bad_arguments_are_refused_before_anything_is_loaded(tmp_path: Path) -> None:
     missing = tmp_path / "none.pt"
-    with pytest.raises(ValueError, match="expected a file name ending in .onnx"):
+    with pytest.raises(ValueError, match=r"expected a file name ending in \.onnx"):
         export_checkpoint(missing, tmp_path / "x.pt")
     with pytest.raises(ValueError, match="model: expected auto, udaformer, ursct"):
         export_checkpoint(missing, tmp_path / "x.onnx", model="unet")

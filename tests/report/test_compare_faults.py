@@ -59,6 +59,27 @@ def test_compare_skips_and_records_an_unreadable_file(real: Path, unreadable: Pa
     assert [r["image"] for r in json.loads((out / "metrics.json").read_text())["rows"]] == ["a.png", "c.png"]
 
 
+def test_compare_where_no_image_can_be_read_lists_them_all_and_prints_no_nan(tmp_path: Path) -> None:
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "t.jpg").write_bytes(b"\xff\xd8\xff\xe0 truncated")
+    (bad / "x.jpg").write_text("not an image")
+    out = tmp_path / "rep"
+    res = runner.invoke(app, ["compare", str(bad), "--method", "raw", "--method", "post", "--out", str(out)])
+    assert res.exit_code == 1, res.output
+    assert sorted(Path(r["input"]).name for r in read_jsonl(out / "errors.jsonl")) == ["t.jpg", "x.jpg"]
+    assert "nan" not in res.output.lower()
+    page = (out / "report.html").read_text()
+    assert ">nan<" not in page and 'class="best"' not in page  # no best method when nothing was scored
+
+
+def test_compare_prints_the_flag_counts_of_each_method(real: Path, tmp_path: Path) -> None:
+    res = runner.invoke(app, ["compare", str(real), "--method", "raw", "--out", str(tmp_path / "rep")])
+    assert res.exit_code == 0, res.output
+    counts = json.loads((tmp_path / "rep" / "metrics.json").read_text())["summary"]["raw"]["flags"]
+    assert f"flagged {counts['flagged']}/{counts['n']}" in res.output and counts["n"] == 3
+
+
 def test_compare_errors_jsonl_lists_the_latest_run_only(real: Path, tmp_path: Path) -> None:
     out = tmp_path / "rep"
     (real / "bad.png").write_bytes(b"not a png")

@@ -94,3 +94,18 @@ def flag_overrides(table: dict[str, str], values: dict[str, Any]) -> dict[str, A
             node = node.setdefault(key, {})
         node[leaf] = value
     return out
+
+
+def flag_text(counts: dict[str, int] | None) -> str:
+    """``flagged K/N (name count, ...)`` from :func:`murk.metrics.count_flags`'s counts; empty without counts."""
+    if not counts or not counts.get("n"):
+        return ""
+    named = ", ".join(f"{k} {v}" for k, v in counts.items() if k not in ("flagged", "n") and v)
+    return f"flagged {counts.get('flagged', 0)}/{counts.get('n', 0)}" + (f" ({named})" if named else "")
+
+
+def mean_std_text(stats: dict[str, Any], width: int = 9) -> str:
+    """``mean +- std`` of a summary entry (``mean``, ``std``, ``n``); ``-`` when no value was finite (n = 0)."""
+    if not stats.get("n"):
+        return f"{'-':>{width}}" + " " * 9
+    return f"{stats['mean']:>{width}.3f} +- {stats['std']:<5.3f}"

@@ -59,7 +59,7 @@ def compare(
 ) -> None:
     """Run every --method on every image; per-image UIQM (+ UICM/UISM/UIConM) and UCIQE, a per-method
     mean +- std table (Fig. 8), side-by-side grids with zoomed boxes (Figs. 7, 9), CSV, JSON and report.html."""
-    from murk.cli._common import resolve_device
+    from murk.cli._common import flag_text, mean_std_text, resolve_device
     from murk.report.compare import real_images, run_compare
     from murk.report.figures import parse_box
     from murk.report.methods import parse_method
@@ -92,11 +92,14 @@ def compare(
             on_image=lambda i, n, name: progress.update(i, n),
         )
     summary = make_console()
-    summary.print(f"{'method':<28} {'UIQM mean +- std':>18} {'UCIQE mean +- std':>18}  n", highlight=False)
+    header = f"{'method':<28} {'UIQM mean +- std':>18} {'UCIQE mean +- std':>18}  n  flags"
+    summary.print(header, highlight=False, soft_wrap=True)
     for s in specs:
-        u, c = res.summary[s.label]["uiqm"], res.summary[s.label]["uciqe"]
+        row = res.summary[s.label]
+        u, c = row["uiqm"], row["uciqe"]
         summary.print(
-            f"{s.label:<28} {u['mean']:>9.3f} +- {u['std']:<5.3f} {c['mean']:>9.3f} +- {c['std']:<5.3f}  {u['n']}",
+            f"{s.label:<28} {mean_std_text(u)} {mean_std_text(c)}  {u['n']}  {flag_text(row.get('flags'))}",
             highlight=False,
+            soft_wrap=True,
         )
     raise typer.Exit(print_summary(res, "image", detail=f"report: {Path(out) / 'report.html'}", console=summary))

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from murk.cli._common import EXIT_PARTIAL, QuietOpt, make_console
+from murk.cli._common import EXIT_PARTIAL, QuietOpt, flag_text, make_console
 
 
 def demo(
@@ -31,10 +31,8 @@ def demo(
         highlight=False,
     )
     for label, value in res.summary["uiqm"].items():
-        fl = res.summary["flags"].get(label) or {}
-        named = ", ".join(f"{k} {v}" for k, v in fl.items() if k not in ("flagged", "n") and v)
-        flagged = f"  flagged {fl.get('flagged', 0)}/{fl.get('n', 0)}" + (f" ({named})" if named else "")
-        summary.print(f"  {label:<20} {value:.3f}{flagged}", highlight=False)
+        flagged = flag_text(res.summary["flags"].get(label) or {"flagged": 0, "n": 0})
+        summary.print(f"  {label:<20} {value:.3f}  {flagged}", highlight=False)
     total = sum(res.seconds.values())
     summary.print(
         "\n".join(

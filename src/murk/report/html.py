@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import base64
 import html
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -99,7 +100,7 @@ def _fmt(stat: dict[str, float] | None) -> str:
 def _flag_summary(counts: dict[str, float] | None) -> str:
     """``"2/3 flagged: artefacts 2, darkened 1"`` from :func:`murk.metrics.count_flags` counts (HTML-escaped)."""
     if not counts or not counts.get("flagged"):
-        return "" if not counts else "none"
+        return "" if not counts or not counts.get("n") else "none"
     named = ", ".join(f"{k} {int(v)}" for k, v in counts.items() if k not in ("flagged", "n") and v)
     return html.escape(f"{int(counts['flagged'])}/{int(counts['n'])} flagged: {named}")
 
@@ -123,7 +124,8 @@ def render_report(
     """
     labels = [m["label"] for m in methods]
     means = [summary[lab]["uiqm"]["mean"] if summary[lab]["uiqm"]["n"] else 0.0 for lab in labels]
-    best = labels[int(np.argmax(means))] if labels else ""
+    scored = any(summary[lab]["uiqm"]["n"] for lab in labels)
+    best = labels[int(np.argmax(means))] if scored else ""  # no best method when no image was scored
     head = "".join(f"<th>{name} mean &plusmn; std</th>" for _, name in SUMMARY_METRICS)
     rows = []
     for m in methods:
@@ -131,6 +133,7 @@ def render_report(
         s = summary[lab]
         cells = "".join(f"<td>{_fmt(s.get(k))}</td>" for k, _ in SUMMARY_METRICS)
         ms = s.get("ms", {}).get("mean")
+        ms_text = "-" if ms is None or not math.isfinite(ms) else f"{ms:.0f}"
         flag_counts = s.get("flags")
         classes = " ".join(
             c for c, on in (("best", lab == best), ("flagged", bool(flag_counts and flag_counts.get("flagged")))) if on
@@ -138,7 +141,7 @@ def render_report(
         rows.append(
             f'<tr class="{classes}"><td class="l">{html.escape(lab)}</td>'
             f'<td class="l"><code>{html.escape(m["spec"])}</code></td>{cells}<td>{s["uiqm"]["n"]}</td>'
-            f'<td>{"-" if ms is None else f"{ms:.0f}"}</td><td class="flags">{_flag_summary(flag_counts)}</td></tr>'
+            f'<td>{ms_text}</td><td class="flags">{_flag_summary(flag_counts)}</td></tr>'
         )
     stds = [summary[lab]["uiqm"]["std"] if summary[lab]["uiqm"]["n"] else 0.0 for lab in labels]
     chart = bar_chart_svg(labels, means, stds, title="Mean UIQM per method (whisker: +- std)")
