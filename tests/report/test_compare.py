@@ -15,6 +15,7 @@ from murk.data import sample_underwater_dir
 from murk.enhance import restorer as restorer_registry
 from murk.enhance.restorer import Restored, Restorer
 from murk.io import read_rgb
+from murk.io.images import to_float, to_uint
 from murk.metrics import FLAG_NAMES, MEASURE_KEYS, restoration_measures, uciqe, uiqm
 from murk.report.compare import METRIC_KEYS, run_compare, summarise
 from murk.report.figures import Box, auto_boxes, comparison_grid, parse_box
@@ -91,7 +92,8 @@ def test_compare_outputs_are_consistent(three_images: Path, tmp_path: Path) -> N
     from murk.report.methods import build_restorer
 
     restored = np.clip(build_restorer(parse_method("post")).restore(img[None]).images[0], 0.0, 1.0)
-    expected = restoration_measures(img, restored.astype(np.float32))
+    delivered = to_float(to_uint(restored, 8))  # scored as written: at the input's 8 bits
+    expected = restoration_measures(img, delivered)
     for k in MEASURE_KEYS:
         assert post_lake[k] == pytest.approx(expected[k], rel=1e-9, abs=1e-12), k
     assert post_lake["contrast_ratio"] > 1.1  # HE stretches the hazy lake image
@@ -220,3 +222,15 @@ def test_same_stem_in_two_folders_gives_two_grids(tmp_path: Path) -> None:
         Path("p/x.png"): "p_x_png",
         Path("p/y.jpg"): "y",
     }
+
+
+def test_scores_are_those_of_the_written_output(tmp_path: Path) -> None:
+    """compare scores each output at the input's bit depth, as `murk enhance` writes it: `murk eval` of the
+    saved file gives the same UIQM and UCIQE (scoring the float output was 1-2 % off)."""
+    (tmp_path / "in").mkdir()
+    shutil.copy(sample_underwater_dir() / "suim" / "d_r_47_.jpg", tmp_path / "in" / "x.jpg")
+    res = run_compare([tmp_path / "in" / "x.jpg"], [parse_method("post")], tmp_path / "out", save_outputs=True)
+    (row,) = res.rows
+    saved = read_rgb(tmp_path / "out" / "restored" / "post" / "x.png")
+    assert row["uiqm"] == pytest.approx(uiqm(saved, data_range=1.0).uiqm, abs=1e-9)
+    assert row["uciqe"] == pytest.approx(uciqe(saved, data_range=1.0).uciqe, abs=1e-9)
