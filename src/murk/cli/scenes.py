@@ -31,7 +31,7 @@ def scenes(
 
     The output folder is a clean RGB-D input of [bold]murk synth[/]: rgb/, depth/ (uint16 mm), scenes.jsonl.
 
-    Depth = line-of-sight distance along each pixel's ray (not z-depth), in [near_m, far_m] (default
+    Depth = line-of-sight distance along each pixel's ray (not z-depth), in near_m..far_m (default
     0.3-15 m); a ray that hits nothing gets far_m.
     """
     from murk._config import read_yaml
