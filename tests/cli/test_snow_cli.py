@@ -52,6 +52,9 @@ def test_extract_fixed_threshold_on_bright_frames_fails_clearly(tmp_path: Path) 
     assert r.exit_code == 2
     assert "no marine-snow particles found" in r.output and "covers 99.8 %" in r.output
     assert "--method tophat" in r.output and not (tmp_path / "b.npz").exists()
+    # The preview of the rejected frame stays, for diagnosis, and the message says where it is.
+    assert "their masks are in" in r.output and "b_preview" in r.output and "(no bank written)" in r.output
+    assert [p.name for p in (tmp_path / "b_preview").iterdir()] == ["Lake.jpg"]
 
 
 def test_extract_video_every_nth_frame_and_partial_failure(tmp_path: Path) -> None:

@@ -188,7 +188,10 @@ def extract_snow_bank(
     try:
         report = extract_bank(read_footage(files, every, problems, topic), config, scale=scale, on_frame=on_frame)
     except ValueError as exc:  # no particle at all: say which inputs could not even be read
-        raise ValueError(_nothing_extracted(inputs, problems, summary.processed, str(exc))) from None
+        message = _nothing_extracted(inputs, problems, summary.processed, str(exc))
+        if preview and summary.processed:  # kept on purpose: the masks show why nothing was kept
+            message += f"; the frames and their masks are in {preview_dir} (no bank written)"
+        raise ValueError(message) from None
     save_bank(report.bank, out)
     summary.bank = report.bank
     for rec in [*problems, *report.problems]:
