@@ -69,8 +69,10 @@ def test_validation_errors() -> None:
         SynthConfig(variants=0)
     with pytest.raises(ValueError, match="relative depth has no metric scale"):
         merge(SynthConfig(), {"input": {"depth_relative": True}, "medium": {"distance_mode": "metric"}})
-    with pytest.raises(ValueError, match="stages: expected a comma list"):
+    with pytest.raises(ValueError, match="stages: unknown stage\\(s\\) 'haze'; expected a comma list"):
         parse_stages("basic,haze")
+    with pytest.raises(ValueError, match="stages: no stage in ' , '"):
+        parse_stages(" , ")
     assert parse_stages("forward_scatter,basic") == ("basic", "forward_scatter")
     with pytest.raises(ValueError, match="vertical_depth_m: expected min <= max"):
         merge(SynthConfig(), {"medium": {"vertical_depth_m": [5, 3]}})

@@ -74,7 +74,7 @@ def train(
     summary = run_train(config, resume=resume, stop_after=stop_after, on_log=on_log)
     detail = (
         f"{summary.steps_done}/{summary.total_steps} steps done, last loss {summary.last_loss:.4f}, "
-        f"{summary.images_per_s:.1f} img/s, best {summary.best or '-'} -> {summary.out_dir}"
+        f"{summary.images_per_s:.1f} img/s, best {_best_text(summary.best)} -> {summary.out_dir}"
     )
     raise typer.Exit(print_summary(summary, "step", detail=detail))
 
@@ -92,3 +92,10 @@ CONFIG_PATHS = {
     "eval_real": "eval.real",
 }
 """Each flag's path in :class:`murk.train.config.TrainConfig` (flags override the --config file)."""
+
+
+def _best_text(best: dict[str, Any] | None) -> str:
+    """``val_psnr 16.28 at step 20`` from the run's best-checkpoint record; ``-`` before the first evaluation."""
+    if not best:
+        return "-"
+    return f"{best.get('metric')} {best.get('value', float('nan')):.4g} at step {best.get('step')}"

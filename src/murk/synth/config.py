@@ -26,7 +26,8 @@ def parse_stages(spec: str | tuple[str, ...] | list[str]) -> tuple[str, ...]:
     names = [s.strip() for s in items if s.strip()]
     unknown = [n for n in names if n not in STAGES]
     if unknown or not names:
-        raise ValueError(f"stages: expected a comma list of {','.join(STAGES)}, got {spec!r}")
+        what = f"unknown stage(s) {', '.join(map(repr, unknown))}" if unknown else f"no stage in {spec!r}"
+        raise ValueError(f"stages: {what}; expected a comma list of {','.join(STAGES)}")
     return tuple(s for s in STAGES if s in names)
 
 

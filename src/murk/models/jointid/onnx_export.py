@@ -80,6 +80,8 @@ def export_onnx(
     with atomic_path(path) as tmp, warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)  # the legacy exporter announces its successor
         warnings.simplefilter("ignore", torch.jit.TracerWarning)
+        # The exporter's note that strided slices are not constant-folded: an optimisation it skips, not a fault.
+        warnings.filterwarnings("ignore", message="Constant folding - Only steps=1", category=UserWarning)
         torch.onnx.export(
             _Plain(net),
             (x,),
