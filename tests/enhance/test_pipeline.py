@@ -98,9 +98,27 @@ def test_plan_images_paths_and_refusals(photos: Path, tmp_path: Path) -> None:
         plan_images(one, tmp_path / "r.jpg", "png")
     with pytest.raises(ValueError, match="images are written to a folder or an image file"):
         plan_images(spec, tmp_path / "x.mp4")
+    with pytest.raises(ValueError, match=r"x\.png: 3 images are written to a folder, not to one image file"):
+        plan_images(spec, tmp_path / "x.png")
+    assert not (tmp_path / "x.png").exists()
+    (tmp_path / "dir.png").mkdir()  # an existing folder that happens to end in .png stays a folder
+    assert plan_images(spec, tmp_path / "dir.png")[1] == tmp_path / "dir.png"
 
 
 # --- images -----------------------------------------------------------------------------------------------------
+
+
+def test_grey_and_rgba_inputs_are_written_as_rgb_and_the_summary_says_so(tmp_path: Path) -> None:
+    grey = (np.arange(40 * 50, dtype=np.uint32).reshape(40, 50) % 200).astype(np.uint8)
+    (tmp_path / "in").mkdir()
+    assert cv2.imwrite(str(tmp_path / "in" / "g.png"), grey)
+    assert cv2.imwrite(str(tmp_path / "in" / "a.png"), np.dstack([grey, grey, grey, grey]))
+    report = _run(str(tmp_path / "in"), tmp_path / "out")
+    assert report.processed == 2
+    for name in ("g.png", "a.png"):
+        assert cv2.imread(str(tmp_path / "out" / name), cv2.IMREAD_UNCHANGED).shape == (40, 50, 3)
+    assert "1 input image(s): grayscale (L) converted to RGB; their outputs are 3-channel RGB" in report.notes
+    assert "1 input image(s): alpha channel of RGBA image dropped; their outputs are 3-channel RGB" in report.notes
 
 
 def test_folder_outputs_equal_post_process_and_keep_size(photos: Path, tmp_path: Path) -> None:

@@ -73,6 +73,7 @@ def enhance_images(
     errors.start()
     pending: list[_Loaded] = []
     claimed: dict[Path, Path] = {}
+    converted: dict[str, int] = {}  # read_image's notes (grayscale -> RGB, alpha dropped): how many images each
 
     def flush() -> None:
         if pending:
@@ -103,6 +104,8 @@ def enhance_images(
             continue
         finally:
             report.read_s += time.perf_counter() - t0
+        for note in info.notes:
+            converted[note] = converted.get(note, 0) + 1
         bits = 16 if info.bit_depth == 16 and job.dst.suffix.lower() in SIXTEEN_BIT_SUFFIXES else 8
         if pending and pending[0].image.shape != image.shape:
             flush()
@@ -110,6 +113,8 @@ def enhance_images(
         if len(pending) >= batch:
             flush()
     flush()
+    for note, count in sorted(converted.items()):  # the outputs are RGB: say so rather than change formats silently
+        report.note(f"{count} input image(s): {note}; their outputs are 3-channel RGB")
     return report
 
 

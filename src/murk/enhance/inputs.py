@@ -123,6 +123,11 @@ def plan_images(inp: EnhanceInput, out: Path, fmt: ImageFormat | None = None) ->
         jobs = [ImageJob(inp.images[0], out, out.stem)]
         out_dir = out.parent
     else:
+        if out.suffix.lower() in IMAGE_SUFFIXES and not out.is_dir():
+            raise ValueError(
+                f"--out {out}: {len(inp.images)} images are written to a folder, not to one image file; give a "
+                "folder name"
+            )
         # an --out inside the input folder is fine: resolve_input leaves it out of the inputs
         check_output_location(out, [inp.root], inside="allow")
         names = output_names(list(inp.images), root=inp.root)
