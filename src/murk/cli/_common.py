@@ -7,6 +7,7 @@ Exit codes: 0 = everything succeeded; 1 = the job ran but some inputs failed (se
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from typing import Annotated, Any
 
 import typer
@@ -96,12 +97,12 @@ def flag_overrides(table: dict[str, str], values: dict[str, Any]) -> dict[str, A
     return out
 
 
-def flag_text(counts: dict[str, int] | None) -> str:
+def flag_text(counts: Mapping[str, float] | None) -> str:
     """``flagged K/N (name count, ...)`` from :func:`murk.metrics.count_flags`'s counts; empty without counts."""
     if not counts or not counts.get("n"):
         return ""
-    named = ", ".join(f"{k} {v}" for k, v in counts.items() if k not in ("flagged", "n") and v)
-    return f"flagged {counts.get('flagged', 0)}/{counts.get('n', 0)}" + (f" ({named})" if named else "")
+    named = ", ".join(f"{k} {int(v)}" for k, v in counts.items() if k not in ("flagged", "n") and v)
+    return f"flagged {int(counts.get('flagged', 0))}/{int(counts['n'])}" + (f" ({named})" if named else "")
 
 
 def mean_std_text(stats: dict[str, Any], width: int = 9) -> str:
