@@ -43,7 +43,7 @@ def folder(tmp_path: Path, rng: np.random.Generator) -> Path:
 def test_folder_run_reports_counts_rate_and_stage_latency(folder: Path, tmp_path: Path) -> None:
     res = runner.invoke(app, ["enhance", str(folder), "--out", str(tmp_path / "out"), "--recursive"])
     assert res.exit_code == 0, res.output
-    assert "2 images processed" in _out(res) and "frames/s" in _out(res)
+    assert "2 images processed" in _out(res) and "images/s; per image" in _out(res)
     assert "read" in _out(res) and "restore" in _out(res) and "write" in _out(res)
     assert (tmp_path / "out" / "sub" / "b.png").is_file()
     res = runner.invoke(app, ["enhance", str(folder), "--out", str(tmp_path / "out"), "-r"])

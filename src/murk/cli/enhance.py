@@ -268,10 +268,13 @@ def enhance(
 
 def _print_summary(console: Any, report: Any, unit: str) -> int:
     ms = report.stage_ms()
-    detail = (
-        f"{report.fps:.2f} frames/s; per frame: read {ms['read']:.1f} ms, restore {ms['restore']:.1f} ms, "
-        f"write {ms['write']:.1f} ms"
-    )
+    if report.processed == 0:  # nothing restored (all skipped or failed): no rate to report
+        detail = ""
+    else:
+        detail = (
+            f"{report.fps:.2f} {unit}s/s; per {unit}: read {ms['read']:.1f} ms, restore {ms['restore']:.1f} ms, "
+            f"write {ms['write']:.1f} ms"
+        )
     code = print_summary(report, unit, detail=detail, console=console)
     for path in report.outputs:
         console.print(f"wrote {escape(str(path))}", soft_wrap=True)
