@@ -86,7 +86,9 @@ def test_synth_usage_errors_exit_2(tmp_path: Path) -> None:
     r = runner.invoke(app, ["synth", str(tmp_path / "missing"), str(tmp_path / "o")])
     assert r.exit_code == 2 and "missing: not found" in r.output
     r = runner.invoke(app, ["synth", str(sample_rgbd_dir()), str(tmp_path / "o"), "--water-types", "I,12C"])
-    assert r.exit_code == 2 and "unknown type '12C'" in r.output
+    assert r.exit_code == 2 and "--water-types: unknown type '12C'" in r.output  # the flag, not the config path
+    r = runner.invoke(app, ["synth", str(sample_rgbd_dir()), str(tmp_path / "o"), "--stages", "basic,haze"])
+    assert r.exit_code == 2 and "--stages: unknown stage(s) 'haze'" in r.output
     r = runner.invoke(app, ["synth", str(sample_rgbd_dir()), str(tmp_path / "o"), "--size", "big"])
     assert r.exit_code == 2 and "--size: expected WxH" in r.output
     r = runner.invoke(app, ["synth", str(sample_rgbd_dir()), str(tmp_path / "o"), "--size", "16384x16384"])

@@ -110,3 +110,22 @@ def mean_std_text(stats: dict[str, Any], width: int = 9) -> str:
     if not stats.get("n"):
         return f"{'-':>{width}}" + " " * 9
     return f"{stats['mean']:>{width}.3f} +- {stats['std']:<5.3f}"
+
+
+def merge_flags(config: Any, table: dict[str, str], values: dict[str, Any]) -> Any:
+    """``config`` with the flags of :func:`flag_overrides` applied; a value the config refuses is reported under
+    the flag's own name (``--water-types: unknown type 'XX'...``) instead of its config path."""
+    from murk._config import merge
+
+    where = "command line"
+    try:
+        return merge(config, flag_overrides(table, values), where=where)
+    except ValueError as exc:
+        text = str(exc)
+        for name, path in table.items():
+            parent, _, leaf = path.rpartition(".")
+            prefixes = [f"{where}.{path}: ", f"{where}.{parent}: {leaf}: " if parent else f"{where}: {leaf}: "]
+            for prefix in prefixes:
+                if values.get(name) is not None and text.startswith(prefix):
+                    raise ValueError(f"--{name.replace('_', '-')}: {text[len(prefix) :]}") from None
+        raise

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from murk.cli._common import QuietOpt, flag_overrides, make_console, parse_size
+from murk.cli._common import QuietOpt, make_console, merge_flags, parse_size
 from murk.cli._jobs import JobProgress, print_summary
 
 
@@ -106,7 +106,7 @@ def synth(
     Writes degraded/, clean/, depth/ (uint16 mm), manifest.jsonl, train.txt (Joint-ID list), metadata.jsonl
     and config.yaml into OUT_DIR. Rerunning the same command resumes; results do not depend on --workers.
     """
-    from murk._config import load_yaml, merge
+    from murk._config import load_yaml
     from murk.synth.config import SynthConfig
     from murk.synth.runner import Shard, synthesize
 
@@ -120,7 +120,7 @@ def synth(
     flags["size"] = None if size is None else list(parse_size(size))
     flags["snow_bank"] = None if snow_bank is None else str(snow_bank)
     config = load_yaml(SynthConfig, config_file) if config_file else SynthConfig()
-    config = merge(config, flag_overrides(CONFIG_PATHS, flags), where="command line")
+    config = merge_flags(config, CONFIG_PATHS, flags)
     shard_obj = Shard.parse(shard)
     where = f" (shard {shard_obj.index}/{shard_obj.count})" if shard_obj.count > 1 else ""
     shards = data_format == "webdataset"

@@ -7,7 +7,7 @@ from typing import Annotated, Any
 
 import typer
 
-from murk.cli._common import QuietOpt, flag_overrides, make_console
+from murk.cli._common import QuietOpt, make_console, merge_flags
 from murk.cli._jobs import print_summary
 
 
@@ -50,7 +50,7 @@ def train(
 
     flags = {"out": None if out is None else str(out), "eval_real": None if eval_real is None else str(eval_real)}
     values = {**locals(), **flags}
-    config = merge(load_yaml(TrainConfig, config_file), flag_overrides(CONFIG_PATHS, values), where="command line")
+    config = merge_flags(load_yaml(TrainConfig, config_file), CONFIG_PATHS, values)
     resolved: dict[str, Any] = {"data": {"source": resolve_builtin(config.data.source)}}
     if config.eval.real:
         resolved["eval"] = {"real": resolve_builtin(config.eval.real)}
