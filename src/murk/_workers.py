@@ -18,11 +18,14 @@ over. Two mechanisms, both started from the pool initializer:
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
 import signal
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any
 
 PR_SET_PDEATHSIG = 1
 """From <linux/prctl.h>."""
@@ -37,6 +40,7 @@ def die_with_parent() -> None:
     """
     if multiprocessing.parent_process() is None:
         return
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl+C is the parent's to handle (see worker_pool)
     if sys.platform.startswith("linux"):
         try:
             import ctypes
@@ -94,3 +98,71 @@ class TerminateAsExit:
 
 def _raise_exit(signum: int, frame: object) -> None:
     raise SystemExit(128 + signum)
+
+
+@contextlib.contextmanager
+def sigint_ignored() -> Iterator[None]:
+    """Ignore Ctrl+C (SIGINT) in the main thread for the block, then restore the handler; elsewhere a no-op.
+
+    Processes started inside the block inherit the ignored signal (through fork and through exec), so a pool's
+    workers never see the terminal's Ctrl+C, which the shell sends to the whole process group: the parent alone
+    handles it, and no worker prints a ``KeyboardInterrupt`` traceback while it starts up.
+    """
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
+@contextlib.contextmanager
+def worker_pool(
+    workers: int,
+    *,
+    initializer: Callable[..., None],
+    initargs: tuple[Any, ...] = (),
+    mp_context: Any = None,
+) -> Iterator[ProcessPoolExecutor]:
+    """A :class:`~concurrent.futures.ProcessPoolExecutor` of ``workers`` processes that leave Ctrl+C to the
+    parent, for the main thread of a batch command.
+
+    - The workers are started at once with SIGINT ignored (:func:`sigint_ignored`).
+    - Leaving the block normally waits for the submitted work.
+    - Leaving it with an exception (Ctrl+C, SIGTERM as SystemExit, a full disk) cancels what is queued and
+      terminates the workers without waiting for their current item. Every output is written atomically, so a
+      terminated worker leaves at most a temporary file, which the next run deletes. A second Ctrl+C during
+      that cleanup is ignored: it cannot interrupt the shutdown half-way and leave the process waiting for
+      workers that were never told to stop.
+    """
+    from concurrent.futures import ProcessPoolExecutor
+
+    pool = ProcessPoolExecutor(workers, mp_context=mp_context, initializer=initializer, initargs=initargs)
+    try:
+        with sigint_ignored():  # a submit starts a worker while fewer than `workers` run: start them all now
+            for _ in range(workers):
+                pool.submit(_idle)
+        yield pool
+    except BaseException:
+        with sigint_ignored():
+            _stop_now(pool)
+        raise
+    pool.shutdown(wait=True)
+
+
+def _idle() -> None:
+    """The no-op item that makes the pool start its workers."""
+
+
+def _stop_now(pool: ProcessPoolExecutor) -> None:
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in processes:
+        if p.is_alive():
+            p.terminate()
+    for p in processes:
+        p.join(timeout=10)

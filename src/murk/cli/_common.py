@@ -18,6 +18,7 @@ from typer.core import TyperGroup
 EXIT_OK = 0
 EXIT_PARTIAL = 1
 EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
 
 QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="Print only errors and the final summary.")]
 DeviceOpt = Annotated[str, typer.Option("--device", help="cpu, cuda or cuda:N.")]
@@ -37,6 +38,15 @@ class MurkGroup(TyperGroup):
                 raise
             print_error(str(exc))
             raise typer.Exit(EXIT_USAGE) from exc
+        except KeyboardInterrupt:
+            if os.environ.get("MURK_DEBUG"):
+                raise
+            Console(stderr=True, highlight=False).print(
+                "interrupted: finished outputs are kept; rerun the same command to continue "
+                "(murk train: with --resume)",
+                soft_wrap=True,
+            )
+            raise typer.Exit(EXIT_INTERRUPTED) from None
 
 
 def print_error(message: str) -> None:

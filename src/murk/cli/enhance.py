@@ -12,12 +12,17 @@ from typing import Annotated, Any
 import typer
 from rich.markup import escape
 
-from murk.cli._common import EXIT_OK, EXIT_PARTIAL, DeviceOpt, QuietOpt, make_console, resolve_device
+from murk.cli._common import (
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_PARTIAL,
+    DeviceOpt,
+    QuietOpt,
+    make_console,
+    resolve_device,
+)
 from murk.cli._jobs import JobProgress, print_summary
 from murk.enhance.choices import BagStorage, HEMode, ImageFormat, Policy, Precision, VideoBackendChoice
-
-EXIT_INTERRUPTED = 130
-
 
 FLAGS = {
     "he": "--he",

@@ -15,11 +15,13 @@ scenes that failed in the latest run (rewritten by every run, absent when none).
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from murk._workers import worker_pool
 from murk.io.jobs import ErrorRecord, JobSummary
 
 CONFIG_NAME = "scenes_config.yaml"
@@ -204,30 +206,25 @@ def write_scenes(
     jobs = [(i, str(out_dir), seed, size, cfg, suffix) for i in range(count)]
     summary = ScenesSummary(out=out_dir)
     done = 0
-    with atomic_path(out_dir / JSONL_NAME) as tmp, open(tmp, "w", encoding="utf-8") as f:
+    with contextlib.ExitStack() as stack:
+        tmp = stack.enter_context(atomic_path(out_dir / JSONL_NAME))
+        f = stack.enter_context(open(tmp, "w", encoding="utf-8"))
         if workers == 1:
             _init_worker(tex)
             results: Any = map(render_job, jobs)
-            pool = None
-        else:
-            from concurrent.futures import ProcessPoolExecutor
-
-            pool = ProcessPoolExecutor(max_workers=workers, initializer=_init_pool_worker, initargs=(tex,))
+        else:  # on an error (Ctrl+C, a full disk) the queued scenes are cancelled and the workers stopped at once
+            pool = stack.enter_context(worker_pool(workers, initializer=_init_pool_worker, initargs=(tex,)))
             results = pool.map(render_job, jobs, chunksize=max(1, min(16, count // (4 * workers))))
-        try:
-            for record, status, error in results:
-                f.write(dumps(record) + "\n")
-                if error is not None:
-                    summary.add_failure(ErrorRecord(record["file_name"], "render", error, index=record["index"]))
-                elif status == "rendered":
-                    summary.processed += 1
-                else:
-                    summary.skipped += 1
-                done += 1
-                if on_progress:
-                    on_progress(done, count)
-        finally:
-            if pool is not None:
-                pool.shutdown(cancel_futures=True)
+        for record, status, error in results:
+            f.write(dumps(record) + "\n")
+            if error is not None:
+                summary.add_failure(ErrorRecord(record["file_name"], "render", error, index=record["index"]))
+            elif status == "rendered":
+                summary.processed += 1
+            else:
+                summary.skipped += 1
+            done += 1
+            if on_progress:
+                on_progress(done, count)
     summary.write_errors(out_dir, ERRORS_NAME)  # (removes the records of an earlier run when none failed)
     return summary.finish()

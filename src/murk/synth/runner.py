@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -39,7 +39,7 @@ import numpy as np
 
 from murk._config import dump_yaml, read_yaml, to_dict
 from murk._version import __version__
-from murk._workers import stop_if_orphaned
+from murk._workers import stop_if_orphaned, worker_pool
 from murk.io.atomic import remove_stale_temporaries, write_text_atomic
 from murk.io.depth import write_depth_png
 from murk.io.images import to_uint, write_rgb, write_uint
@@ -435,13 +435,11 @@ def run_synthesis(
         import multiprocessing as mp
 
         ctx = mp.get_context("spawn")
-        ex = ProcessPoolExecutor(config.workers, mp_context=ctx, initializer=_init_pool_worker, initargs=(bank_path,))
-        try:
+        # On an error (Ctrl+C, a full disk) the queued images are cancelled and the workers stopped at once.
+        with worker_pool(config.workers, mp_context=ctx, initializer=_init_pool_worker, initargs=(bank_path,)) as ex:
             futures = {ex.submit(process_source, s, ks, config, str(out)): len(ks) for s, ks in todo}
             for fut in as_completed(futures):
                 collect(*fut.result(), futures[fut])
-        finally:  # on an error (a full disk) the queued images are cancelled, not run to fail one by one
-            ex.shutdown(wait=True, cancel_futures=True)
     final = load_records(out)
     write_index(out, final)
     summary.notes = sorted({r["depth_warning"] for r in final.values() if r.get("depth_warning")})

@@ -445,16 +445,16 @@ def write_shards(
             collect(build_shard_in_worker(p, config, str(out)))
     else:
         import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor, as_completed
+        from concurrent.futures import as_completed
+
+        from murk._workers import worker_pool
 
         ctx = mp.get_context("spawn")
-        ex = ProcessPoolExecutor(config.workers, mp_context=ctx, initializer=init_shard_worker, initargs=(bank_path,))
-        try:
+        # On an error (Ctrl+C, a full disk) the queued shards are cancelled and the workers stopped at once.
+        with worker_pool(config.workers, mp_context=ctx, initializer=init_shard_worker, initargs=(bank_path,)) as ex:
             futures = [ex.submit(build_shard_in_worker, p, config, str(out)) for p in todo]
             for fut in as_completed(futures):
                 collect(fut.result())
-        finally:  # on an error (a full disk) the queued shards are cancelled
-            ex.shutdown(wait=True, cancel_futures=True)
     write_index(out, plans, samples_per_shard, config)
     summary.failures = failures  # printed by the CLI; written to errors.jsonl (removed when none)
     summary.write_errors(out)

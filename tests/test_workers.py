@@ -1,0 +1,76 @@
+"""``murk._workers.worker_pool``: the process pool of ``synth``, ``scenes`` and shard writing leaves Ctrl+C to the
+parent, waits for its work on a normal exit and stops its workers at once on an error (no hang on a second
+Ctrl+C: the shutdown cannot be interrupted half-way)."""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from murk._workers import die_with_parent, sigint_ignored, worker_pool
+
+
+def _sigint_disposition() -> str:
+    handler = signal.getsignal(signal.SIGINT)
+    return "ignored" if handler == signal.SIG_IGN else "handled"
+
+
+def _sleep_then(value: int, seconds: float) -> int:
+    time.sleep(seconds)
+    return value
+
+
+@pytest.mark.parametrize("method", ["spawn", "fork"])
+def test_workers_ignore_ctrl_c_and_a_normal_exit_waits_for_the_work(method: str) -> None:
+    ctx = mp.get_context(method)
+    with worker_pool(2, mp_context=ctx, initializer=die_with_parent) as pool:
+        processes = list(pool._processes.values())  # type: ignore[attr-defined]
+        futures = [pool.submit(_sleep_then, i, 0.2) for i in range(4)]
+        assert {pool.submit(_sigint_disposition).result() for _ in range(4)} == {"ignored"}
+    assert [f.result() for f in futures] == [0, 1, 2, 3]
+    assert len(processes) == 2 and not any(p.is_alive() for p in processes)
+    assert _sigint_disposition() == "handled"  # the parent's own handler is back
+
+
+_INTERRUPTED_SCRIPT = """
+import multiprocessing as mp, sys, time
+from murk._workers import die_with_parent, worker_pool
+from tests.test_workers import _sleep_then
+if __name__ == "__main__":
+    try:
+        with worker_pool(2, mp_context=mp.get_context("spawn"), initializer=die_with_parent) as pool:
+            procs = list(pool._processes.values())
+            for i in range(6):
+                pool.submit(_sleep_then, i, 600.0)  # ten minutes each, were they waited for
+            time.sleep(1.0)  # the workers are busy
+            raise KeyboardInterrupt
+    except KeyboardInterrupt:
+        print("alive after:", sum(p.is_alive() for p in procs), flush=True)
+        sys.exit(130)
+"""
+
+
+def test_an_error_in_the_block_stops_busy_workers_and_the_process_exits(tmp_path: Path) -> None:
+    script = tmp_path / "interrupted.py"
+    script.write_text(_INTERRUPTED_SCRIPT)
+    root = Path(__file__).resolve().parent.parent
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root / "src"), str(root)])}
+    # Were the shutdown to wait for the workers' items, or to leave them waiting for work, this would hang
+    # (the interpreter joins the pool's threads at exit): the timeout turns that into a failure.
+    r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300, env=env)
+    assert r.returncode == 130, r.stderr[-2000:]
+    assert "alive after: 0" in r.stdout
+
+
+def test_sigint_ignored_restores_the_previous_handler() -> None:
+    before = signal.getsignal(signal.SIGINT)
+    with sigint_ignored():
+        assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+    assert signal.getsignal(signal.SIGINT) == before
