@@ -76,12 +76,32 @@ def test_resume_equals_uninterrupted(synth_folder: Path, tmp_path: Path) -> None
     assert la == lb  # steps 1-3 from the first invocation, 4-6 from the resumed one: identical losses
     with pytest.raises(ValueError, match="nothing to resume"):
         train(_config(tmp_path / "empty", synth_folder, steps=2), resume=True)
+    assert not (tmp_path / "empty").exists()  # refused before anything was written
     from murk.models.jointid import slim_checkpoint  # weights only: no optimiser state, no step
 
     (tmp_path / "slim").mkdir()
     slim_checkpoint(tmp_path / "full" / "latest.pt", tmp_path / "slim" / "latest.pt")
     with pytest.raises(ValueError, match=r"has no optimizer and no step .* weights only"):
         train(_config(tmp_path / "slim", synth_folder, steps=2), resume=True)
+
+
+def test_a_run_folder_is_neither_overwritten_nor_resumed_with_other_settings(
+    synth_folder: Path, tmp_path: Path
+) -> None:
+    run = tmp_path / "run"
+    cfg = _config(run, synth_folder, steps=4, batch=4)
+    first = train(cfg)
+    log_before = (run / "log.jsonl").read_bytes()
+    with pytest.raises(ValueError, match=r"run: holds an earlier run \(latest\.pt\); pass --resume"):
+        train(cfg)  # a new run into the same folder would replace its checkpoints and mix its log
+    with pytest.raises(ValueError, match=r"was trained with other settings \(batch 4 -> 2\)"):
+        train(merge(cfg, {"batch": 2}), resume=True)
+    assert (run / "log.jsonl").read_bytes() == log_before
+    # Reporting settings may change; a finished run resumed again keeps its last loss (and summary.json is JSON).
+    again = train(merge(cfg, {"log_every": 1}), resume=True)
+    assert again.steps_done == 4 and again.last_loss == first.last_loss and np.isfinite(again.last_loss)
+    doc = json.loads((run / "summary.json").read_text(), parse_constant=lambda c: pytest.fail(f"{c} in JSON"))
+    assert doc["last_loss"] == first.last_loss
 
 
 def test_checkpoint_loads_for_inference_and_eval_metrics(synth_folder: Path, tmp_path: Path) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -73,7 +74,7 @@ def train(
 
     summary = run_train(config, resume=resume, stop_after=stop_after, on_log=on_log)
     detail = (
-        f"{summary.steps_done}/{summary.total_steps} steps done, last loss {summary.last_loss:.4f}, "
+        f"{summary.steps_done}/{summary.total_steps} steps done, last loss {_loss_text(summary.last_loss)}, "
         f"{summary.images_per_s:.1f} img/s, best {_best_text(summary.best)} -> {summary.out_dir}"
     )
     raise typer.Exit(print_summary(summary, "step", detail=detail))
@@ -99,3 +100,7 @@ def _best_text(best: dict[str, Any] | None) -> str:
     if not best:
         return "-"
     return f"{best.get('metric')} {best.get('value', float('nan')):.4g} at step {best.get('step')}"
+
+
+def _loss_text(loss: float) -> str:
+    return f"{loss:.4f}" if math.isfinite(loss) else "-"

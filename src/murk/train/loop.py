@@ -32,11 +32,11 @@ import torch
 import torch.distributed as dist
 from torch.utils.data import DataLoader
 
-from murk._config import dump_yaml, to_dict
+from murk._config import dump_yaml, read_yaml, to_dict
 from murk._version import __version__
 from murk.io.atomic import write_text_atomic
 from murk.io.jobs import JobSummary
-from murk.io.jsonl import append_jsonl
+from murk.io.jsonl import append_jsonl, json_safe
 from murk.rng import derive_seed
 from murk.train.augment import apply_augment, sample_augment
 from murk.train.config import TrainConfig
@@ -139,12 +139,13 @@ def train(
     rt = init_runtime(config.device)
     rank, world, distributed, device, main_rank = rt.rank, rt.world, rt.distributed, rt.device, rt.main
     out = Path(config.out)
+    check_run_folder(out, config, resume=resume)
+    data = build_data(config)  # a bad source or snow bank stops here, before anything is written
     if main_rank:
         out.mkdir(parents=True, exist_ok=True)
         write_text_atomic(out / "config.yaml", dump_yaml(config, murk_version=__version__, world_size=world))
     logger = _Logger(out, main_rank)
 
-    data = build_data(config)
     n_train = len(data.train)
     spe, total, schedule = plan_steps(config, n_train, world)
     model = build_model(config, device)
@@ -163,6 +164,8 @@ def train(
         net = torch.compile(net)
 
     summary = TrainSummary(out=out, out_dir=str(out), steps_done=start, skipped=start, total_steps=total, best=best)
+    if resume:  # a resumed run that has no step left to do keeps the loss its last step logged
+        summary.last_loss = _previous_last_loss(out / "summary.json")
     autocast = (
         torch.autocast(device_type=device.type, dtype=torch.bfloat16)
         if config.precision == "bf16"
@@ -290,7 +293,8 @@ def train(
     if main_rank:
         summary.finish()
         doc = {k: v for k, v in to_dict(summary).items() if k not in ("started", "failures")}
-        write_text_atomic(out / "summary.json", json.dumps(doc, indent=2, default=str) + "\n")
+        text = json.dumps(json_safe(doc), indent=2, default=str, allow_nan=False)  # NaN is not JSON: null
+        write_text_atomic(out / "summary.json", text + "\n")
     logger.close()
     if distributed:
         dist.barrier()
@@ -309,3 +313,64 @@ def _replica_checksums(model: torch.nn.Module, distributed: bool) -> list[float]
     gathered = [torch.zeros_like(s) for _ in range(dist.get_world_size())]
     dist.all_gather(gathered, s)
     return [float(g) for g in gathered]
+
+
+RESUMABLE_CHANGES = ("out", "eval", "log_every", "device", "data.workers", "data.cache_scenes", "compile")
+"""Settings that may differ when a run is resumed (where it writes, how it reports, where it runs); every other
+setting shapes the training and must stay as the run began, or the continuation is not the run it claims."""
+
+
+def check_run_folder(out: Path, config: TrainConfig, *, resume: bool) -> None:
+    """Refuse to start a run over an earlier one, and to resume one with other training settings.
+
+    Raises:
+        ValueError: ``out`` holds a ``latest.pt`` and ``resume`` is False; ``resume`` without a ``latest.pt``; or
+            ``resume`` with settings that differ from the run's ``config.yaml`` outside :data:`RESUMABLE_CHANGES`
+            (the message lists them).
+    """
+    latest = out / "latest.pt"
+    if not resume:
+        if latest.exists():
+            raise ValueError(
+                f"{out}: holds an earlier run ({latest.name}); pass --resume to continue it, or choose another --out"
+            )
+        return
+    if not latest.is_file():
+        raise ValueError(f"--resume: {latest} not found (nothing to resume)")
+    try:
+        before = read_yaml(out / "config.yaml")
+    except ValueError:  # no (readable) config.yaml: an older run folder; the checkpoint itself is checked later
+        return
+    now = _flat(to_dict(config))
+    then = _flat(before)
+    changed = [
+        k
+        for k in sorted(now)
+        if k in then and now[k] != then[k] and not any(k == p or k.startswith(p + ".") for p in RESUMABLE_CHANGES)
+    ]
+    if changed:
+        listed = ", ".join(f"{k} {then[k]!r} -> {now[k]!r}" for k in changed[:6])
+        more = f" and {len(changed) - 6} more" if len(changed) > 6 else ""
+        raise ValueError(
+            f"--resume: {out / 'config.yaml'} was trained with other settings ({listed}{more}); resume with the "
+            "run's own settings, or start a new run in another --out (model.init_checkpoint starts from its weights)"
+        )
+
+
+def _flat(tree: Any, prefix: str = "") -> dict[str, Any]:
+    """Nested dicts -> {"a.b": value}; lists and tuples compare as lists."""
+    if isinstance(tree, dict):
+        out: dict[str, Any] = {}
+        for k, v in tree.items():
+            out.update(_flat(v, f"{prefix}{k}."))
+        return out
+    return {prefix[:-1]: list(tree) if isinstance(tree, (list, tuple)) else tree}
+
+
+def _previous_last_loss(path: Path) -> float:
+    """``last_loss`` of an earlier ``summary.json`` of this run; NaN when there is none (or it is unreadable)."""
+    try:
+        value = json.loads(path.read_text(encoding="utf-8")).get("last_loss")
+    except (OSError, ValueError, AttributeError):
+        return float("nan")
+    return float(value) if isinstance(value, (int, float)) else float("nan")
