@@ -46,3 +46,13 @@ def test_usage_errors_name_the_option() -> None:
         evaluate([], ref=Path("x"))
     with pytest.raises(ValueError, match="--ssim-window"):
         EvalOptions(ssim_window="box")
+
+
+def test_a_depth_map_of_another_size_than_its_reference_names_both_files(tmp_path: Path) -> None:
+    for folder, (h, w) in (("pred", (24, 32)), ("gt", (48, 64))):
+        (tmp_path / folder).mkdir()
+        cv2.imwrite(str(tmp_path / folder / "x.png"), np.full((h, w), 2000, np.uint16))
+    res = evaluate(depth=tmp_path / "pred", depth_ref=tmp_path / "gt")
+    (rec,) = res.failures
+    assert rec.input == str(tmp_path / "pred" / "x.png") and rec.stage == "depth"
+    assert rec.error == f"size 32x24 differs from the reference depth {tmp_path / 'gt' / 'x.png'} (64x48)"

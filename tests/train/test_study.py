@@ -15,7 +15,15 @@ import yaml
 
 from murk._config import to_dict
 from murk.train.config import TrainConfig
-from murk.train.study import ArmConfig, StudyConfig, arm_config, arm_finished, load_study, train_arms
+from murk.train.study import (
+    ArmConfig,
+    StudyConfig,
+    StudyEvalConfig,
+    arm_config,
+    arm_finished,
+    load_study,
+    train_arms,
+)
 
 TRAIN = {
     "model": {"variant": "tiny"},
@@ -61,6 +69,10 @@ def test_study_config_errors() -> None:
         ArmConfig("a", ("fog",))
     with pytest.raises(ValueError, match=r"arms\.name"):
         ArmConfig("a/b", ("basic",))
+    with pytest.raises(ValueError, match="synthetic_scenes: expected >= 0"):  # was a silent skip
+        StudyEvalConfig(synthetic_scenes=-4)
+    with pytest.raises(ValueError, match="synthetic_hw: expected a height and width of at least 32"):
+        StudyEvalConfig(synthetic_hw=(0, 320))
 
 
 def test_train_arms_then_skip_finished(tmp_path: Path) -> None:

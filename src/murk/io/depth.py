@@ -89,8 +89,8 @@ def read_depth(
     if raw.dtype == np.uint8:
         raise InputFileError(
             path,
-            "8-bit depth cannot be metric (a uint16 PNG is expected); if it is relative depth "
-            "(larger = farther) pass --depth-relative",
+            "8-bit depth cannot be metric (expected a uint16 PNG in millimetres or a .npy in metres); 8-bit "
+            "relative depth (larger = farther) is read by murk synth with --depth-relative",
         )
     if np.issubdtype(raw.dtype, np.floating):
         return raw.astype(np.float32)  # float TIFF/EXR: metres

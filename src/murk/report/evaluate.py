@@ -326,7 +326,14 @@ def _score_depth(pred: Path, gt: Path, opts: EvalOptions, out: EvalResult) -> No
             if stem not in gts:
                 raise InputFileError(p, f"no ground-truth depth with stem {stem!r} in --depth-ref")
             g = _one(stem, gts[stem])
-            errs = depth_errors(read_depth(p, depth_scale=scale), read_depth(g, depth_scale=scale))
+            d_pred, d_ref = read_depth(p, depth_scale=scale), read_depth(g, depth_scale=scale)
+            if d_pred.shape != d_ref.shape:
+                raise InputFileError(
+                    p,
+                    f"size {d_pred.shape[1]}x{d_pred.shape[0]} differs from the reference depth {g} "
+                    f"({d_ref.shape[1]}x{d_ref.shape[0]})",
+                )
+            errs = depth_errors(d_pred, d_ref)
             out.depth.append({"file": str(p), "ref": str(g), **errs.as_dict()})
         except (ValueError, OSError) as exc:
             out.add_failure(ErrorRecord(str(p), "depth", _problem(exc)))

@@ -70,6 +70,17 @@ class StudyEvalConfig:
     comparison baselines ``udaformer:weights/UDA.pt`` and ``ursct:weights/URSCT.pth`` (``docs/baselines.md``;
     weights the user downloads; they must load with weights_only=True)."""
 
+    def __post_init__(self) -> None:
+        if self.synthetic_scenes < 0:
+            raise ValueError(
+                f"synthetic_scenes: expected >= 0 (0 skips the held-out scenes), got {self.synthetic_scenes}"
+            )
+        h, w = self.synthetic_hw
+        if h < 32 or w < 32:
+            raise ValueError(f"synthetic_hw: expected a height and width of at least 32, got {list(self.synthetic_hw)}")
+        if self.post_lambda < 0:
+            raise ValueError(f"post_lambda: expected >= 0, got {self.post_lambda}")
+
 
 @dataclass(frozen=True)
 class StudyConfig:
