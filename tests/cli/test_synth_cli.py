@@ -161,3 +161,13 @@ def test_synth_with_no_unambiguous_pair_is_a_usage_error(tmp_path: Path) -> None
     text = " ".join(r.output.split())
     assert r.exit_code == 2 and "no RGB-D pairs found" in text and "ambiguous stem 'x'" in text
     assert "Traceback" not in r.output
+
+
+def test_a_snow_bank_without_the_marine_snow_stage_is_noted_as_unused(tmp_path: Path) -> None:
+    from murk.data import default_snow_bank
+
+    args = ["synth", str(sample_rgbd_dir()), str(tmp_path / "o"), "--stages", "basic", "--variants", "1"]
+    r = runner.invoke(app, [*args, "--size", "64x48", "--snow-bank", str(default_snow_bank())])
+    assert r.exit_code == 0, r.output
+    assert "was not used: marine_snow is not among the stages" in " ".join(r.output.split())
+

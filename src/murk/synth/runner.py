@@ -491,10 +491,11 @@ def synthesize(
         from murk.data import default_snow_bank
 
         bank_path = config.marine_snow.bank or str(default_snow_bank())
+    unused_bank = config.marine_snow.bank and "marine_snow" not in config.stages
     if data_format == "webdataset":
         from murk.synth.shards import write_shards
 
-        return write_shards(
+        summary = write_shards(
             sources,
             out_dir,
             config,
@@ -506,6 +507,10 @@ def synthesize(
             ray_address=ray_address,
             on_progress=on_progress,
         )
-    return run_synthesis(
-        sources, out_dir, config, shard=shard, bank_path=bank_path, problems=problems, on_progress=on_progress
-    )
+    else:
+        summary = run_synthesis(
+            sources, out_dir, config, shard=shard, bank_path=bank_path, problems=problems, on_progress=on_progress
+        )
+    if unused_bank:
+        summary.note(f"--snow-bank {config.marine_snow.bank} was not used: marine_snow is not among the stages")
+    return summary
