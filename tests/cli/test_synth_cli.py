@@ -170,4 +170,3 @@ def test_a_snow_bank_without_the_marine_snow_stage_is_noted_as_unused(tmp_path: 
     r = runner.invoke(app, [*args, "--size", "64x48", "--snow-bank", str(default_snow_bank())])
     assert r.exit_code == 0, r.output
     assert "was not used: marine_snow is not among the stages" in " ".join(r.output.split())
-
