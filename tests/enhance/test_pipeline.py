@@ -237,7 +237,7 @@ def test_video_file_round_trip_keeps_count_size_and_rate(tmp_path: Path) -> None
     cap.release()
     assert report.outputs == [tmp_path / "out" / "enh.mp4"]
     again = enhance_frames(CaptureSource(video), PostRestorer(), tmp_path / "out" / "enh.mp4")
-    assert again.skipped == 1 and again.processed == 0 and "exists" in again.notes[0]
+    assert again.skipped == 12 and again.processed == 0 and "exists" in again.notes[0]  # in frames
 
 
 def test_broken_frame_is_recorded_and_replaced_by_the_previous_one(tmp_path: Path) -> None:

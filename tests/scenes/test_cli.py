@@ -131,3 +131,12 @@ def test_refuses_to_mix_settings(tmp_path: Path) -> None:
     res = _run(str(out), "-n", "1", "--size", "32x24", "--seed", "2", "-q")
     assert res.exit_code == 2
     assert "written with different settings (seed)" in " ".join(res.output.split())
+
+
+def test_a_smaller_count_than_an_earlier_run_says_which_scenes_remain(tmp_path: Path) -> None:
+    out = tmp_path / "sc"
+    assert runner.invoke(app, ["scenes", str(out), "--count", "4", "--size", "64x48", "-q"]).exit_code == 0
+    r = runner.invoke(app, ["scenes", str(out), "--count", "2", "--size", "64x48"])
+    assert r.exit_code == 0, r.output
+    assert "2 scene(s) of an earlier run with a larger --count remain" in " ".join(r.output.split())
+    assert len((out / "scenes.jsonl").read_text().splitlines()) == 2

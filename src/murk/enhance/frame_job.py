@@ -184,7 +184,7 @@ def enhance_frames(
     if writer.as_video and out.exists() and not options.overwrite:
         if source.live:
             raise ValueError(f"{out}: exists; pass --overwrite to replace it")
-        report.skipped = 1
+        report.skipped = source.frame_count or 1  # counted in frames, the unit of the summary line
         report.note(f"{out} exists; skipped (use --overwrite to redo it)")
         return report
     if not writer.as_video and source.live and writer.frame_path(0).exists() and not options.overwrite:

@@ -226,5 +226,20 @@ def write_scenes(
             done += 1
             if on_progress:
                 on_progress(done, count)
+    extra = _scenes_beyond(out_dir / "rgb", count)
+    if extra:  # an earlier run with a larger --count: its files stay (murk synth would read them as pairs)
+        summary.note(
+            f"{extra} scene(s) of an earlier run with a larger --count remain in rgb/ and depth/ (not listed in "
+            f"{JSONL_NAME}); murk synth reads every pair in the folder: delete them, or rerun with that count"
+        )
     summary.write_errors(out_dir, ERRORS_NAME)  # (removes the records of an earlier run when none failed)
     return summary.finish()
+
+
+def _scenes_beyond(rgb_dir: Path, count: int) -> int:
+    """How many ``scene_NNNNNN`` images in ``rgb_dir`` have an index of ``count`` or more."""
+    n = 0
+    for p in rgb_dir.glob("scene_*"):
+        digits = p.stem.removeprefix("scene_")
+        n += digits.isdigit() and int(digits) >= count
+    return n
