@@ -165,4 +165,7 @@ def _stop_now(pool: ProcessPoolExecutor) -> None:
         if p.is_alive():
             p.terminate()
     for p in processes:
-        p.join(timeout=10)
+        p.join(timeout=5)
+        if p.is_alive():  # still starting up or stuck in I/O under load: SIGTERM was not enough
+            p.kill()
+            p.join(timeout=5)

@@ -28,7 +28,14 @@ def train(
     eval_real: Annotated[
         Path | None, typer.Option("--eval-real", help="Folder of REAL underwater images scored with UIQM/UCIQE.")
     ] = None,
-    resume: Annotated[bool, typer.Option("--resume", help="Continue from OUT/latest.pt (bit-exact on CPU).")] = False,
+    resume: Annotated[
+        bool,
+        typer.Option(
+            "--resume",
+            help="Continue from OUT/latest.pt (bit-exact on CPU) with the run's own settings (other ones are refused); "
+            "without it, a folder that holds a run is refused.",
+        ),
+    ] = False,
     stop_after: Annotated[
         int | None, typer.Option("--stop-after", help="Stop after N steps in this run (resume later with --resume).")
     ] = None,

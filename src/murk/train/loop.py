@@ -32,7 +32,7 @@ import torch
 import torch.distributed as dist
 from torch.utils.data import DataLoader
 
-from murk._config import dump_yaml, read_yaml, to_dict
+from murk._config import dump_yaml, to_dict
 from murk._version import __version__
 from murk.io.atomic import write_text_atomic
 from murk.io.jobs import JobSummary
@@ -47,6 +47,7 @@ from murk.train.setup import (
     build_data,
     build_model,
     build_optimiser,
+    check_run_folder,
     detect_kind,
     init_runtime,
     plan_steps,
@@ -313,58 +314,6 @@ def _replica_checksums(model: torch.nn.Module, distributed: bool) -> list[float]
     gathered = [torch.zeros_like(s) for _ in range(dist.get_world_size())]
     dist.all_gather(gathered, s)
     return [float(g) for g in gathered]
-
-
-RESUMABLE_CHANGES = ("out", "eval", "log_every", "device", "data.workers", "data.cache_scenes", "compile")
-"""Settings that may differ when a run is resumed (where it writes, how it reports, where it runs); every other
-setting shapes the training and must stay as the run began, or the continuation is not the run it claims."""
-
-
-def check_run_folder(out: Path, config: TrainConfig, *, resume: bool) -> None:
-    """Refuse to start a run over an earlier one, and to resume one with other training settings.
-
-    Raises:
-        ValueError: ``out`` holds a ``latest.pt`` and ``resume`` is False; ``resume`` without a ``latest.pt``; or
-            ``resume`` with settings that differ from the run's ``config.yaml`` outside :data:`RESUMABLE_CHANGES`
-            (the message lists them).
-    """
-    latest = out / "latest.pt"
-    if not resume:
-        if latest.exists():
-            raise ValueError(
-                f"{out}: holds an earlier run ({latest.name}); pass --resume to continue it, or choose another --out"
-            )
-        return
-    if not latest.is_file():
-        raise ValueError(f"--resume: {latest} not found (nothing to resume)")
-    try:
-        before = read_yaml(out / "config.yaml")
-    except ValueError:  # no (readable) config.yaml: an older run folder; the checkpoint itself is checked later
-        return
-    now = _flat(to_dict(config))
-    then = _flat(before)
-    changed = [
-        k
-        for k in sorted(now)
-        if k in then and now[k] != then[k] and not any(k == p or k.startswith(p + ".") for p in RESUMABLE_CHANGES)
-    ]
-    if changed:
-        listed = ", ".join(f"{k} {then[k]!r} -> {now[k]!r}" for k in changed[:6])
-        more = f" and {len(changed) - 6} more" if len(changed) > 6 else ""
-        raise ValueError(
-            f"--resume: {out / 'config.yaml'} was trained with other settings ({listed}{more}); resume with the "
-            "run's own settings, or start a new run in another --out (model.init_checkpoint starts from its weights)"
-        )
-
-
-def _flat(tree: Any, prefix: str = "") -> dict[str, Any]:
-    """Nested dicts -> {"a.b": value}; lists and tuples compare as lists."""
-    if isinstance(tree, dict):
-        out: dict[str, Any] = {}
-        for k, v in tree.items():
-            out.update(_flat(v, f"{prefix}{k}."))
-        return out
-    return {prefix[:-1]: list(tree) if isinstance(tree, (list, tuple)) else tree}
 
 
 def _previous_last_loss(path: Path) -> float:
