@@ -126,8 +126,8 @@ def _table() -> dict[str, Twin]:
     from murk.metrics import reference
     from murk.metrics.uciqe import uciqe, uciqe_torch
     from murk.metrics.uiqm import uiqm, uiqm_torch
+    from murk.physics import camera, medium
     from murk.physics import forward_scatter as fs
-    from murk.physics import medium
     from murk.scenes.textures import TILE_PX, lookup_numpy, lookup_torch, noise_tile
     from murk.snow.composite import composite_snow, composite_snow_torch
 
@@ -241,6 +241,28 @@ def _table() -> dict[str, Twin]:
             lambda x, he=he: {"out": nhwc(post.post_process_torch(nchw(x["images"]), he=he, clahe_tiles=(4, 3)))},
             atol=1e-6,
         )
+        twins[f"enhance.post_process ({he}, he_strength 0.3)"] = Twin(
+            _murky,
+            lambda x, he=he: {
+                "out": np.stack(
+                    [post.post_process(im, he=he, clahe_tiles=(4, 3), lam=0.1, he_strength=0.3) for im in x["images"]]
+                )
+            },
+            lambda x, he=he: {
+                "out": nhwc(
+                    post.post_process_torch(nchw(x["images"]), he=he, clahe_tiles=(4, 3), lam=0.1, he_strength=0.3)
+                )
+            },
+            atol=1e-6,
+        )
+    twins["physics.apply_camera"] = Twin(
+        _images(3, 24, 40),
+        lambda x: {
+            "out": np.stack([camera.apply_camera(im, p) for im, p in zip(x["images"], _camera_params(), strict=True)])
+        },
+        lambda x: {"out": nhwc(camera.apply_camera_torch(nchw(x["images"]), _camera_params()))},
+        atol=0.0,  # the same noise field and the same OpenCV quantisation and JPEG round trip: bit-identical
+    )
     for mode in ("approx", "exact"):
         twins[f"physics.forward_scatter ({mode})"] = Twin(
             _scatter_inputs,
@@ -330,6 +352,17 @@ def _stack_outputs(results: list[tuple[np.ndarray, float]]) -> Arrays:
 
 def _torch_outputs(result: tuple[torch.Tensor, torch.Tensor]) -> Arrays:
     return {"image": nhwc(result[0]), "sigma_max": result[1].reshape(-1).numpy()}
+
+
+def _camera_params() -> list[Any]:
+    """Three camera settings: JPEG at quality 70, none (quantisation only), and a strong cast with JPEG 95."""
+    from murk.synth.params import CameraParams
+
+    return [
+        CameraParams((1.1, 0.95, 0.96), 1.2, 0.01, 0.0004, 7, 70),
+        CameraParams((1.0, 1.0, 1.0), 1.0, 0.0, 0.0, 8, 0),
+        CameraParams((1.4, 0.8, 0.9), 0.8, 0.005, 0.0001, 9, 95),
+    ]
 
 
 TWINS: dict[str, Twin] = _table()

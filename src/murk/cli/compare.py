@@ -55,10 +55,31 @@ def compare(
         str | None, typer.Option("--topic", help="REAL_DIR a ROS bag: the image topic (omit it to list them).")
     ] = None,
     every: Annotated[int, typer.Option("--every", min=1, help="REAL_DIR a ROS bag: every N-th frame.")] = 1,
+    ref: Annotated[
+        Path | None,
+        typer.Option(
+            "--ref",
+            help="Folder of reference images matched to REAL_DIR's images by file stem: adds PSNR, SSIM and "
+            "CIEDE2000 per image and method, and each method's paired difference to the raw input.",
+        ),
+    ] = None,
+    max_side: Annotated[
+        int | None,
+        typer.Option("--max-side", min=8, help="Downscale images (and references) to this long side first (px)."),
+    ] = None,
+    snow_clean: Annotated[
+        Path | None,
+        typer.Option(
+            "--snow-clean",
+            help="Folder of snow-free images of the same scenes as REAL_DIR's snowy ones (matched by stem): adds "
+            "the marine-snow residue on the known particle sites per image and method.",
+        ),
+    ] = None,
     quiet: QuietOpt = False,
 ) -> None:
     """Run every --method on every image; per-image UIQM (+ UICM/UISM/UIConM) and UCIQE, a per-method
-    mean +- std table (Fig. 8), side-by-side grids with zoomed boxes (Figs. 7, 9), CSV, JSON and report.html."""
+    mean +- std table (Fig. 8), side-by-side grids with zoomed boxes (Figs. 7, 9), CSV, JSON and report.html.
+    With --ref, PSNR/SSIM/CIEDE2000 against the references and paired differences to the raw input."""
     from murk.cli._common import flag_text, mean_std_text, resolve_device
     from murk.report.compare import real_images, run_compare
     from murk.report.figures import parse_box
@@ -90,8 +111,35 @@ def compare(
             topic=topic,
             every=every,
             on_image=lambda i, n, name: progress.update(i, n),
+            ref_dir=ref,
+            max_side=max_side,
+            snow_clean=snow_clean,
         )
     summary = make_console()
+    if ref is not None:
+        summary.print(
+            f"{'method':<28} {'PSNR dB':>14} {'dPSNR vs raw':>14} {'SSIM':>14} {'CIEDE2000':>14}  n",
+            highlight=False,
+            soft_wrap=True,
+        )
+        for s in specs:
+            row = res.summary[s.label]
+            summary.print(
+                f"{s.label:<28} {mean_std_text(row['psnr'])} {mean_std_text(row['d_psnr'])} "
+                f"{mean_std_text(row['ssim'])} {mean_std_text(row['ciede2000'])}  {row['psnr']['n']}",
+                highlight=False,
+                soft_wrap=True,
+            )
+    if snow_clean is not None:
+        summary.print(f"{'method':<28} {'snow residue':>18} {'sites left':>18}  n", highlight=False, soft_wrap=True)
+        for s in specs:
+            row = res.summary[s.label]
+            summary.print(
+                f"{s.label:<28} {mean_std_text(row['snow_residue'])} {mean_std_text(row['snow_sites_left'])}  "
+                f"{row['snow_residue']['n']}",
+                highlight=False,
+                soft_wrap=True,
+            )
     header = f"{'method':<28} {'UIQM mean +- std':>18} {'UCIQE mean +- std':>18}  n  flags"
     summary.print(header, highlight=False, soft_wrap=True)
     for s in specs:

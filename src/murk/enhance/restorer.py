@@ -236,6 +236,7 @@ def _load_builtin() -> None:
 
 _BUILTIN_MODULES: list[str] = [
     "murk.enhance.post",
+    "murk.enhance.classical",
     "murk.enhance.jointid_restorer",
     "murk.enhance.lite_restorer",
     "murk.enhance.udaformer_restorer",

@@ -41,7 +41,7 @@ from murk.metrics.fidelity import (
     restoration_measures,
     structure_fidelity,
 )
-from murk.metrics.reference import SSIMWindow, psnr, psnr_torch, ssim, ssim_torch
+from murk.metrics.reference import SSIMWindow, ciede2000, psnr, psnr_torch, ssim, ssim_torch
 from murk.metrics.resize import pil_bicubic_resize
 from murk.metrics.uciqe import UCIQE_PRESETS, UCIQEBatch, UCIQEPreset, UCIQEResult, uciqe, uciqe_torch
 from murk.metrics.uiqm import UIQM_PRESETS, UIQMBatch, UIQMPreset, UIQMResult, uiqm, uiqm_torch
@@ -68,6 +68,7 @@ __all__ = [
     "UIQMResult",
     "artefact_energy",
     "artefact_ratio",
+    "ciede2000",
     "colour_exposure",
     "count_flags",
     "depth_errors",

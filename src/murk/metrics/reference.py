@@ -125,6 +125,25 @@ def ssim(pred: np.ndarray, ref: np.ndarray, *, data_range: float, window: SSIMWi
     return float(value)
 
 
+def ciede2000(pred: np.ndarray, ref: np.ndarray, *, data_range: float) -> float:
+    """Mean CIEDE2000 colour difference (Sharma, Wu, Dalal, Color Res. Appl. 30(1), 2005,
+    doi:10.1002/col.20070) between two sRGB images (H, W, 3), both converted to CIE L*a*b* (D65) by
+    scikit-image (``rgb2lab``, ``deltaE_ciede2000``); lower is better, 0 for identical colours.
+
+    Raises:
+        ShapeError: the images are not (H, W, 3) of one shape.
+    """
+    from skimage.color import deltaE_ciede2000, rgb2lab
+
+    pred, ref = _check_pair_numpy(pred, ref)
+    if ref.ndim != 3 or ref.shape[2] != 3:
+        raise ShapeError(f"ref: expected an RGB image (H, W, 3) for CIEDE2000, got {ref.shape}")
+    data_range = check_data_range(data_range)
+    a = np.clip(pred.astype(np.float64) / data_range, 0.0, 1.0)
+    b = np.clip(ref.astype(np.float64) / data_range, 0.0, 1.0)
+    return float(np.mean(deltaE_ciede2000(rgb2lab(b), rgb2lab(a))))
+
+
 def _largest_odd(n: int) -> int:
     return n if n % 2 == 1 else n - 1
 

@@ -43,6 +43,23 @@ SCORE_KEYS = ("uiqm", "uicm", "uism", "uiconm", "uciqe", "sigma_c", "con_l", "mu
 """No-reference scores of the output alone (:func:`score`)."""
 METRIC_KEYS = (*SCORE_KEYS, *MEASURE_KEYS)
 """Every numeric column of a row (besides ``ms``), summarised per method."""
+REF_KEYS = ("psnr", "ssim", "ciede2000")
+"""Full-reference scores of the output against the reference image (``--ref``)."""
+PAIRED_KEYS = tuple(f"d_{k}" for k in REF_KEYS)
+"""Paired differences to the raw input on the same image (``d_psnr = psnr(output) - psnr(input)``; for
+CIEDE2000 negative is better)."""
+SNOW_KEYS = ("snow_residue", "snow_sites_left")
+"""Marine-snow removal on a pair of the same scene without and with snow (``snow_clean``;
+:mod:`murk.metrics.snow_pairs`): contrast-normalised particle excess left, share of particle sites left."""
+SNOW_HTML_COLUMNS = (("snow_residue", "snow residue (pairs)"), ("snow_sites_left", "snow sites left"))
+REF_HTML_COLUMNS = (
+    ("psnr", "PSNR dB"),
+    ("d_psnr", "&Delta;PSNR vs raw"),
+    ("ssim", "SSIM"),
+    ("d_ssim", "&Delta;SSIM vs raw"),
+    ("ciede2000", "CIEDE2000"),
+    ("d_ciede2000", "&Delta;CIEDE2000 vs raw"),
+)
 
 
 @dataclass
@@ -82,16 +99,28 @@ def score(image: np.ndarray, *, uiqm_preset: str = "panetta2016", uciqe_preset: 
     }
 
 
-def summarise(rows: Sequence[dict[str, Any]], labels: Sequence[str]) -> dict[str, dict[str, dict[str, float]]]:
+def summarise(
+    rows: Sequence[dict[str, Any]], labels: Sequence[str], *, reference: bool = False
+) -> dict[str, dict[str, dict[str, float]]]:
     """Per method and metric: mean and population std over images (finite values), and n; under ``"flags"``
-    the flag counts of :func:`murk.metrics.count_flags` (rows flagged, rows, and rows per flag name)."""
+    the flag counts of :func:`murk.metrics.count_flags` (rows flagged, rows, and rows per flag name).
+
+    With ``reference``, also the full-reference scores (:data:`REF_KEYS`) and their paired differences to the raw
+    input on the same images (:data:`PAIRED_KEYS`), each with ``better``: on how many images the method beat
+    the raw input (higher PSNR/SSIM, lower CIEDE2000)."""
     out: dict[str, dict[str, dict[str, float]]] = {}
+    keys = (*METRIC_KEYS, *REF_KEYS, *PAIRED_KEYS, "ms") if reference else (*METRIC_KEYS, "ms")
+    if any(k in r for r in rows for k in SNOW_KEYS):
+        keys = (*keys, *SNOW_KEYS)
     for lab in labels:
         mine = [r for r in rows if r["method"] == lab]
         out[lab] = {}
-        for k in (*METRIC_KEYS, "ms"):
+        for k in keys:
             st = column_stats(r[k] for r in mine if isinstance(r.get(k), (int, float)))
             out[lab][k] = {"mean": st.mean, "std": st.std, "n": st.n_finite}
+            if k in PAIRED_KEYS:
+                sign = -1.0 if k == "d_ciede2000" else 1.0
+                out[lab][k]["better"] = sum(1 for r in mine if isinstance(r.get(k), float) and sign * r[k] > 0)
         out[lab]["flags"] = dict(count_flags(r["flags"] for r in mine if isinstance(r.get("flags"), str)))
     return out
 
@@ -130,10 +159,23 @@ def run_compare(
     topic: str | None = None,
     every: int = 1,
     on_image: Callable[[int, int, str], None] | None = None,
+    ref_dir: str | Path | None = None,
+    max_side: int | None = None,
+    snow_clean: str | Path | None = None,
 ) -> CompareResult:
     """Run, score and report every method on every image (see the module docstring for the outputs). A ROS bag
     among ``images`` contributes every ``every``-th frame of ``topic``; frames that fail to decode are
-    recorded in ``errors.jsonl``."""
+    recorded in ``errors.jsonl``.
+
+    ``ref_dir``: a folder of reference images matched by file stem (the field's full-reference protocol on
+    real paired photographs): every row gets PSNR, SSIM and CIEDE2000 against the reference and their paired
+    differences to the raw input (:data:`REF_KEYS`, :data:`PAIRED_KEYS`); an image without a reference of its
+    size is one error record. ``max_side``: images (and references) whose long side exceeds it are first
+    downscaled to it (area resampling), e.g. 256 as in the published real-pair tables.
+
+    ``snow_clean``: a folder of snow-free images of the same scenes as ``images`` (matched by file stem): every
+    method also restores the snow-free image, and each row gets the snow-pair measures of
+    :mod:`murk.metrics.snow_pairs` (:data:`SNOW_KEYS`: particle residue on the known particle sites)."""
     from murk.io.rosbag import bag_frames_as_files
 
     with bag_frames_as_files(images, topic, every=every) as frames:
@@ -152,8 +194,63 @@ def run_compare(
             title=title,
             on_image=on_image,
             failures=frames.errors,
+            refs=_reference_index(Path(ref_dir)) if ref_dir is not None else None,
+            max_side=max_side,
+            snow=_reference_index(Path(snow_clean), "--snow-clean") if snow_clean is not None else None,
         )
     return result
+
+
+def _reference_index(ref_dir: Path, flag: str = "--ref") -> dict[str, list[Path]]:
+    from murk.io.images import list_images
+
+    if not ref_dir.is_dir():
+        raise ValueError(f"{flag} {ref_dir}: not a folder of images")
+    index: dict[str, list[Path]] = {}
+    for p in list_images(ref_dir):
+        index.setdefault(p.stem, []).append(p)
+    if not index:
+        raise ValueError(f"{flag} {ref_dir}: no images found")
+    return index
+
+
+def _read_reference(
+    path: Path, refs: dict[str, list[Path]], size_hw: tuple[int, ...], max_side: int | None, flag: str = "--ref"
+) -> Any:
+    """The reference of ``path`` (same stem), as float RGB at the input's size after ``max_side``."""
+    found = refs.get(path.stem, [])
+    if len(found) != 1:
+        what = "no image" if not found else f"{len(found)} images ({', '.join(map(str, found))})"
+        raise ValueError(f"{what} with stem {path.stem!r} in {flag}")
+    raw, _ = read_image(found[0])
+    ref = downscale_to(to_float(raw), max_side)
+    if ref.shape[:2] != tuple(size_hw[:2]):
+        raise ValueError(
+            f"reference {found[0]} is {ref.shape[1]}x{ref.shape[0]}, the input {size_hw[1]}x{size_hw[0]} (after "
+            "--max-side): a full-reference score needs the same size"
+        )
+    return ref
+
+
+def _reference_scores(image: np.ndarray, ref: np.ndarray) -> dict[str, float]:
+    from murk.metrics import ciede2000, psnr, ssim
+
+    ref = resize_to(ref, image.shape[:2])
+    return {
+        "psnr": psnr(image, ref, data_range=1.0),
+        "ssim": ssim(image, ref, data_range=1.0),
+        "ciede2000": ciede2000(image, ref, data_range=1.0),
+    }
+
+
+def downscale_to(image: np.ndarray, max_side: int | None) -> np.ndarray:
+    """``image`` shrunk (area resampling) so that its long side is at most ``max_side``; unchanged when it
+    already fits or ``max_side`` is None."""
+    h, w = image.shape[:2]
+    if max_side is None or max(h, w) <= max_side:
+        return image
+    f = max_side / max(h, w)
+    return resize_to(image, (max(1, round(h * f)), max(1, round(w * f))))
 
 
 def _run_compare(
@@ -169,6 +266,9 @@ def _run_compare(
     title: str,
     on_image: Callable[[int, int, str], None] | None,
     failures: Sequence[ErrorRecord],
+    refs: dict[str, list[Path]] | None = None,
+    max_side: int | None = None,
+    snow: dict[str, list[Path]] | None = None,
 ) -> CompareResult:
     if not methods:
         raise ValueError("--method: give at least one method (e.g. --method raw --method post)")
@@ -189,10 +289,28 @@ def _run_compare(
             on_image(i, len(images), path.name)
         try:
             raw, info = read_image(path)
-            img = to_float(raw)
+            img = downscale_to(to_float(raw), max_side)
         except (ValueError, OSError) as exc:  # unreadable, corrupt, a bomb: recorded, the others go on
             result.add_failure(ErrorRecord(str(path), "read", str(exc)))
             continue
+        ref = None
+        if refs is not None:
+            try:
+                ref = _read_reference(path, refs, img.shape, max_side)
+            except (ValueError, OSError) as exc:
+                result.add_failure(ErrorRecord(str(path), "reference", str(exc)))
+                continue
+            input_scores = _reference_scores(to_float(to_uint(img, info.bit_depth)), ref)
+        snow_free, sites = None, None
+        if snow is not None:
+            from murk.metrics.snow_pairs import snow_sites
+
+            try:
+                snow_free = _read_reference(path, snow, img.shape, max_side, "--snow-clean")
+            except (ValueError, OSError) as exc:
+                result.add_failure(ErrorRecord(str(path), "snow-clean", str(exc)))
+                continue
+            sites = snow_sites(img, snow_free)
         outputs, rows = [], []
         for spec, rest in zip(methods, restorers, strict=True):
             t0 = time.perf_counter()
@@ -211,6 +329,17 @@ def _run_compare(
                 warnings.simplefilter("always")
                 metrics = score(restored, uiqm_preset=uiqm_preset, uciqe_preset=uciqe_preset)
                 metrics.update(restoration_measures(resize_to(img, restored.shape[:2]), restored))
+                if snow_free is not None and sites is not None:
+                    from murk.metrics.snow_pairs import snow_residue
+
+                    out_free = snow_free if rest is None else rest.restore(snow_free[None]).images[0]
+                    out_free = to_float(to_uint(np.clip(out_free, 0.0, 1.0), info.bit_depth))
+                    r = snow_residue(sites, snow_free, restored, out_free)
+                    metrics.update({"snow_residue": r.residue, "snow_sites_left": r.sites_left})
+                if ref is not None:
+                    full = _reference_scores(restored, ref)
+                    metrics.update(full)
+                    metrics.update({f"d_{k}": v - input_scores[k] for k, v in full.items()})
             row = {"image": path.name, "path": str(path), "method": spec.label, "spec": spec.text, "ms": ms, **metrics}
             row["flags"] = join_flags(flags(metrics))
             if caught:
@@ -237,11 +366,13 @@ def _run_compare(
         sections.append(
             {"name": path.name, "grid_u8": _shrink(grid), "rows": rows, "boxes": [b.__dict__ for b in chosen]}
         )
-    result.summary = summarise(result.rows, labels)
+    result.summary = summarise(result.rows, labels, reference=refs is not None)
     from murk.enhance.restorer import weights_of
 
     weights = {m.label: weights_of(r) for m, r in zip(methods, restorers, strict=True)}
-    _write_tables(out, result, methods, uiqm_preset, uciqe_preset, weights)
+    _write_tables(
+        out, result, methods, uiqm_preset, uciqe_preset, weights, reference=refs is not None, snow=snow is not None
+    )
     notes = [
         f"UIQM preset '{uiqm_preset}', UCIQE preset '{uciqe_preset}' (docs/metrics.md says which published code "
         "each preset reproduces); metrics are computed on the full-resolution outputs.",
@@ -259,6 +390,20 @@ def _run_compare(
         f"{fidelity.LUMINANCE_RATIO_MIN:g}), particles not removed (particle ratio > {fidelity.PARTICLE_RATIO_MAX:g})."
         " UIQM and UCIQE reward noise and artefacts: read them with the flags.",
     ]
+    if snow is not None:
+        notes.append(
+            "Snow pairs (--snow-clean): each image has a snow-free image of the same scene; particle sites are the "
+            "small blobs where the snowy image is brighter; snow residue = the particles' luma excess left in "
+            "R(snowy) - R(clean), normalised by the method's contrast gain (1 = kept, 0 = removed); sites left = "
+            "share of sites still at half their contrast or more (docs/metrics.md)."
+        )
+    if refs is not None:
+        notes.append(
+            "Full-reference scores against the --ref images matched by stem: PSNR (dB), SSIM (11x11 Gaussian window) "
+            "and mean CIEDE2000 (scikit-image; lower is better); the Delta columns are paired differences to the raw "
+            "input on the same image (mean +- std over images)."
+            + (f" Images and references were downscaled to a long side of {max_side} px first." if max_side else "")
+        )
     notes += [f"Weights of {lab}: {w}" for lab, w in weights.items() if w]
     if resized:
         notes.append(
@@ -272,6 +417,11 @@ def _run_compare(
         summary=result.summary,
         images=sections,
         notes=notes,
+        columns=(
+            *(REF_HTML_COLUMNS if refs is not None else ()),
+            *(SNOW_HTML_COLUMNS if snow is not None else ()),
+            *SUMMARY_METRICS,
+        ),
         meta=f"murk {__version__} · {len(sections)} images · {time.strftime('%Y-%m-%d %H:%M')}",
     )
     write_text_atomic(out / "report.html", html_text)
@@ -315,8 +465,13 @@ def _write_tables(
     uiqm_preset: str,
     uciqe_preset: str,
     weights: dict[str, str | None],
+    *,
+    reference: bool = False,
+    snow: bool = False,
 ) -> None:
-    cols = ["image", "method", "spec", *METRIC_KEYS, "ms", "flags", "warnings"]
+    ref_cols = [*REF_KEYS, *PAIRED_KEYS] if reference else []
+    ref_cols += list(SNOW_KEYS) if snow else []
+    cols = ["image", "method", "spec", *ref_cols, *METRIC_KEYS, "ms", "flags", "warnings"]
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=cols, extrasaction="ignore", lineterminator="\n")
     w.writeheader()

@@ -19,7 +19,7 @@ from typing import Any
 from murk.io.jobs import ErrorRecord, JobSummary
 
 NOREF_COLUMNS = ("uiqm", "uicm", "uism", "uiconm", "uciqe", "sigma_c", "con_l", "mu_s")
-REF_COLUMNS = ("psnr", "ssim")
+REF_COLUMNS = ("psnr", "ssim", "ciede2000")
 
 
 @dataclass(frozen=True)
@@ -267,7 +267,17 @@ def _score_images(
     import numpy as np
 
     from murk.io import read_image, to_float, to_uint
-    from murk.metrics import flags, join_flags, pil_bicubic_resize, psnr, restoration_measures, ssim, uciqe, uiqm
+    from murk.metrics import (
+        ciede2000,
+        flags,
+        join_flags,
+        pil_bicubic_resize,
+        psnr,
+        restoration_measures,
+        ssim,
+        uciqe,
+        uiqm,
+    )
 
     for done, (name, path) in enumerate(files, start=1):
         row: dict[str, Any] = {"file": name}
@@ -291,6 +301,7 @@ def _score_images(
                     row["ref"] = str(ref_path)
                     row["psnr"] = psnr(pred01, ref01, data_range=1.0)
                     row["ssim"] = ssim(pred01, ref01, data_range=1.0, window=opts.ssim_window)  # type: ignore[arg-type]
+                    row["ciede2000"] = ciede2000(pred01, ref01, data_range=1.0)
                 if inputs is not None:
                     input_path = _match(path, inputs, "--input", "raw input")
                     raw_rgb = _read_same_size(path, input_path, rgb.shape, "raw input")

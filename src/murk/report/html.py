@@ -113,8 +113,10 @@ def render_report(
     images: Sequence[dict[str, Any]],
     notes: Sequence[str] = (),
     meta: str = "",
+    columns: Sequence[tuple[str, str]] = SUMMARY_METRICS,
 ) -> str:
-    """The report page.
+    """The report page (``columns``: the (key, heading) pairs of the tables, :data:`SUMMARY_METRICS` by
+    default).
 
     Args:
         methods: ``{"label", "spec"}`` per method, in display order.
@@ -126,12 +128,12 @@ def render_report(
     means = [summary[lab]["uiqm"]["mean"] if summary[lab]["uiqm"]["n"] else 0.0 for lab in labels]
     scored = any(summary[lab]["uiqm"]["n"] for lab in labels)
     best = labels[int(np.argmax(means))] if scored else ""  # no best method when no image was scored
-    head = "".join(f"<th>{name} mean &plusmn; std</th>" for _, name in SUMMARY_METRICS)
+    head = "".join(f"<th>{name} mean &plusmn; std</th>" for _, name in columns)
     rows = []
     for m in methods:
         lab = m["label"]
         s = summary[lab]
-        cells = "".join(f"<td>{_fmt(s.get(k))}</td>" for k, _ in SUMMARY_METRICS)
+        cells = "".join(f"<td>{_fmt(s.get(k))}</td>" for k, _ in columns)
         ms = s.get("ms", {}).get("mean")
         ms_text = "-" if ms is None or not math.isfinite(ms) else f"{ms:.0f}"
         flag_counts = s.get("flags")
@@ -147,10 +149,10 @@ def render_report(
     chart = bar_chart_svg(labels, means, stds, title="Mean UIQM per method (whisker: +- std)")
     sections = []
     for im in images:
-        cols = "".join(f"<th>{name}</th>" for _, name in SUMMARY_METRICS)
+        cols = "".join(f"<th>{name}</th>" for _, name in columns)
         trs = "".join(
             f'<tr class="{"flagged" if r.get("flags") else ""}"><td class="l">{html.escape(r["method"])}</td>'
-            + "".join(f"<td>{r.get(k, float('nan')):.3f}</td>" for k, _ in SUMMARY_METRICS)
+            + "".join(f"<td>{r.get(k, float('nan')):.3f}</td>" for k, _ in columns)
             + f'<td class="flags">{html.escape(r.get("flags", ""))}</td></tr>'
             for r in im["rows"]
         )

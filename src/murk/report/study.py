@@ -58,9 +58,16 @@ def run_study(
     *,
     train_only: bool = False,
     on_event: Callable[[str], None] | None = None,
+    real_pairs: str | Path | None = None,
+    snow_pairs: str | Path | None = None,
 ) -> StudyResult:
-    """Train every unfinished arm, then (unless ``train_only``) evaluate all arms and write the report."""
+    """Train every unfinished arm, then (unless ``train_only``) evaluate all arms and write the report.
+    ``real_pairs`` and ``snow_pairs`` override the config's ``eval.real_pairs`` and ``eval.snow_pairs``."""
     study, base = load_study(config_file)
+    if real_pairs is not None:
+        study = merge(study, {"eval": {"real_pairs": str(real_pairs)}})
+    if snow_pairs is not None:
+        study = merge(study, {"eval": {"snow_pairs": str(snow_pairs)}})
     out = Path(out_dir)
     result = StudyResult(out=out)
     result.arms = train_arms(study, base, out, on_event=on_event)
@@ -83,6 +90,11 @@ def run_study(
     result.report = evaluate_study(study, base, out, on_event=on_event)
     for rec in result.report["real"]["errors"]:
         result.add_failure(ErrorRecord.from_json(rec))
+    for rec in result.report.get("snow_pairs", {}).get("errors", []):
+        result.add_failure(ErrorRecord.from_json(rec))
+    for pair_set in result.report.get("real_pairs", {}).get("sets", {}).values():
+        for rec in pair_set["errors"]:
+            result.add_failure(ErrorRecord.from_json(rec))
     result.write_errors(out)
     result.message = f"study: report -> {out / 'study.md'} and {out / 'real' / 'report.html'}"
     return result.finish()
@@ -129,9 +141,9 @@ def evaluate_study(
     if not images:
         raise ValueError(f"eval.real: {real_dir} holds no images")
     last = study.arms[-1].name
-    specs = ["raw", f"post?lam={ev.post_lambda}"]
+    specs = ["raw", f"post=post?preset=paper,lam={ev.post_lambda}"]
     specs += [f"{name}={method}:{p}" for name, p in ckpts.items()]
-    specs.append(f"{last}+post={method}+post:{ckpts[last]}?lam={ev.post_lambda}")
+    specs.append(f"{last}+post={method}+post:{ckpts[last]}?preset=paper,lam={ev.post_lambda}")
     specs += list(ev.baselines)  # e.g. udaformer:PATH, ursct:PATH (docs/baselines.md)
     methods = [parse_method(s) for s in specs]
     say(f"real: {len(images)} images x {len(methods)} methods")
@@ -143,9 +155,98 @@ def evaluate_study(
         "summary": res.summary,
         "errors": res.errors,
     }
+    if ev.real_pairs:
+        pair_specs = ["raw", "greyworld+clahe", "udcp", *specs[2:], f"{last}+post_murk={method}+post:{ckpts[last]}"]
+        report["real_pairs"] = evaluate_real_pairs(
+            Path(resolve_builtin(ev.real_pairs)),
+            [parse_method(s) for s in pair_specs],
+            out / "real_pairs",
+            max_side=ev.real_pairs_max_side,
+            on_event=say,
+        )
+    if ev.snow_pairs:
+        snow_dir = Path(resolve_builtin(ev.snow_pairs))
+        if not (snow_dir / "snowy").is_dir() or not (snow_dir / "clean").is_dir():
+            raise ValueError(f"eval.snow_pairs: {snow_dir} must hold snowy/ and clean/ folders (matched by file stem)")
+        snowy = list_images(snow_dir / "snowy")
+        snow_specs = ["raw", *specs[1:]]
+        say(f"snow pairs: {len(snowy)} images x {len(snow_specs)} methods")
+        snow_res = run_compare(
+            snowy,
+            [parse_method(s) for s in snow_specs],
+            out / "snow_pairs",
+            snow_clean=snow_dir / "clean",
+            title="murk study: marine snow on real pairs",
+        )
+        report["snow_pairs"] = {
+            "folder": ev.snow_pairs,
+            "images": len(snowy),
+            "methods": [parse_method(s).label for s in snow_specs],
+            "summary": snow_res.summary,
+            "errors": snow_res.errors,
+        }
     write_text_atomic(out / "study.json", json.dumps(json_safe(report), indent=2) + "\n")
     write_text_atomic(out / "study.md", study_markdown(report))
     return report
+
+
+def pair_sets(folder: Path) -> dict[str, Path]:
+    """The real paired sets of ``folder``: itself when it holds ``input/`` and ``reference/``, else each
+    subfolder that does (by name).
+
+    Raises:
+        ValueError: no set found.
+    """
+
+    def is_set(p: Path) -> bool:
+        return (p / "input").is_dir() and (p / "reference").is_dir()
+
+    if is_set(folder):
+        return {folder.name: folder}
+    sets = {p.name: p for p in sorted(folder.iterdir()) if p.is_dir() and is_set(p)} if folder.is_dir() else {}
+    if not sets:
+        raise ValueError(
+            f"eval.real_pairs: {folder} holds neither input/ and reference/ folders nor subfolders that do"
+        )
+    return sets
+
+
+def evaluate_real_pairs(
+    folder: Path,
+    methods: list[Any],
+    out: Path,
+    *,
+    max_side: int,
+    on_event: Callable[[str], None] | None = None,
+) -> dict[str, Any]:
+    """Score ``methods`` on every real paired set of ``folder`` (:func:`pair_sets`) with ``murk compare --ref``
+    into ``out/<set>/``; the result holds each set's summary and, per method, the mean over sets of each set's
+    mean PSNR / SSIM / CIEDE2000 and paired differences (each set counted once)."""
+    from murk.io.images import list_images
+    from murk.report.compare import PAIRED_KEYS, REF_KEYS, run_compare
+
+    say = on_event or (lambda _m: None)
+    sets: dict[str, Any] = {}
+    for name, path in pair_sets(folder).items():
+        images = list_images(path / "input")
+        say(f"real pairs {name}: {len(images)} images x {len(methods)} methods")
+        res = run_compare(
+            images,
+            methods,
+            out / name,
+            ref_dir=path / "reference",
+            max_side=max_side,
+            title=f"murk study: real pairs ({name})",
+        )
+        sets[name] = {"folder": str(path), "images": len(images), "summary": res.summary, "errors": res.errors}
+    labels = [m.label for m in methods]
+    over_sets: dict[str, dict[str, float]] = {}
+    for lab in labels:
+        over_sets[lab] = {}
+        for k in (*REF_KEYS, *PAIRED_KEYS):
+            means = [s["summary"][lab][k]["mean"] for s in sets.values() if s["summary"][lab][k]["n"]]
+            over_sets[lab][k] = sum(means) / len(means) if means else float("nan")
+    return {"folder": str(folder), "max_side": max_side, "methods": labels, "sets": sets, "mean_over_sets": over_sets}
 
 
 def _training_record(study: StudyConfig, base: TrainConfig, out: Path) -> dict[str, Any]:
@@ -178,6 +279,38 @@ SUMMARY_KEYS = (
 )
 
 
+def real_pairs_markdown(pairs: dict[str, Any]) -> list[str]:
+    """Markdown lines of the real-pair tables: per set mean +- std and the paired difference to raw, then the
+    mean over sets."""
+
+    def cell(v: dict[str, Any]) -> str:
+        ok = v.get("n") and isinstance(v.get("mean"), (int, float)) and math.isfinite(v["mean"])
+        return f"{v['mean']:.2f} +- {v['std']:.2f}" if ok else "-"
+
+    lines = [f"## Real paired photographs (long side <= {pairs['max_side']} px; {pairs['folder']})", ""]
+    for name, s in pairs["sets"].items():
+        lines += [
+            f"### {name} ({s['images']} pairs): mean +- std over images; d = paired difference to raw",
+            "",
+            "| method | PSNR dB | d PSNR | better than raw | SSIM | d SSIM | CIEDE2000 | d CIEDE2000 |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        for m in pairs["methods"]:
+            r = s["summary"][m]
+            better = f"{r['d_psnr'].get('better', 0)}/{r['d_psnr']['n']}"
+            lines.append(
+                f"| {m} | {cell(r['psnr'])} | {cell(r['d_psnr'])} | {better} | "
+                f"{cell(r['ssim'])} | {cell(r['d_ssim'])} | {cell(r['ciede2000'])} | {cell(r['d_ciede2000'])} |"
+            )
+        lines.append("")
+    lines += ["### Mean over sets (each set's mean counted once)", "", "| method | PSNR dB | SSIM | CIEDE2000 |"]
+    lines.append("|---|---|---|---|")
+    for m in pairs["methods"]:
+        o = pairs["mean_over_sets"][m]
+        lines.append(f"| {m} | {o['psnr']:.2f} | {o['ssim']:.3f} | {o['ciede2000']:.2f} |")
+    return [*lines, ""]
+
+
 def study_markdown(report: dict[str, Any]) -> str:
     """The study report as Markdown (tables of the real-image and held-out evaluations, training record)."""
     from murk.report.heldout import heldout_table
@@ -200,6 +333,30 @@ def study_markdown(report: dict[str, Any]) -> str:
         flagged = f"{fl.get('flagged', 0)}/{fl.get('n', 0)}" if fl else "-"
         lines.append(f"| {m} | " + " | ".join(cells) + f" | {flagged} |")
     lines += ["", "Grids (Fig. 9): `real/grids/`; per-image numbers: `real/metrics.csv`; `real/report.html`.", ""]
+    if report.get("real_pairs"):
+        lines += real_pairs_markdown(report["real_pairs"])
+    if report.get("snow_pairs"):
+        sp = report["snow_pairs"]
+        lines += [
+            f"## Marine snow on real pairs ({sp['images']} scenes with and without snow, {sp['folder']})",
+            "",
+            "snow residue: the particles' contrast left on the known particle sites (1 = kept, 0 = removed); sites "
+            "left: share of particle sites still at half their contrast. Mean +- std over images.",
+            "",
+            "| method | snow residue | sites left | particles out/in (no-reference) |",
+            "|---|---|---|---|",
+        ]
+        for m in sp["methods"]:
+            r = sp["summary"][m]
+
+            def ms(v: dict[str, Any]) -> str:
+                ok = v.get("n") and isinstance(v.get("mean"), (int, float)) and math.isfinite(v["mean"])
+                return f"{v['mean']:.3f} +- {v['std']:.3f}" if ok else "-"
+
+            lines.append(
+                f"| {m} | {ms(r['snow_residue'])} | {ms(r['snow_sites_left'])} | {ms(r['particle_residue_ratio'])} |"
+            )
+        lines.append("")
     if report.get("heldout"):
         h = report["heldout"]
         hh, ww = h["size_hw"]

@@ -34,6 +34,9 @@ class SceneConfig:
         texture_names: image textures the sampler may use (the names given to the renderer).
         texture_probability: probability that a concrete, rock or seabed material uses an image texture
             (when ``texture_names`` is not empty).
+        water_background: probability that the open-water background (rays that hit nothing) is clear-water
+            blue to cyan-green, as water looks in a photograph taken in clear water, instead of the near-grey
+            gradient (0, the default, keeps every scene as before: the extra draws come last).
     """
 
     near_m: float = 0.3
@@ -50,6 +53,7 @@ class SceneConfig:
     growth_max: float = 0.6
     texture_names: tuple[str, ...] = ()
     texture_probability: float = 0.3
+    water_background: float = 0.0
 
     def __post_init__(self) -> None:
         check_positive("near_m", self.near_m)
@@ -73,6 +77,7 @@ class SceneConfig:
         check_range("lamp_probability", self.lamp_probability, 0.0, 1.0)
         check_range("growth_max", self.growth_max, 0.0, 1.0)
         check_range("texture_probability", self.texture_probability, 0.0, 1.0)
+        check_range("water_background", self.water_background, 0.0, 1.0)
         names = self.texture_names
         if not isinstance(names, (list, tuple)) or not all(isinstance(n, str) and n for n in names):
             raise TypeError(f"texture_names: expected a list of non-empty strings, got {names!r}")

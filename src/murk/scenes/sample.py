@@ -713,6 +713,9 @@ def _lighting(rng: np.random.Generator, cfg: SceneConfig, yaw_deg: float) -> Lig
     def r3(v: tuple[float, float, float]) -> tuple[float, float, float]:
         return (round(v[0], 5), round(v[1], 5), round(v[2], 5))
 
+    bg_low, bg_high = (low * 0.9, low, low * 1.05), (high * 0.88, high, high * 1.05)
+    if cfg.water_background > 0 and rng.random() < cfg.water_background:
+        bg_low, bg_high = _water_background(rng)
     return Lighting(
         sun_direction=r3(sun_dir),
         sun_rgb=r3((sun * (1 + warm), sun, sun * (1 - warm))),
@@ -721,6 +724,16 @@ def _lighting(rng: np.random.Generator, cfg: SceneConfig, yaw_deg: float) -> Lig
         lamp_cone_deg=round(_u(rng, 18.0, 40.0), 3),
         lamp_soft_deg=round(_u(rng, 5.0, 20.0), 3),
         lamp_ref_m=round(_u(rng, 1.5, 3.0), 3),
-        background_low_rgb=r3((low * 0.9, low, low * 1.05)),
-        background_high_rgb=r3((high * 0.88, high, high * 1.05)),
+        background_low_rgb=r3(bg_low),
+        background_high_rgb=r3(bg_high),
     )
+
+
+def _water_background(rng: np.random.Generator) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """Clear-water background colours (looking down, looking up): blue (``tint`` 0) to cyan-green (1), red low,
+    the downward colour 35-65 % of the upward one."""
+    tint = _u(rng, 0.0, 1.0)
+    level = _u(rng, 0.6, 1.0)
+    high = (_u(rng, 0.04, 0.25) * level, (0.40 + 0.25 * tint) * level, (0.80 - 0.25 * tint) * level)
+    k = _u(rng, 0.35, 0.65)
+    return (high[0] * k, high[1] * k, high[2] * k), high

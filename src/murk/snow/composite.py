@@ -48,6 +48,11 @@ class SnowParams:
     reference_area_px: int = 0
     """If > 0, ``n_particles`` is a count per this many pixels: an image of ``H * W`` pixels gets
     ``round(n_particles * H * W / reference_area_px)`` particles (the same density at every crop size)."""
+    particle_luma: tuple[float, float] | None = None
+    """If set, each drawn particle is relit: its pixels become neutral grey with their own luma pattern, scaled
+    so that the particle's mean Rec. 709 luma is ``U[a, b]`` (0-255), clipped at 255: particles lit by the
+    vehicle's lamp or the sun, whatever the brightness of the frame they were cut from (the hue of dark footage
+    is sensor noise that scaling would turn into coloured specks). None: the original pixels (the paper)."""
 
 
 def particle_count(params: SnowParams, width: int, height: int) -> int:
@@ -64,6 +69,8 @@ class SnowLayout:
     index: np.ndarray
     scale: np.ndarray
     centre_xy: np.ndarray
+    target_luma: np.ndarray | None = None
+    """Per drawn particle: the mean luma (0-255) its colour is rescaled to (``particle_luma``; None: original)."""
 
 
 def sample_snow(
@@ -75,6 +82,7 @@ def sample_snow(
     rho_px: tuple[float, float] = (0.2, 1.0),
     reference_width_px: int = 0,
     reference_area_px: int = 0,
+    particle_luma: tuple[float, float] | None = None,
 ) -> SnowParams:
     """Draw N_p ~ U{a..b}, rho ~ U[a, b] and the layout seed of one image."""
     g = as_generator(rng)
@@ -86,6 +94,7 @@ def sample_snow(
         bank_id=bank.bank_id,
         reference_width_px=int(reference_width_px),
         reference_area_px=int(reference_area_px),
+        particle_luma=None if particle_luma is None else (float(particle_luma[0]), float(particle_luma[1])),
     )
 
 
@@ -100,17 +109,40 @@ def snow_layout(params: SnowParams, bank_size: int, width: int, height: int) -> 
     if params.reference_width_px > 0:
         scale = scale * (width / params.reference_width_px)
     centre = g.uniform(0.0, 1.0, size=(n, 2)) * np.array([width, height], np.float64) - 0.5
-    return SnowLayout(index, scale, centre)
+    target = None
+    if params.particle_luma is not None:  # drawn last: the other draws stay as they were
+        target = g.uniform(params.particle_luma[0], params.particle_luma[1], size=n)
+    return SnowLayout(index, scale, centre, target)
 
 
-def _splat_points(layout: SnowLayout, bank: ParticleBank) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Sub-points of all drawn particles: (y, x) float64, mass, and bank pixel index of each."""
+def particle_lumas(bank: ParticleBank) -> np.ndarray:
+    """Mean Rec. 709 luma (0-255) of each particle of ``bank``."""
+    lum = bank.pixel_rgb.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
+    return np.add.reduceat(lum, bank.offsets[:-1]) / np.maximum(bank.areas_px, 1)
+
+
+def _colours(layout: SnowLayout, bank: ParticleBank, pix: np.ndarray, owner: np.ndarray) -> np.ndarray:
+    """The colour (0-255) of each splatted point: its bank pixel's, or grey rescaled to the particle's target
+    luma (``particle_luma``)."""
+    rgb = bank.pixel_rgb[pix]
+    if layout.target_luma is None or len(pix) == 0:
+        return rgb
+    gain = layout.target_luma / np.maximum(particle_lumas(bank)[layout.index], 1.0)
+    lum = rgb.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
+    grey = np.minimum(lum * gain[owner], 255.0).astype(np.float32)
+    return np.repeat(grey[:, None], 3, axis=1)
+
+
+def _splat_points(
+    layout: SnowLayout, bank: ParticleBank
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Sub-points of all drawn particles: (y, x) float64, mass, the colour of each (0-255, (N, 3))."""
     idx = layout.index
     counts = bank.areas_px[idx]
     total = int(counts.sum())
     if total == 0:
         z = np.zeros(0)
-        return z, z, z, np.zeros(0, np.int64)
+        return z, z, z, np.zeros((0, 3), np.float32), np.zeros(0, np.int64)
     owner = np.repeat(np.arange(len(idx)), counts)
     starts = bank.offsets[idx]
     pix = np.arange(total) - np.repeat(np.cumsum(counts) - counts, counts) + np.repeat(starts, counts)
@@ -127,7 +159,8 @@ def _splat_points(layout: SnowLayout, bank: ParticleBank) -> tuple[np.ndarray, n
         xs = (xs[:, None] + s[:, None] * dx.ravel()).ravel()
         mass = np.repeat(mass / (m * m), m * m)
         pix = np.repeat(pix, m * m)
-    return ys, xs, mass, pix
+        owner = np.repeat(owner, m * m)
+    return ys, xs, mass, _colours(layout, bank, pix, owner), pix
 
 
 def _canvas_pad(layout: SnowLayout, bank: ParticleBank, rho_px: float) -> int:
@@ -174,9 +207,9 @@ def snow_layers(params: SnowParams, bank: ParticleBank, height: int, width: int)
     layout = snow_layout(params, len(bank), width, height)
     pad = _canvas_pad(layout, bank, params.rho_px)
     hp, wp = height + 2 * pad, width + 2 * pad
-    ys, xs, mass, pix = _splat_points(layout, bank)
+    ys, xs, mass, rgb, _ = _splat_points(layout, bank)
     idx, wts = _taps(ys, xs, pad, wp)
-    b, q = _accumulate(idx, wts * np.tile(mass, 4), np.tile(bank.pixel_rgb[pix], (4, 1)), hp * wp, torch.device("cpu"))
+    b, q = _accumulate(idx, wts * np.tile(mass, 4), np.tile(rgb, (4, 1)), hp * wp, torch.device("cpu"))
     return b.numpy().reshape(hp, wp), q.numpy().reshape(hp, wp, 3), pad
 
 
@@ -215,9 +248,9 @@ def composite_snow_torch(
         layout = snow_layout(p, len(bank), w, h)
         pad = _canvas_pad(layout, bank, p.rho_px)
         hp, wp = h + 2 * pad, w + 2 * pad
-        ys, xs, mass, pix = _splat_points(layout, bank)
+        ys, xs, mass, rgb, _ = _splat_points(layout, bank)
         idx, wts = _taps(ys, xs, pad, wp)
-        b, q = _accumulate(idx, wts * np.tile(mass, 4), np.tile(bank.pixel_rgb[pix], (4, 1)), hp * wp, dev)
+        b, q = _accumulate(idx, wts * np.tile(mass, 4), np.tile(rgb, (4, 1)), hp * wp, dev)
         layers = torch.cat([b.view(1, hp, wp), q.view(hp, wp, 3).permute(2, 0, 1)], dim=0)[None]
         blurred = gaussian_blur_torch(layers, torch.tensor([p.rho_px], dtype=torch.float64))[0]
         alphas.append(blurred[0:1, pad : pad + h, pad : pad + w].clamp(max=1.0))  # Eq. (8)

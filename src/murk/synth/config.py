@@ -15,8 +15,8 @@ from murk.physics.forward_scatter import FsMode
 from murk.physics.jerlov import WATER_TYPES, parse_water_types
 from murk.physics.medium import DistanceMode
 
-Stage = Literal["basic", "forward_scatter", "marine_snow"]
-STAGES: tuple[str, ...] = ("basic", "forward_scatter", "marine_snow")
+Stage = Literal["basic", "forward_scatter", "marine_snow", "camera"]
+STAGES: tuple[str, ...] = ("basic", "forward_scatter", "marine_snow", "camera")
 """All stages in the order they are applied."""
 
 
@@ -51,6 +51,12 @@ class MediumConfig:
     ambient_scale: float = 1.5
     ambient_override: tuple[float, float, float] | None = None
     """A fixed B_inf (R, G, B) instead of the sampled one."""
+    ambient_gain: tuple[float, float] = (1.0, 1.0)
+    """B_inf is multiplied by a ~ U[a, b] (brighter or darker veils than the Jerlov table at depth D gives);
+    (1, 1) = off, the paper's (no draw is made, so the other draws stay as they were)."""
+    ambient_tint: float = 0.0
+    """B_inf_c is multiplied by exp(t_c), t_c ~ N(0, ambient_tint^2) per channel, then rescaled to keep its mean:
+    water colours between the Jerlov types (greener, bluer, yellow-brown); 0 = off, the paper's."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "water_types", parse_water_types(self.water_types))
@@ -70,6 +76,8 @@ class MediumConfig:
         if self.ambient_override is not None:
             for c in self.ambient_override:
                 check_range("ambient_override", c, 0.0, 10.0)
+        check_interval("ambient_gain", self.ambient_gain, 0.0, 10.0)
+        check_range("ambient_tint", self.ambient_tint, 0.0, 2.0)
 
 
 @dataclass(frozen=True)
@@ -112,8 +120,14 @@ class SnowConfig:
     """If > 0, ``n_particles`` counts particles per this many pixels (e.g. 307200 = the paper's counts on a
     640x480 frame), so a small training crop gets the same snow density as a full frame; 0 = per image, as in
     the paper."""
+    particle_luma: tuple[float, float] | None = None
+    """If set, each particle is relit: neutral grey with its own luma pattern, rescaled to a mean luma ~ U[a, b]
+    (0-255): particles lit by a lamp or the sun, whatever the brightness of the footage they were cut from.
+    None: the original pixels, the paper's Eq. (7)."""
 
     def __post_init__(self) -> None:
+        if self.particle_luma is not None:
+            check_interval("particle_luma", self.particle_luma, 1.0, 255.0)
         lo, hi = self.n_particles
         if isinstance(lo, bool) or isinstance(hi, bool) or not (0 <= lo <= hi <= 1_000_000):
             raise ValueError(f"n_particles: expected 0 <= min <= max <= 1e6, got {self.n_particles}")
@@ -123,6 +137,35 @@ class SnowConfig:
             raise ValueError(f"reference_width_px: expected >= 0, got {self.reference_width_px}")
         if self.reference_area_px < 0:
             raise ValueError(f"reference_area_px: expected >= 0, got {self.reference_area_px}")
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """The ``camera`` stage (after the water and the snow; :mod:`murk.physics.camera`): white-balance error,
+    exposure, heteroscedastic sensor noise and JPEG, each drawn per variant."""
+
+    wb_sigma: float = 0.08
+    """log g_c ~ N(0, wb_sigma^2) per channel, recentred so the gains' geometric mean is 1."""
+    exposure: tuple[float, float] = (0.8, 1.25)
+    """Exposure e, log-uniform in [a, b]."""
+    read_noise: tuple[float, float] = (0.0, 0.01)
+    """Signal-independent noise standard deviation ~ U[a, b] (fraction of full scale)."""
+    shot_noise: tuple[float, float] = (0.0, 0.0004)
+    """Signal-dependent noise variance per unit signal ~ U[a, b] (variance = read^2 + shot * x)."""
+    jpeg_quality: tuple[int, int] = (60, 95)
+    """JPEG quality ~ U{a..b} when a JPEG round trip is drawn."""
+    jpeg_probability: float = 0.5
+    """Probability of the JPEG round trip (otherwise the image is only quantised to 8 bits)."""
+
+    def __post_init__(self) -> None:
+        check_range("wb_sigma", self.wb_sigma, 0.0, 2.0)
+        check_interval("exposure", self.exposure, 1e-3, 100.0)
+        check_interval("read_noise", self.read_noise, 0.0, 1.0)
+        check_interval("shot_noise", self.shot_noise, 0.0, 1.0)
+        lo, hi = self.jpeg_quality
+        if isinstance(lo, bool) or isinstance(hi, bool) or not (1 <= lo <= hi <= 100):
+            raise ValueError(f"jpeg_quality: expected 1 <= min <= max <= 100, got {self.jpeg_quality}")
+        check_range("jpeg_probability", self.jpeg_probability, 0.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -180,6 +223,7 @@ class SynthConfig:
     medium: MediumConfig = field(default_factory=MediumConfig)
     forward_scatter: ForwardScatterConfig = field(default_factory=ForwardScatterConfig)
     marine_snow: SnowConfig = field(default_factory=SnowConfig)
+    camera: CameraConfig = field(default_factory=CameraConfig)
     input: InputConfig = field(default_factory=InputConfig)
     output: OutputConfig = field(default_factory=OutputConfig)
 

@@ -19,7 +19,7 @@ from murk.physics.jerlov import beta_per_m, visible_range_m
 from murk.physics.medium import ambient_light
 from murk.rng import RngLike, as_generator
 from murk.snow.composite import SnowParams
-from murk.synth.config import ForwardScatterConfig, MediumConfig, SynthConfig
+from murk.synth.config import CameraConfig, ForwardScatterConfig, MediumConfig, SynthConfig
 
 
 @dataclass(frozen=True)
@@ -49,6 +49,19 @@ class ForwardScatterParams:
 
 
 @dataclass(frozen=True)
+class CameraParams:
+    """``camera`` stage parameters of one variant (:mod:`murk.physics.camera`)."""
+
+    wb_gains: tuple[float, float, float]
+    exposure: float
+    read_noise: float
+    shot_noise: float
+    noise_seed: int
+    jpeg_quality: int
+    """0 = no JPEG round trip (8-bit quantisation only)."""
+
+
+@dataclass(frozen=True)
 class VariantParams:
     """Everything that defines one synthetic variant. ``stages`` lists what is applied; the medium is always
     present because its distance range also drives forward scattering."""
@@ -57,6 +70,7 @@ class VariantParams:
     medium: MediumParams | None
     forward_scatter: ForwardScatterParams | None
     snow: SnowParams | None = None
+    camera: CameraParams | None = None
 
 
 def sample_medium(rng: RngLike, config: MediumConfig) -> MediumParams:
@@ -75,6 +89,11 @@ def sample_medium(rng: RngLike, config: MediumConfig) -> MediumParams:
     else:
         depth_d = float(g.uniform(*config.vertical_depth_m))
         b_inf = ambient_light(wt, depth_d, scale=config.ambient_scale)
+    if config.ambient_gain != (1.0, 1.0):
+        b_inf = b_inf * float(g.uniform(*config.ambient_gain))
+    if config.ambient_tint > 0:
+        tint = np.exp(g.normal(0.0, config.ambient_tint, 3))
+        b_inf = b_inf * tint * (float(b_inf.mean()) / max(float((b_inf * tint).mean()), 1e-12))
     return MediumParams(
         water_type=wt,
         beta_per_m=(float(beta[0]), float(beta[1]), float(beta[2])),
@@ -97,6 +116,28 @@ def forward_scatter_params(config: ForwardScatterConfig) -> ForwardScatterParams
     )
 
 
+def sample_camera(rng: RngLike, config: CameraConfig) -> CameraParams:
+    """Draw white-balance gains (geometric mean 1), exposure, noise levels, the noise seed and JPEG quality."""
+    g = as_generator(rng)
+    logg = g.normal(0.0, config.wb_sigma, 3)
+    gains = np.exp(logg - logg.mean())
+    lo, hi = config.exposure
+    exposure = float(np.exp(g.uniform(np.log(lo), np.log(hi))))
+    read = float(g.uniform(*config.read_noise))
+    shot = float(g.uniform(*config.shot_noise))
+    seed = int(g.integers(0, 2**31 - 1))
+    jpeg = g.uniform() < config.jpeg_probability
+    quality = int(g.integers(config.jpeg_quality[0], config.jpeg_quality[1] + 1))
+    return CameraParams(
+        wb_gains=(float(gains[0]), float(gains[1]), float(gains[2])),
+        exposure=exposure,
+        read_noise=read,
+        shot_noise=shot,
+        noise_seed=seed,
+        jpeg_quality=quality if jpeg else 0,
+    )
+
+
 def sample_variant(rng: RngLike, config: SynthConfig, *, snow_sampler: Any = None) -> VariantParams:
     """Draw the parameters of one variant for the enabled stages.
 
@@ -112,7 +153,8 @@ def sample_variant(rng: RngLike, config: SynthConfig, *, snow_sampler: Any = Non
         if snow_sampler is None:
             raise ValueError("stages: 'marine_snow' needs a particle bank (snow_sampler) to sample from")
         snow = snow_sampler(g)
-    return VariantParams(stages=tuple(config.stages), medium=medium, forward_scatter=fs, snow=snow)
+    camera = sample_camera(g, config.camera) if "camera" in config.stages else None
+    return VariantParams(stages=tuple(config.stages), medium=medium, forward_scatter=fs, snow=snow, camera=camera)
 
 
 def snow_sampler_for(config: SynthConfig, bank: Any) -> Any:
@@ -131,6 +173,7 @@ def snow_sampler_for(config: SynthConfig, bank: Any) -> Any:
             rho_px=sc.rho_px,
             reference_width_px=sc.reference_width_px,
             reference_area_px=sc.reference_area_px,
+            particle_luma=sc.particle_luma,
         )
 
     return sampler

@@ -139,6 +139,10 @@ def render(
         np.clip(image, 0.0, 1.0, out=image)
         image, alpha = composite_snow(image, params.snow, bank)
     np.clip(image, 0.0, 1.0, out=image)
+    if params.camera is not None:
+        from murk.physics.camera import apply_camera
+
+        image = apply_camera(image, params.camera)
     return SynthResult(
         degraded=image,
         dist_m=dist,
@@ -182,7 +186,7 @@ def render_batch_torch(
         raise ShapeError(f"depth_m: expected {(b, 1, h, w)} to match clean, got {tuple(depth_m.shape)}")
     if len(params) != b:
         raise ValueError(f"params: expected {b} variants (one per sample), got {len(params)}")
-    kinds = {(p.forward_scatter is not None, p.snow is not None, p.stages) for p in params}
+    kinds = {(p.forward_scatter is not None, p.snow is not None, p.camera is not None, p.stages) for p in params}
     if len(kinds) != 1:
         raise ValueError("params: all variants of a batch must enable the same stages")
     meds = [p.medium for p in params]
@@ -223,4 +227,9 @@ def render_batch_torch(
         if bank is None:
             raise ValueError("bank: marine snow parameters given but no particle bank")
         image, alpha = composite_snow_torch(image.clamp(0.0, 1.0), [p.snow for p in params], bank)
-    return BatchResult(image.clamp(0.0, 1.0), dist, sigma_max, alpha)
+    image = image.clamp(0.0, 1.0)
+    if params[0].camera is not None:
+        from murk.physics.camera import apply_camera_torch
+
+        image = apply_camera_torch(image, [p.camera for p in params])
+    return BatchResult(image, dist, sigma_max, alpha)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Literal
 
-from murk._checks import check_positive, check_range
+from murk._checks import check_interval, check_positive, check_range
 from murk.synth.config import SynthConfig
 from murk.train.augment import AugmentConfig
 from murk.train.losses import LossWeights
@@ -88,6 +88,19 @@ class DataConfig:
     uniform in this range, fixed per scene by its seed) and a crop-sized window is cut at a position also fixed
     per scene. With ``s > 1`` objects appear larger in pixels, as in higher-resolution footage, so a model
     cannot read distance from apparent size at one resolution only. (1, 1): the whole scene, centre-cropped."""
+    scene_saturation: tuple[float, float] = (1.0, 1.0)
+    """``source: scenes``: the clean scene's colour saturation is scaled by ``s`` (uniform in this range, fixed
+    per scene by its seed) around its BT.601 luma, before the water is added, so the targets span the vivid
+    colours of real photographs (fish, paint, marine growth) and not only the procedural palette. (1, 1): off."""
+    scene_contrast: tuple[float, float] = (1.0, 1.0)
+    """``source: scenes``: the clean scene's colours are stretched by ``c`` (uniform in this range, fixed per scene
+    by its seed) around its mean luma, ``clip(m + c (rgb - m))``, before the water is added. The procedural
+    scenes are flatter than photographs (luma std 0.11 against 0.18-0.21 for the shipped real RGB-D photos),
+    so a restorer trained on them returns flat images. (1, 1): off."""
+    scene_water_background: float = 0.0
+    """``source: scenes``: probability that a scene's open-water background is clear-water blue to cyan-green
+    (:class:`murk.scenes.SceneConfig` ``water_background``) instead of near-grey, so that a restorer learns to
+    leave clear water looking like water. 0: off (the scenes of stages 1-2)."""
     synthesis: SynthConfig = field(
         default_factory=lambda: SynthConfig(stages=("basic", "forward_scatter", "marine_snow"))
     )
@@ -108,6 +121,9 @@ class DataConfig:
         lo, hi = self.scene_scale
         if not (1.0 <= lo <= hi <= 4.0):
             raise ValueError(f"scene_scale: expected 1 <= low <= high <= 4, got {list(self.scene_scale)}")
+        check_interval("scene_saturation", self.scene_saturation, 0.0, 4.0)
+        check_range("scene_water_background", self.scene_water_background, 0.0, 1.0)
+        check_interval("scene_contrast", self.scene_contrast, 0.0, 4.0)
 
 
 @dataclass(frozen=True)

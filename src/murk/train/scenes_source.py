@@ -45,6 +45,21 @@ def scene_window(
     return (w_s, h_s), (int(rng.integers(0, h_s - th + 1)), int(rng.integers(0, w_s - tw + 1)))
 
 
+def scale_saturation(rgb: np.ndarray, factor: float) -> np.ndarray:
+    """``clip(Y + factor * (rgb - Y), 0, 1)`` with ``Y`` the BT.601 luma: saturation scaled, luma kept (until a
+    channel clips). float32 (H, W, 3) in [0, 1]."""
+    y = rgb @ np.asarray([0.299, 0.587, 0.114], np.float32)
+    out = y[..., None] + np.float32(factor) * (rgb - y[..., None])
+    return np.clip(out, 0.0, 1.0).astype(np.float32)
+
+
+def scale_contrast(rgb: np.ndarray, factor: float) -> np.ndarray:
+    """``clip(m + factor * (rgb - m), 0, 1)`` with ``m`` the image's mean BT.601 luma: every colour moved away
+    from the mean grey (luma contrast and chroma both scaled). float32 (H, W, 3) in [0, 1]."""
+    m = np.float32(float((rgb @ np.asarray([0.299, 0.587, 0.114], np.float32)).mean()))
+    return np.clip(m + np.float32(factor) * (rgb - m), 0.0, 1.0).astype(np.float32)
+
+
 class SceneDataset(Dataset):
     """Clean RGB + exact distance of procedural scenes: ``clean``, ``depth_filled``, ``depth`` and ``index``."""
 
@@ -57,10 +72,14 @@ class SceneDataset(Dataset):
         config: Any = None,
         cache: bool = False,
         scale: tuple[float, float] = (1.0, 1.0),
+        saturation: tuple[float, float] = (1.0, 1.0),
+        contrast: tuple[float, float] = (1.0, 1.0),
     ) -> None:
         self.indices = list(indices)
         self.crop_hw = crop_hw
         self.scale = scale
+        self.saturation = saturation
+        self.contrast = contrast
         self.seed = seed
         self.config = config
         self._cache: dict[int, dict[str, Any]] | None = {} if cache else None
@@ -85,6 +104,12 @@ class SceneDataset(Dataset):
         th, tw = self.crop_hw
         rgb = rgb[y0 : y0 + th, x0 : x0 + tw]
         dist = dist[y0 : y0 + th, x0 : x0 + tw, None]
+        if self.contrast != (1.0, 1.0):
+            c = np.random.default_rng(derive_seed(self.seed, index, "contrast")).uniform(*self.contrast)
+            rgb = scale_contrast(rgb, float(c))
+        if self.saturation != (1.0, 1.0):
+            s = np.random.default_rng(derive_seed(self.seed, index, "saturation")).uniform(*self.saturation)
+            rgb = scale_saturation(rgb, float(s))
         d = torch.from_numpy(np.ascontiguousarray(dist.transpose(2, 0, 1)))
         return {
             "clean": torch.from_numpy(np.ascontiguousarray(rgb.transpose(2, 0, 1))),

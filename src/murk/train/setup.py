@@ -97,9 +97,14 @@ def build_data(config: TrainConfig) -> DataSetup:
         n_val = max(1, round(d.val_fraction * count)) if d.val_fraction > 0 else 0
         online = OnlineDegrader(d.synthesis, seed=config.seed)
         cache = d.cache_scenes and d.workers == 0
-        scale = d.scene_scale
-        scenes = SceneDataset(range(n_val, count), crop, seed=config.seed, cache=cache, scale=scale)
-        scenes_val = SceneDataset(range(n_val), crop, seed=config.seed, cache=cache, scale=scale) if n_val else None
+        from murk.scenes import SceneConfig
+
+        scene_config = SceneConfig(water_background=d.scene_water_background) if d.scene_water_background else None
+        kw = {"seed": config.seed, "cache": cache, "scale": d.scene_scale, "saturation": d.scene_saturation}
+        kw["contrast"] = d.scene_contrast
+        kw["config"] = scene_config
+        scenes = SceneDataset(range(n_val, count), crop, **kw)
+        scenes_val = SceneDataset(range(n_val), crop, **kw) if n_val else None
         return DataSetup(scenes, scenes_val, online, kind)
     raise ValueError(f"data.kind: expected auto, synth, list, rgbd, scenes or shards, got {kind!r}")
 

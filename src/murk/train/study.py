@@ -69,8 +69,21 @@ class StudyEvalConfig:
     """Extra ``murk compare`` method specs scored on the real images beside the arms, e.g. the paper's
     comparison baselines ``udaformer:weights/UDA.pt`` and ``ursct:weights/URSCT.pth`` (``docs/baselines.md``;
     weights the user downloads; they must load with weights_only=True)."""
+    real_pairs: str | None = None
+    """Real paired photographs for full-reference scoring (PSNR, SSIM, CIEDE2000 with paired differences to
+    the raw input): a folder with ``input/`` and ``reference/`` (matched by file stem), or a folder of such
+    sets (each scored on its own, then the mean of the set means). None: skipped (``murk study --real-pairs``
+    sets it)."""
+    real_pairs_max_side: int = 256
+    """Pairs are scored after downscaling to this long side (the field's published real-pair tables)."""
+    snow_pairs: str | None = None
+    """Pairs of the same real scenes with and without marine snow: a folder with ``snowy/`` and ``clean/``
+    (matched by file stem); every arm's snow residue on the known particle sites
+    (:mod:`murk.metrics.snow_pairs`). None: skipped (``murk study --snow-pairs`` sets it)."""
 
     def __post_init__(self) -> None:
+        if self.real_pairs_max_side < 8:
+            raise ValueError(f"real_pairs_max_side: expected >= 8, got {self.real_pairs_max_side}")
         if self.synthetic_scenes < 0:
             raise ValueError(
                 f"synthetic_scenes: expected >= 0 (0 skips the held-out scenes), got {self.synthetic_scenes}"

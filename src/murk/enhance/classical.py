@@ -1,0 +1,161 @@
+"""Classical restorers that a practitioner tries first: ``greyworld``, ``clahe`` and ``udcp``.
+
+Every report should show the learned models beside them (``murk compare ... --method greyworld+clahe``).
+
+- ``greyworld``: grey-world white balance (Buchsbaum, "A spatial processor model for object colour
+  perception", J. Franklin Inst. 310(1), 1980, doi:10.1016/0016-0032(80)90058-7): each channel is scaled so
+  that its mean equals the mean of the three channel means, ``out_c = clip(I_c * mean(m) / m_c, 0, 1)``.
+  ``strength`` in [0, 1] blends the gains towards 1 (``g_c ** strength``).
+- ``clahe``: contrast-limited adaptive histogram equalisation (Zuiderveld, Graphics Gems IV, 1994) of the
+  CIE L* channel of the 8-bit image (OpenCV's Lab conversion and CLAHE), a* and b* kept; ``clip`` (OpenCV's
+  clip limit) and ``tiles`` (tiles per side) as options. The output is 8-bit.
+- ``udcp``: the Underwater Dark Channel Prior (Drews, do Nascimento, Moraes, Botelho, Campos, "Transmission
+  Estimation in Underwater Single Images", ICCV Workshops 2013, doi:10.1109/ICCVW.2013.113), a physics-based
+  inversion of the image formation model ``I = J t + A (1 - t)``: the dark channel is taken over the green
+  and blue channels only (red is absorbed too fast to carry the prior), ``A`` is the input colour at the
+  brightest dark-channel pixel among the top ``0.1 %``, ``t = 1 - omega * dark_gb(I / A)`` over a
+  ``patch`` x ``patch`` window, refined with the guided filter of He, Sun and Tang (IEEE TPAMI 35(6), 2013,
+  doi:10.1109/TPAMI.2012.213) guided by the grey input, and ``J = (I - A) / max(t, t_min) + A``.
+
+All three work per image on float32 RGB in [0, 1] (numpy, OpenCV) and return no depth.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from murk._checks import check_positive, check_range
+from murk.enhance.restorer import Restored, Restorer, register
+from murk.errors import ShapeError
+
+
+def _check(images: np.ndarray) -> np.ndarray:
+    if not isinstance(images, np.ndarray) or images.ndim != 4 or images.shape[3] != 3:
+        shape = getattr(images, "shape", type(images).__name__)
+        raise ShapeError(f"images: expected a numpy array (B, H, W, 3), got {shape}")
+    return images.astype(np.float32, copy=False)
+
+
+# ------------------------------------------------------------------------------------------------ grey world
+
+
+def grey_world(image: np.ndarray, strength: float = 1.0) -> np.ndarray:
+    """Grey-world white balance of float32 RGB ``image`` (H, W, 3): channel means made equal (module doc)."""
+    m = image.reshape(-1, 3).astype(np.float64).mean(0)
+    gains = (m.mean() / np.maximum(m, 1e-6)) ** float(strength)
+    return np.clip(image * gains.astype(np.float32), 0.0, 1.0).astype(np.float32)
+
+
+class GreyWorld(Restorer):
+    """:func:`grey_world` per image."""
+
+    name = "greyworld"
+
+    def __init__(self, strength: float = 1.0) -> None:
+        self.strength = check_range("strength", strength, 0.0, 1.0)
+
+    def restore(self, images: np.ndarray) -> Restored:
+        return Restored(np.stack([grey_world(im, self.strength) for im in _check(images)]))
+
+
+@register("greyworld")
+def make_greyworld(*, strength: float = 1.0) -> GreyWorld:
+    """Factory of ``greyworld`` (grey-world white balance; ``strength`` 0-1 blends the gains towards 1)."""
+    return GreyWorld(strength)
+
+
+# ----------------------------------------------------------------------------------------------------- CLAHE
+
+
+def clahe_lab(image: np.ndarray, clip: float = 2.0, tiles: int = 8) -> np.ndarray:
+    """CLAHE of the L* channel of float32 RGB ``image`` (8-bit Lab, a* and b* kept); float32 output."""
+    u8 = np.rint(np.clip(image, 0.0, 1.0) * 255.0).astype(np.uint8)
+    lab = cv2.cvtColor(u8, cv2.COLOR_RGB2LAB)
+    lab[..., 0] = cv2.createCLAHE(float(clip), (int(tiles), int(tiles))).apply(np.ascontiguousarray(lab[..., 0]))
+    return cv2.cvtColor(lab, cv2.COLOR_LAB2RGB).astype(np.float32) * np.float32(1.0 / 255.0)
+
+
+class Clahe(Restorer):
+    """:func:`clahe_lab` per image."""
+
+    name = "clahe"
+
+    def __init__(self, clip: float = 2.0, tiles: int = 8) -> None:
+        self.clip = check_positive("clip", clip)
+        if isinstance(tiles, bool) or not isinstance(tiles, int) or not 1 <= tiles <= 64:
+            raise ValueError(f"tiles: expected an int in [1, 64], got {tiles!r}")
+        self.tiles = tiles
+
+    def restore(self, images: np.ndarray) -> Restored:
+        return Restored(np.stack([clahe_lab(im, self.clip, self.tiles) for im in _check(images)]))
+
+
+@register("clahe")
+def make_clahe(*, clip: float = 2.0, tiles: int = 8) -> Clahe:
+    """Factory of ``clahe`` (CLAHE on Lab L*; ``clip`` limit, ``tiles`` per side)."""
+    return Clahe(clip, tiles)
+
+
+# ------------------------------------------------------------------------------------------------------ UDCP
+
+
+def _min_filter(x: np.ndarray, patch: int) -> np.ndarray:
+    kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (patch, patch))
+    return cv2.erode(x, kernel, borderType=cv2.BORDER_REPLICATE)
+
+
+def guided_filter(guide: np.ndarray, src: np.ndarray, radius: int, eps: float) -> np.ndarray:
+    """Grey-guide guided filter (He et al. 2013, Alg. 1) with box means of side ``2 radius + 1``."""
+    k = (2 * radius + 1, 2 * radius + 1)
+
+    def mean(a: np.ndarray) -> np.ndarray:
+        return cv2.boxFilter(a, cv2.CV_32F, k, borderType=cv2.BORDER_REFLECT)
+
+    mi, mp = mean(guide), mean(src)
+    var = mean(guide * guide) - mi * mi
+    a = (mean(guide * src) - mi * mp) / (var + np.float32(eps))
+    b = mp - a * mi
+    return (mean(a) * guide + mean(b)).astype(np.float32)
+
+
+def udcp(
+    image: np.ndarray, patch: int = 15, omega: float = 0.95, t_min: float = 0.1, top: float = 0.001
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """UDCP restoration of float32 RGB ``image`` (module doc). Returns ``(restored, transmission, A)``."""
+    img = np.ascontiguousarray(image, dtype=np.float32)
+    dark = _min_filter(np.minimum(img[..., 1], img[..., 2]), patch)
+    n = max(1, round(top * dark.size))
+    idx = np.argpartition(dark.ravel(), -n)[-n:]
+    flat = img.reshape(-1, 3)
+    bright = idx[np.argmax(flat[idx].sum(1))]
+    a = np.maximum(flat[bright].astype(np.float32), np.float32(1e-3))
+    norm = np.minimum(img[..., 1] / a[1], img[..., 2] / a[2])
+    t = 1.0 - np.float32(omega) * _min_filter(np.ascontiguousarray(norm, dtype=np.float32), patch)
+    grey = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
+    t = np.clip(guided_filter(grey, t.astype(np.float32), max(1, 2 * patch), 1e-3), t_min, 1.0)
+    out = (img - a) / t[..., None] + a
+    return np.clip(out, 0.0, 1.0).astype(np.float32), t, a
+
+
+class Udcp(Restorer):
+    """:func:`udcp` per image."""
+
+    name = "udcp"
+
+    def __init__(self, patch: int = 15, omega: float = 0.95, t_min: float = 0.1) -> None:
+        if isinstance(patch, bool) or not isinstance(patch, int) or not 1 <= patch <= 255:
+            raise ValueError(f"patch: expected an int in [1, 255], got {patch!r}")
+        self.patch = patch
+        self.omega = check_range("omega", omega, 0.0, 1.0)
+        self.t_min = check_range("t_min", t_min, 1e-3, 1.0)
+
+    def restore(self, images: np.ndarray) -> Restored:
+        return Restored(np.stack([udcp(im, self.patch, self.omega, self.t_min)[0] for im in _check(images)]))
+
+
+@register("udcp")
+def make_udcp(*, patch: int = 15, omega: float = 0.95, t_min: float = 0.1) -> Udcp:
+    """Factory of ``udcp`` (Underwater Dark Channel Prior, Drews et al. 2013; window ``patch`` px, haze kept
+    ``1 - omega``, transmission floor ``t_min``)."""
+    return Udcp(patch, omega, t_min)

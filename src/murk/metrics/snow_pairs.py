@@ -1,0 +1,124 @@
+"""Marine-snow removal measured on pairs of the same real scene without and with snow.
+
+A no-reference particle count (:func:`murk.metrics.particle_count`) cannot tell snow from the scene's own
+small bright details. With a snow-free image ``clean`` of the same scene as the snowy one, the particle sites
+are known: they are where ``snowy`` is brighter than ``clean`` in small blobs. A restorer removes the snow
+when its outputs for the snowy and for the clean image no longer differ there.
+
+Definitions (luma ``Y`` of Rec. 709, float in [0, 1]):
+
+- **sites** (:func:`snow_sites`): ``D = Y(snowy) - Y(clean)``; pixels with ``D > site_threshold`` (default
+  0.04, about 10 of 255 levels) form connected components (8-connectivity); components of ``min_area`` to
+  ``max_area`` pixels (2-400) are the particle sites (larger ones are scene changes, not particles).
+- **residue** (:func:`snow_residue`) of a restorer with outputs ``S = R(snowy)`` and ``C = R(clean)``:
+  ``D' = (Y(S) - Y(C)) / g`` with ``g = std(Y(C)) / std(Y(clean))`` the restorer's own contrast gain (a
+  contrast stretch amplifies the particles' difference as much as everything else, which is not a failure to
+  remove them), then ``residue = sum_sites max(D', 0) / sum_sites max(D, 0)``: 1 = the particles kept their
+  contrast, 0 = removed, > 1 = amplified. ``sites_left`` is the share of sites whose peak ``D'`` is still at
+  least half of its peak ``D``.
+
+The raw input (``R`` the identity) has residue 1 and sites_left 1 by construction.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from murk.errors import ShapeError
+
+SITE_THRESHOLD = 0.04
+"""Luma excess of the snowy image over the clean one that marks a particle pixel (~10 of 255 levels)."""
+MIN_AREA_PX = 2
+MAX_AREA_PX = 400
+GAIN_FLOOR = 1e-3
+
+
+@dataclass(frozen=True)
+class SnowSites:
+    """Particle sites of a snowy/clean pair: ``labels`` (H, W) int32 (0 = no site, k = site k), ``count``,
+    and ``excess`` (H, W) float32, the luma excess ``D``."""
+
+    labels: np.ndarray
+    count: int
+    excess: np.ndarray
+
+    @property
+    def per_megapixel(self) -> float:
+        return self.count / (self.labels.size / 1e6)
+
+
+@dataclass(frozen=True)
+class SnowResidue:
+    """:func:`snow_residue`: contrast-normalised share of the particles' luma excess left (``residue``), share
+    of sites still visible (``sites_left``), the sites per megapixel and the contrast gain used."""
+
+    residue: float
+    sites_left: float
+    sites_per_mp: float
+    gain: float
+
+
+def _luma(image: np.ndarray, name: str) -> np.ndarray:
+    if not isinstance(image, np.ndarray) or image.ndim != 3 or image.shape[2] != 3:
+        raise ShapeError(f"{name}: expected an RGB image (H, W, 3), got {getattr(image, 'shape', type(image))}")
+    x = np.asarray(image, np.float32)
+    return x[..., 0] * np.float32(0.2126) + x[..., 1] * np.float32(0.7152) + x[..., 2] * np.float32(0.0722)
+
+
+def snow_sites(
+    snowy: np.ndarray,
+    clean: np.ndarray,
+    *,
+    site_threshold: float = SITE_THRESHOLD,
+    min_area: int = MIN_AREA_PX,
+    max_area: int = MAX_AREA_PX,
+) -> SnowSites:
+    """The particle sites of a pair (module doc). Both float RGB (H, W, 3) in [0, 1], one shape.
+
+    Raises:
+        ShapeError: not RGB, or the shapes differ.
+    """
+    ys, yc = _luma(snowy, "snowy"), _luma(clean, "clean")
+    if ys.shape != yc.shape:
+        raise ShapeError(f"snowy {ys.shape[1]}x{ys.shape[0]} and clean {yc.shape[1]}x{yc.shape[0]} differ in size")
+    excess = ys - yc
+    mask = (excess > np.float32(site_threshold)).astype(np.uint8)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    areas = stats[1:, cv2.CC_STAT_AREA]
+    keep = np.zeros(n, np.int32)
+    kept = np.flatnonzero((areas >= min_area) & (areas <= max_area)) + 1
+    keep[kept] = np.arange(1, kept.size + 1, dtype=np.int32)
+    return SnowSites(keep[labels], int(kept.size), excess)
+
+
+def snow_residue(sites: SnowSites, clean: np.ndarray, out_snowy: np.ndarray, out_clean: np.ndarray) -> SnowResidue:
+    """The residue of a restorer's outputs ``out_snowy = R(snowy)``, ``out_clean = R(clean)`` on ``sites``
+    (module doc). ``clean`` is the snow-free input (for the contrast gain). Outputs at another size than the
+    pair are resized to it (area or bilinear). With no site, residue and sites_left are NaN."""
+    h, w = sites.labels.shape
+    outs = []
+    for name, o in (("out_snowy", out_snowy), ("out_clean", out_clean)):
+        y = _luma(o, name)
+        if y.shape != (h, w):
+            shrink = y.size > h * w
+            y = cv2.resize(y, (w, h), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
+        outs.append(y)
+    ys, yc = outs
+    gain = max(float(yc.std()) / max(float(_luma(clean, "clean").std()), GAIN_FLOOR), GAIN_FLOOR)
+    d_out = (ys - yc) / np.float32(gain)
+    on = sites.labels > 0
+    if not sites.count:
+        return SnowResidue(float("nan"), float("nan"), 0.0, gain)
+    before = np.maximum(sites.excess[on], 0.0)
+    after = np.maximum(d_out[on], 0.0)
+    residue = float(after.sum() / max(float(before.sum()), 1e-12))
+    idx = sites.labels[on]
+    peak_in = np.zeros(sites.count + 1, np.float32)
+    peak_out = np.zeros(sites.count + 1, np.float32)
+    np.maximum.at(peak_in, idx, sites.excess[on])
+    np.maximum.at(peak_out, idx, d_out[on])
+    left = float(np.mean(peak_out[1:] >= 0.5 * peak_in[1:]))
+    return SnowResidue(residue, left, sites.per_megapixel, gain)

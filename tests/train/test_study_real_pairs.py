@@ -1,0 +1,140 @@
+"""murk study scores every arm on real paired photographs (eval.real_pairs / --real-pairs)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import yaml
+
+from murk.report import compare as compare_module
+from murk.report.compare import CompareResult, summarise
+from murk.report.study import evaluate_study, pair_sets, run_study
+from murk.train.study import arm_config, load_study
+
+
+def _pairs(root: Path, name: str, n: int) -> None:
+    for sub in ("input", "reference"):
+        (root / name / sub).mkdir(parents=True)
+        for i in range(n):
+            cv2.imwrite(str(root / name / sub / f"p{i}.png"), np.full((12, 12, 3), 60 + 10 * i, np.uint8))
+
+
+def test_pair_sets_finds_one_set_or_a_folder_of_sets(tmp_path: Path) -> None:
+    _pairs(tmp_path / "many", "b", 1)
+    _pairs(tmp_path / "many", "a", 1)
+    assert list(pair_sets(tmp_path / "many")) == ["a", "b"]
+    assert list(pair_sets(tmp_path / "many" / "a")) == ["a"]
+    with pytest.raises(ValueError, match="neither input/ and reference/"):
+        pair_sets(tmp_path)
+
+
+def test_study_scores_the_arms_on_each_set_and_averages_the_sets(tmp_path: Path, monkeypatch) -> None:
+    train = {"model": {"variant": "tiny"}, "data": {"source": "scenes"}, "eval": {"real": None}, "steps": 1}
+    (tmp_path / "train.yaml").write_text(yaml.safe_dump(train))
+    real = tmp_path / "real"
+    real.mkdir()
+    cv2.imwrite(str(real / "a.png"), np.full((16, 16, 3), 90, np.uint8))
+    _pairs(tmp_path / "pairs", "set1", 2)
+    _pairs(tmp_path / "pairs", "set2", 1)
+    study = {
+        "train": "train.yaml",
+        "arms": [{"name": "proposed", "stages": ["basic"]}],
+        "eval": {"real": str(real), "synthetic_scenes": 0, "real_pairs": str(tmp_path / "pairs")},
+    }
+    (tmp_path / "study.yaml").write_text(yaml.safe_dump(study))
+    cfg, base = load_study(tmp_path / "study.yaml")
+    out = tmp_path / "study"
+    ckpt = Path(arm_config(base, cfg.arms[0], out).out) / "latest.pt"
+    ckpt.parent.mkdir(parents=True)
+    ckpt.write_bytes(b"")
+    calls: list = []
+
+    def fake_run_compare(images, methods, out_dir, **kwargs):
+        labels = [m.label for m in methods]
+        calls.append((Path(out_dir).name, labels, kwargs.get("ref_dir"), kwargs.get("max_side")))
+        psnr = 20.0 if Path(out_dir).name == "set1" else 10.0
+        rows = [
+            {
+                "method": lab,
+                "psnr": psnr + i,
+                "ssim": 0.5,
+                "ciede2000": 9.0,
+                "d_psnr": float(i),
+                "d_ssim": 0.0,
+                "d_ciede2000": -1.0 * i,
+            }
+            for i, lab in enumerate(labels)
+        ]
+        reference = kwargs.get("ref_dir") is not None
+        return CompareResult(out=Path(out_dir), summary=summarise(rows, labels, reference=reference))
+
+    monkeypatch.setattr(compare_module, "run_compare", fake_run_compare)
+    report = evaluate_study(cfg, base, out)
+    pair_calls = [c for c in calls if c[2] is not None]
+    assert [c[0] for c in pair_calls] == ["set1", "set2"]
+    assert all(c[3] == 256 and Path(c[2]).name == "reference" for c in pair_calls)
+    labels = pair_calls[0][1]
+    assert labels[:3] == ["raw", "greyworld+clahe", "udcp"] and "proposed+post_murk" in labels
+    assert "proposed+post" in labels  # Eq. (9) as the paper writes it, beside murk's default post
+    means = report["real_pairs"]["mean_over_sets"]
+    assert means["raw"]["psnr"] == pytest.approx(15.0)  # (20 + 10) / 2: each set counted once
+    md = (out / "study.md").read_text()
+    assert "## Real paired photographs" in md and "### set1 (2 pairs)" in md and "| udcp |" in md
+
+
+def test_real_pairs_flag_overrides_the_config(tmp_path: Path, monkeypatch) -> None:
+    seen = {}
+
+    def fake_eval(study, base, out, on_event=None):
+        seen["real_pairs"] = study.eval.real_pairs
+        return {"real": {"errors": []}}
+
+    from murk.report import study as study_module
+
+    monkeypatch.setattr(study_module, "train_arms", lambda *a, **k: [])
+    monkeypatch.setattr(study_module, "evaluate_study", fake_eval)
+    train = {"model": {"variant": "tiny"}, "data": {"source": "scenes"}, "eval": {"real": None}, "steps": 1}
+    (tmp_path / "train.yaml").write_text(yaml.safe_dump(train))
+    (tmp_path / "study.yaml").write_text(yaml.safe_dump({"train": "train.yaml"}))
+    run_study(tmp_path / "study.yaml", tmp_path / "out", real_pairs=tmp_path / "pairs")
+    assert seen["real_pairs"] == str(tmp_path / "pairs")
+
+
+def test_study_scores_the_arms_on_snow_pairs(tmp_path: Path, monkeypatch) -> None:
+    train = {"model": {"variant": "tiny"}, "data": {"source": "scenes"}, "eval": {"real": None}, "steps": 1}
+    (tmp_path / "train.yaml").write_text(yaml.safe_dump(train))
+    real = tmp_path / "real"
+    real.mkdir()
+    cv2.imwrite(str(real / "a.png"), np.full((16, 16, 3), 90, np.uint8))
+    for sub in ("snowy", "clean"):
+        (tmp_path / "snow" / sub).mkdir(parents=True)
+        cv2.imwrite(str(tmp_path / "snow" / sub / "s.png"), np.full((16, 16, 3), 90, np.uint8))
+    study = {
+        "train": "train.yaml",
+        "arms": [{"name": "proposed", "stages": ["basic"]}],
+        "eval": {"real": str(real), "synthetic_scenes": 0, "snow_pairs": str(tmp_path / "snow")},
+    }
+    (tmp_path / "study.yaml").write_text(yaml.safe_dump(study))
+    cfg, base = load_study(tmp_path / "study.yaml")
+    out = tmp_path / "study"
+    ckpt = Path(arm_config(base, cfg.arms[0], out).out) / "latest.pt"
+    ckpt.parent.mkdir(parents=True)
+    ckpt.write_bytes(b"")
+    seen = {}
+
+    def fake_run_compare(images, methods, out_dir, **kwargs):
+        labels = [m.label for m in methods]
+        if kwargs.get("snow_clean") is not None:
+            seen["snow"] = (labels, Path(kwargs["snow_clean"]).name)
+        rows = [{"method": lab, "snow_residue": 0.5, "snow_sites_left": 0.4} for lab in labels]
+        return CompareResult(out=Path(out_dir), summary=summarise(rows, labels))
+
+    monkeypatch.setattr(compare_module, "run_compare", fake_run_compare)
+    report = evaluate_study(cfg, base, out)
+    labels, clean = seen["snow"]
+    assert clean == "clean" and labels[0] == "raw" and "proposed" in labels
+    assert report["snow_pairs"]["summary"]["proposed"]["snow_residue"]["mean"] == 0.5
+    assert "## Marine snow on real pairs" in (out / "study.md").read_text()
