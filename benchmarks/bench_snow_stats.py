@@ -50,8 +50,6 @@ def bank_stats(path: Path) -> tuple[dict[str, np.ndarray], int]:
 
 
 def site_stats(snowy_dir: Path, clean_dir: Path) -> tuple[dict[str, np.ndarray], int]:
-    import cv2
-
     clean = {p.stem: p for p in list_images(clean_dir)}
     out: dict[str, list[float]] = {k: [] for k in ("area px", "size px", "elongation", "luma", "excess")}
     for p in list_images(snowy_dir):
@@ -60,7 +58,6 @@ def site_stats(snowy_dir: Path, clean_dir: Path) -> tuple[dict[str, np.ndarray],
         s, c = read_rgb(p), read_rgb(clean[p.stem])
         sites = snow_sites(s, c)
         y = (s.astype(np.float64) @ LUMA) * 255
-        n, _, stats, _ = cv2.connectedComponentsWithStats((sites.labels > 0).astype(np.uint8), connectivity=8)
         for k in range(1, sites.count + 1):
             m = sites.labels == k
             hh, ww = np.ptp(np.nonzero(m)[0]) + 1, np.ptp(np.nonzero(m)[1]) + 1

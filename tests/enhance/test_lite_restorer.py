@@ -55,7 +55,7 @@ def test_lite_plus_post_is_post_after_lite(lite_ckpt: Path) -> None:
     lite = create("lite", checkpoint=str(lite_ckpt)).restore(imgs).images[0]
     out = chain.restore(imgs)
     assert out.depth_m is None
-    np.testing.assert_allclose(out.images[0], post_process(lite, lam=0.3), atol=1e-6)
+    np.testing.assert_allclose(out.images[0], post_process(lite, lam=0.3, he_strength=0.3), atol=1e-6)  # preset real
 
 
 def test_onnx_backend_matches_torch(lite_ckpt: Path, tmp_path: Path) -> None:

@@ -221,20 +221,23 @@ def test_post_is_registered_and_takes_its_declared_options(rng: np.random.Genera
         "clahe_clip",
         "clahe_tiles",
         "temporal",
+        "preset",
+        "he_strength",
     }
-    assert str(restorer_mod.options_of("post")["lam"]) == "lam: float = 0.3"
+    assert str(restorer_mod.options_of("post")["lam"]) == "lam: float | None = None"  # the preset's, unless given
+    assert str(restorer_mod.options_of("post")["preset"]) == "preset: PostPreset = 'real'"
     shared = {"checkpoint": "x.pt", "tile": 512, "precision": "bf16", "batch": 4}  # a command's settings for others
     r = restorer_mod.create("post", device="cpu", he="rgb", lam=0.1, shared=shared)
-    assert isinstance(r, PostRestorer) and r.params == PostParams(lam=0.1, he="rgb")
+    assert isinstance(r, PostRestorer) and r.params == PostParams(lam=0.1, he="rgb", he_strength=0.3)
     assert restorer_mod.create("post?he=rgb,lam=0.1").params == r.params  # the same options written in the spec
     batch = np.stack([_smooth_image(rng, 20, 24) for _ in range(2)])
     out = r.restore(batch)
     assert out.depth_m is None and out.images.shape == batch.shape
-    np.testing.assert_array_equal(out.images[1], post_process(batch[1], he="rgb", lam=0.1))
+    np.testing.assert_array_equal(out.images[1], post_process(batch[1], he="rgb", lam=0.1, he_strength=0.3))
 
 
 def test_misspelt_and_foreign_options_are_errors_naming_the_valid_ones() -> None:
-    valid = "options of post: clahe_clip, clahe_tiles, device, he, lam, sigma_px, temporal"
+    valid = "options of post: clahe_clip, clahe_tiles, device, he, he_strength, lam, preset, sigma_px, temporal"
     with pytest.raises(ValueError, match=rf"unknown option 'lamda' \(did you mean 'lam'\?\); {valid}"):
         restorer_mod.create("post?lamda=0.9")
     with pytest.raises(ValueError, match=rf"unknown option 'lamda' \(did you mean 'lam'\?\); {valid}"):
@@ -247,10 +250,10 @@ def test_misspelt_and_foreign_options_are_errors_naming_the_valid_ones() -> None
     # A shared setting the user set explicitly (``given``) must be taken by some stage; unset ones are ignored.
     with pytest.raises(ValueError, match=r"--tile is an option of jointid, udaformer, ursct, not of the method 'post'"):
         restorer_mod.create("post", shared={"device": "cpu", "tile": 256}, given={"tile": "--tile"})
-    assert restorer_mod.create("post", shared={"device": "cpu", "tile": 256}).params.lam == 0.3
+    assert restorer_mod.create("post", shared={"device": "cpu", "tile": 256}).params.lam == 0.1  # preset real
     chain = restorer_mod.create("lite+post", shared={"lam": 0.5}, given={"lam": "--lambda"})
     assert chain.stages[1].params.lam == 0.5  # type: ignore[attr-defined]
-    with pytest.raises(ValueError, match=r"method post: option lam: expected float, got 'abc'"):
+    with pytest.raises(ValueError, match=r"method post: option lam: expected float \| None, got 'abc'"):
         restorer_mod.create("post?lam=abc")  # values are checked against the declared types
     with pytest.raises(ValueError, match=r"method post: option he: expected one of 'y', 'rgb', 'clahe', got 'hsv'"):
         restorer_mod.create("post", he="hsv")
@@ -269,7 +272,7 @@ def test_post_restorer_tensor_path_and_chain(rng: np.random.Generator) -> None:
     batch = np.stack([_smooth_image(rng, 20, 24) for _ in range(2)])
     t = r.restore_tensor(torch.from_numpy(batch).permute(0, 3, 1, 2))
     assert np.abs(t.images.permute(0, 2, 3, 1).numpy() - r.restore(batch).images).max() <= TWIN_ATOL
-    chain = restorer_mod.create("post+post", lam=0.0)
+    chain = restorer_mod.create("post+post", lam=0.0, preset="paper")
     twice = chain.restore(batch).images
     np.testing.assert_allclose(twice[0], equalize(equalize(batch[0]), "y"), atol=1e-6)
 

@@ -114,7 +114,7 @@ def test_sequence_numpy_frames_and_torch_batch_agree(he: str) -> None:
 
 def test_enhance_frames_smooths_each_video_from_its_own_first_frame(tmp_path: Path) -> None:
     frames = [(f * 255).round().astype(np.uint8) for f in _steady_scene_with_a_passing_object(10)]
-    restorer = create("post?temporal=0.8")
+    restorer = create("post?preset=paper,temporal=0.8")  # compared with PostRestorer's defaults (Eq. 9) below
     opts = OutputOptions(format="png")
     for run in ("a", "b"):  # the same restorer for two inputs: the second starts afresh
         enhance_frames(FakeSource(frames, live=False), restorer, tmp_path / run, opts, batch=3)

@@ -116,30 +116,18 @@ def compare(
             snow_clean=snow_clean,
         )
     summary = make_console()
+    tables = []
     if ref is not None:
-        summary.print(
-            f"{'method':<28} {'PSNR dB':>14} {'dPSNR vs raw':>14} {'SSIM':>14} {'CIEDE2000':>14}  n",
-            highlight=False,
-            soft_wrap=True,
-        )
-        for s in specs:
-            row = res.summary[s.label]
-            summary.print(
-                f"{s.label:<28} {mean_std_text(row['psnr'])} {mean_std_text(row['d_psnr'])} "
-                f"{mean_std_text(row['ssim'])} {mean_std_text(row['ciede2000'])}  {row['psnr']['n']}",
-                highlight=False,
-                soft_wrap=True,
-            )
+        tables.append((("PSNR dB", "psnr"), ("dPSNR vs raw", "d_psnr"), ("SSIM", "ssim"), ("CIEDE2000", "ciede2000")))
     if snow_clean is not None:
-        summary.print(f"{'method':<28} {'snow residue':>18} {'sites left':>18}  n", highlight=False, soft_wrap=True)
+        tables.append((("snow residue", "snow_residue"), ("sites left", "snow_sites_left")))
+    for columns in tables:
+        head = " ".join(f"{name:>18}" for name, _ in columns)
+        summary.print(f"{'method':<28} {head}  n", highlight=False, soft_wrap=True)
         for s in specs:
             row = res.summary[s.label]
-            summary.print(
-                f"{s.label:<28} {mean_std_text(row['snow_residue'])} {mean_std_text(row['snow_sites_left'])}  "
-                f"{row['snow_residue']['n']}",
-                highlight=False,
-                soft_wrap=True,
-            )
+            cells = " ".join(mean_std_text(row[key]) for _, key in columns)
+            summary.print(f"{s.label:<28} {cells}  {row[columns[0][1]]['n']}", highlight=False, soft_wrap=True)
     header = f"{'method':<28} {'UIQM mean +- std':>18} {'UCIQE mean +- std':>18}  n  flags"
     summary.print(header, highlight=False, soft_wrap=True)
     for s in specs:

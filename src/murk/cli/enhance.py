@@ -202,7 +202,7 @@ def enhance(
     ] = None,
     quiet: QuietOpt = False,
 ) -> None:
-    """Restore underwater images, folders, videos, live streams and ROS bags (Eq. 9 post-processing by default).
+    """Restore underwater images, folders, videos, live streams and ROS bags (post by default: Eq. 9, preset real).
 
     Prints processed/skipped/failed counts, frames per second and read/restore/write milliseconds per frame.
     Unreadable inputs go to errors.jsonl in the output folder (exit code 1); reruns skip finished outputs.

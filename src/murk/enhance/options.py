@@ -75,10 +75,18 @@ def check_value(method: str, option: Option, value: Any) -> None:
     A spec's options arrive as text (``post?lam=abc``), so a value of the wrong type is a bad value here.
     """
     if not _fits(option.annotation, value):
-        tp = option.annotation
-        literal = typing.get_origin(tp) is typing.Literal
-        expected = f"one of {', '.join(map(repr, typing.get_args(tp)))}" if literal else option.type
-        raise ValueError(f"method {method}: option {option.name}: expected {expected}, got {value!r}")
+        raise ValueError(f"method {method}: option {option.name}: expected {_expected(option)}, got {value!r}")
+
+
+def _expected(option: Option) -> str:
+    """What an option takes: a Literal's values (also when it may be None, the default that means "not given",
+    e.g. a preset's value), else the annotation's text."""
+    tp = option.annotation
+    parts = list(typing.get_args(tp)) if typing.get_origin(tp) in (typing.Union, types.UnionType) else [tp]
+    parts = [p for p in parts if p is not type(None)]
+    if len(parts) == 1 and typing.get_origin(parts[0]) is typing.Literal:
+        return f"one of {', '.join(map(repr, typing.get_args(parts[0])))}"
+    return option.type
 
 
 def _fits(tp: Any, value: Any) -> bool:

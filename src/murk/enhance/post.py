@@ -567,7 +567,7 @@ def make_post(
         "clahe_tiles": clahe_tiles,
         "he_strength": he_strength,
     }
-    params = dataclasses.replace(base, **{k: v for k, v in given.items() if v is not None})
+    params = dataclasses.replace(base, **{k: v for k, v in given.items() if v is not None})  # type: ignore[arg-type]
     return PostRestorer(params, device=device, temporal=temporal)
 
 

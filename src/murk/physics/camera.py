@@ -38,6 +38,8 @@ def jpeg_round_trip(image_u8: np.ndarray, quality: int) -> np.ndarray:
     if not ok:
         raise RuntimeError("jpeg_round_trip: OpenCV could not encode the image")
     out = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+    if out is None:
+        raise RuntimeError("jpeg_round_trip: OpenCV could not decode its own JPEG")
     return np.ascontiguousarray(out[..., ::-1])
 
 

@@ -100,11 +100,21 @@ def build_data(config: TrainConfig) -> DataSetup:
         from murk.scenes import SceneConfig
 
         scene_config = SceneConfig(water_background=d.scene_water_background) if d.scene_water_background else None
-        kw = {"seed": config.seed, "cache": cache, "scale": d.scene_scale, "saturation": d.scene_saturation}
-        kw["contrast"] = d.scene_contrast
-        kw["config"] = scene_config
-        scenes = SceneDataset(range(n_val, count), crop, **kw)
-        scenes_val = SceneDataset(range(n_val), crop, **kw) if n_val else None
+
+        def scenes_of(indices: range) -> SceneDataset:
+            return SceneDataset(
+                indices,
+                crop,
+                seed=config.seed,
+                config=scene_config,
+                cache=cache,
+                scale=d.scene_scale,
+                saturation=d.scene_saturation,
+                contrast=d.scene_contrast,
+            )
+
+        scenes = scenes_of(range(n_val, count))
+        scenes_val = scenes_of(range(n_val)) if n_val else None
         return DataSetup(scenes, scenes_val, online, kind)
     raise ValueError(f"data.kind: expected auto, synth, list, rgbd, scenes or shards, got {kind!r}")
 
