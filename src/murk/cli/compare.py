@@ -116,7 +116,7 @@ def compare(
             snow_clean=snow_clean,
         )
     summary = make_console()
-    tables = []
+    tables: list[tuple[tuple[str, str], ...]] = []
     if ref is not None:
         tables.append((("PSNR dB", "psnr"), ("dPSNR vs raw", "d_psnr"), ("SSIM", "ssim"), ("CIEDE2000", "ciede2000")))
     if snow_clean is not None:
