@@ -116,6 +116,16 @@ def test_load_bank_errors(tmp_path: Path) -> None:
 
 def test_shipped_default_bank() -> None:
     bank = load_bank(default_snow_bank())
+    assert len(bank) >= 50
+    assert {Path(s["path"]).name for s in bank.meta["sources"]} == {"EASI.png", "Lake.jpg"}
+    assert bank.meta["extract"]["method"] == "tophat"
+
+
+def test_shipped_real_footage_bank() -> None:
+    from murk.data import real_footage_snow_bank
+
+    bank = load_bank("builtin:snow-real")
+    assert bank.bank_id == load_bank(real_footage_snow_bank()).bank_id
     assert len(bank) >= 1000  # the real-snow issue's floor
     names = [Path(s["path"]).name for s in bank.meta["sources"]]
     assert len(names) >= 20 and len({n.split("_")[0] for n in names}) >= 2  # frames of several sources

@@ -5,14 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from murk.data import default_snow_bank
 from murk.snow.bank import load_bank
 from murk.snow.composite import composite_snow, particle_lumas, sample_snow, snow_layout
 from murk.synth.config import SnowConfig
 
 
 def test_layout_is_the_same_with_and_without_relighting() -> None:
-    bank = load_bank(default_snow_bank())
+    bank = load_bank("builtin:snow-real")
     plain = sample_snow(np.random.default_rng(3), bank, n_particles=(50, 50))
     lit = sample_snow(np.random.default_rng(3), bank, n_particles=(50, 50), particle_luma=(150.0, 200.0))
     a, b = snow_layout(plain, len(bank), 64, 48), snow_layout(lit, len(bank), 64, 48)
@@ -22,7 +21,7 @@ def test_layout_is_the_same_with_and_without_relighting() -> None:
 
 
 def test_relit_particles_are_brighter_with_the_same_coverage() -> None:
-    bank = load_bank(default_snow_bank())
+    bank = load_bank("builtin:snow-real")
     assert float(np.median(particle_lumas(bank))) < 60  # cut from dark ROV footage
     img = np.full((64, 80, 3), 0.3, np.float32)
     plain = sample_snow(np.random.default_rng(1), bank, n_particles=(200, 200), scale=(0.8, 1.0))

@@ -61,6 +61,13 @@ def default_snow_bank() -> Path:
     return _HERE / "snow" / "default_bank.npz"
 
 
+def real_footage_snow_bank() -> Path:
+    """Path of the larger bank cut from real ROV and reef footage (17,888 particles, 20 frames; docs/snow.md):
+    ``builtin:snow-real``. Its particles are dim (cut from dark water): use it with
+    ``marine_snow.particle_luma``."""
+    return _HERE / "snow" / "real_footage_bank.npz"
+
+
 BUILTIN_PREFIX = "builtin:"
 
 
@@ -69,7 +76,12 @@ def resolve_builtin(path: str) -> str:
     if not path.startswith(BUILTIN_PREFIX):
         return path
     name = path[len(BUILTIN_PREFIX) :].strip("/")
-    targets = {"underwater": sample_underwater_dir(), "rgbd": sample_rgbd_dir(), "snow": default_snow_bank()}
+    targets = {
+        "underwater": sample_underwater_dir(),
+        "rgbd": sample_rgbd_dir(),
+        "snow": default_snow_bank(),
+        "snow-real": real_footage_snow_bank(),
+    }
     if name not in targets:
         raise ValueError(
             f"{path}: unknown built-in data; expected one of {', '.join(BUILTIN_PREFIX + k for k in targets)}"

@@ -373,9 +373,16 @@ def load_bank(path: str | Path) -> ParticleBank:
     positions and source indices are in range. Arrays come back in the canonical dtypes of the module
     docstring.
 
+    ``builtin:snow`` (the default bank) and ``builtin:snow-real`` (the bank cut from real ROV and reef footage)
+    name the banks shipped with murk.
+
     Raises:
         InputFileError: the message is one line, ``"PATH: problem"``.
     """
+    if str(path).startswith("builtin:"):
+        from murk.data import resolve_builtin
+
+        path = resolve_builtin(str(path))
     path = Path(path)
     if not path.exists():
         raise InputFileError(path, "particle bank not found")
