@@ -20,6 +20,7 @@ from murk.io import read_rgb
 from murk.io.images import list_images
 from murk.metrics.snow_pairs import snow_sites
 from murk.snow.bank import load_bank
+from murk.snow.composite import particle_lumas
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 
@@ -37,8 +38,7 @@ def _row(name: str, values: dict[str, np.ndarray], n: int) -> str:
 
 def bank_stats(path: Path) -> tuple[dict[str, np.ndarray], int]:
     bank = load_bank(path)
-    lum = bank.pixel_rgb.astype(np.float64) @ LUMA
-    per = np.add.reduceat(lum, bank.offsets[:-1]) / np.maximum(bank.areas_px, 1)
+    per = particle_lumas(bank)
     hw = bank.bbox_hw.astype(np.float64)
     return {
         "area px": bank.areas_px.astype(np.float64),
