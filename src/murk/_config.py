@@ -61,9 +61,15 @@ def read_yaml(path: str | Path, *, what: str = "settings") -> dict[str, Any]:
     if not path.is_file():
         raise ValueError(f"{path}: config file not found")
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read this config file ({(exc.strerror or str(exc)).lower()})") from None
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    try:
+        data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise ValueError(f"{path}: invalid YAML ({exc})") from None
+        raise ValueError(f"{path}: invalid YAML ({_yaml_problem(exc)})") from None
     except UnicodeDecodeError as exc:
         raise ValueError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     except RecursionError:
@@ -73,6 +79,15 @@ def read_yaml(path: str | Path, *, what: str = "settings") -> dict[str, Any]:
     if not isinstance(data, dict):
         raise ValueError(f"{path}: expected a mapping of {what}, got {_short(data)}")
     return data
+
+
+def _yaml_problem(exc: yaml.YAMLError) -> str:
+    """A YAML error on one line: what went wrong and where (line and column counted from 1)."""
+    problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+    mark = getattr(exc, "problem_mark", None)
+    where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+    tag = " (YAML tags such as !!python/... are refused: configs are read with yaml.safe_load)"
+    return f"{problem}{where}" + (tag if "constructor" in type(exc).__name__.lower() else "")
 
 
 def load_yaml(cls: type[T], path: str | Path) -> T:

@@ -33,18 +33,19 @@ def _extract(*args: str):
     return runner.invoke(app, ["snow", "extract", *args, "--open-px", "0", "--close-px", "0"])
 
 
-def test_previews_inside_the_input_folder_are_refused(tmp_path: Path) -> None:
+def test_previews_inside_the_input_folder_are_left_out_of_the_footage(tmp_path: Path) -> None:
+    """Issue 31: the preview folder may lie in the footage folder; neither the first run nor a rerun reads the
+    previews back as footage."""
     foot = tmp_path / "footage"
     _frame(foot / "f1.png")
     bank = foot / "bank.npz"
-    line = one_line_error(_extract(str(foot), "--out", str(bank)))
-    assert f"--out {bank}: the preview folder {foot / 'bank_preview'}: inside the input folder {foot}" in line
-    assert "read back as footage on a rerun" in line
-    assert sorted(p.name for p in foot.iterdir()) == ["f1.png"]  # nothing written
-    r = _extract(str(foot), "--out", str(bank), "--no-preview")  # no preview: nothing to read back
-    assert r.exit_code == 0, r.output
-    r = _extract(str(foot), "--out", str(bank), "--no-preview")  # the rerun reads the same single frame
-    assert r.exit_code == 0 and len(load_bank(bank).meta["sources"]) == 1
+    for _ in range(2):  # the first run, then the rerun with the previews in place
+        r = _extract(str(foot), "--out", str(bank))
+        assert r.exit_code == 0, r.output
+        assert [s["path"] for s in load_bank(bank).meta["sources"]] == [str(foot / "f1.png")]
+        assert sorted(p.name for p in (foot / "bank_preview").iterdir()) == ["f1.jpg"]
+    line = one_line_error(_extract(str(foot / "bank_preview"), "--out", str(foot / "bank.npz")))
+    assert f"the preview folder {foot / 'bank_preview'}: this is the input folder" in line
 
 
 def test_inputs_sharing_a_stem_get_one_preview_each(tmp_path: Path) -> None:

@@ -39,9 +39,13 @@ def test_quota_and_other_errors(tmp_path: Path) -> None:
     with pytest.raises(OutputError, match=r"x: no space left on device \(disk quota exceeded\)"):
         with no_space_as_error(tmp_path / "x"):
             raise OSError(errno.EDQUOT, "Disk quota exceeded")
-    with pytest.raises(PermissionError):  # not a full disk: left as it is
-        with no_space_as_error(tmp_path / "x"):
+    with pytest.raises(OutputError, match=r"x: cannot write the output file \(permission denied; check that the"):
+        with no_space_as_error(tmp_path / "x"):  # issue 31: the path that cannot be written is named
             raise PermissionError(errno.EACCES, "Permission denied")
+    with pytest.raises(OSError, match="Input/output error") as info:  # neither full nor unwritable: left as it is
+        with no_space_as_error(tmp_path / "x"):
+            raise OSError(errno.EIO, "Input/output error")
+    assert not isinstance(info.value, OutputError)
     err = OutputError(errno.ENOSPC, "no space left on device", "out/a.png")  # pickles back from a worker
     back = pickle.loads(pickle.dumps(err))
     assert type(back) is OutputError and str(back) == "out/a.png: no space left on device"

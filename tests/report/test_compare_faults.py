@@ -53,7 +53,7 @@ def test_compare_skips_and_records_an_unreadable_file(real: Path, unreadable: Pa
     assert record == {
         "input": str(unreadable),
         "stage": "read",
-        "error": f"{unreadable}: cannot read file (Permission denied)",
+        "error": f"{unreadable}: cannot read this input file (permission denied)",
     }
     assert sorted(p.name for p in (out / "grids").iterdir()) == ["a.jpg", "c.jpg"]  # the others are processed
     assert [r["image"] for r in json.loads((out / "metrics.json").read_text())["rows"]] == ["a.png", "c.png"]
@@ -103,7 +103,11 @@ def test_eval_skips_and_records_an_unreadable_file(real: Path, unreadable: Path,
     assert res.exit_code == 1, res.output
     assert "Traceback" not in res.output
     (record,) = read_jsonl(out.parent / "errors.jsonl")
-    assert record == {"input": str(unreadable), "stage": "score", "error": "cannot read file (Permission denied)"}
+    assert record == {
+        "input": str(unreadable),
+        "stage": "score",
+        "error": "cannot read this input file (permission denied)",
+    }
     assert [r["file"] for r in json.loads(out.read_text())["images"]] == ["a.png", "c.png"]
 
 

@@ -36,7 +36,7 @@ class MurkGroup(TyperGroup):
         except (ValueError, OSError) as exc:
             if os.environ.get("MURK_DEBUG"):
                 raise
-            print_error(str(exc))
+            print_error(error_text(exc))
             raise typer.Exit(EXIT_USAGE) from exc
         except KeyboardInterrupt:
             if os.environ.get("MURK_DEBUG"):
@@ -47,6 +47,19 @@ class MurkGroup(TyperGroup):
                 soft_wrap=True,
             )
             raise typer.Exit(EXIT_INTERRUPTED) from None
+
+
+def error_text(exc: BaseException) -> str:
+    """The one-line message of a library error. A bare ``OSError`` (``[Errno 13] Permission denied: 'x'``) is
+    written as ``x: permission denied`` so that the path leads, as in every other murk error."""
+    if type(exc) in (OSError, PermissionError, FileNotFoundError, IsADirectoryError, NotADirectoryError) and getattr(
+        exc, "filename", None
+    ):
+        err = exc  # type: ignore[assignment]
+        reason = (err.strerror or str(err)).lower()  # type: ignore[attr-defined]
+        other = f" -> {err.filename2}" if getattr(err, "filename2", None) else ""  # type: ignore[attr-defined]
+        return f"{err.filename}{other}: {reason} (murk could not access this path)"  # type: ignore[attr-defined]
+    return str(exc)
 
 
 def print_error(message: str) -> None:

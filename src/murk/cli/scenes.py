@@ -44,7 +44,8 @@ def scenes(
     if fmt not in ("png", "jpg"):
         raise ValueError(f"--rgb-format: expected png or jpg, got {rgb_format!r}")
     cfg_dict: dict[str, Any] = {} if config is None else read_yaml(config, what="SceneConfig fields")
-    tex = load_textures(textures) if textures is not None else {}
+    texture_problems: list[Any] = []
+    tex = load_textures(textures, texture_problems) if textures is not None else {}
     if tex:
         cfg_dict = {**cfg_dict, "texture_names": sorted(tex)}
     cfg = SceneConfig.from_dict(cfg_dict, where=str(config) if config is not None else "scene config")
@@ -62,5 +63,6 @@ def scenes(
             textures=tex,
             rgb_format=fmt,
             on_progress=lambda done, total: progress.update(done, total),
+            texture_problems=texture_problems,
         )
     raise typer.Exit(print_summary(result, "scene", detail=f"-> {out_dir}"))

@@ -37,6 +37,7 @@ from murk.enhance.job import EnhanceReport, OutputOptions, ProgressFn, StopFn, r
 from murk.enhance.preview import side_by_side
 from murk.enhance.restorer import Restorer
 from murk.errors import InputFileError
+from murk.io.atomic import make_output_folder
 from murk.io.images import IMAGE_SUFFIXES, to_float, to_uint
 from murk.io.jobs import ErrorLog, ErrorRecord
 from murk.io.jsonl import write_jsonl
@@ -188,7 +189,7 @@ def enhance_bag_to_bag(
         report.skipped = 1
         report.note(f"{out} exists; skipped (use --overwrite to redo it)")
         return report
-    out.parent.mkdir(parents=True, exist_ok=True)
+    make_output_folder(out.parent)
     remove_stale_bags(out)
     errors.start()
     sink = BagSink(out, source.family, storage or source.storage, overwrite=options.overwrite)

@@ -28,7 +28,7 @@ from murk.enhance.job import (
 from murk.enhance.preview import colorize_depth, side_by_side
 from murk.enhance.restorer import Restorer
 from murk.errors import OutputError
-from murk.io.atomic import TMP_PREFIX
+from murk.io.atomic import TMP_PREFIX, make_output_folder
 from murk.io.images import IMAGE_SUFFIXES, to_float, to_uint, write_uint
 from murk.io.jobs import ErrorLog, ErrorRecord
 from murk.io.readahead import ReadAhead
@@ -191,7 +191,7 @@ def enhance_frames(
         raise ValueError(f"{writer.frame_path(0)}: exists (an earlier recording); pass --overwrite or another --out")
     if options.depth_video and not writer.as_video:
         report.note("--depth-video applies to video outputs; depth previews are in depth_preview/")
-    writer.out_dir.mkdir(parents=True, exist_ok=True)
+    make_output_folder(writer.out_dir)
     for stale in writer.out_dir.glob(f"{TMP_PREFIX}*-{out.name}"):
         stale.unlink(missing_ok=True)
     errors.start()

@@ -32,7 +32,7 @@ from murk.enhance.job import (
 from murk.enhance.preview import side_by_side
 from murk.enhance.restorer import Restorer
 from murk.errors import OutputError
-from murk.io.atomic import remove_stale_temporaries
+from murk.io.atomic import make_output_folder, remove_stale_temporaries
 from murk.io.images import read_image, to_float, to_uint, write_uint
 from murk.io.jobs import ErrorLog, ErrorRecord
 
@@ -68,7 +68,7 @@ def enhance_images(
         raise ValueError(f"batch: expected >= 1, got {batch}")
     report = EnhanceReport(total=len(jobs), out=out_dir)
     errors = ErrorLog(out_dir, summary=report)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    make_output_folder(out_dir)
     remove_stale_temporaries(out_dir)
     errors.start()
     pending: list[_Loaded] = []

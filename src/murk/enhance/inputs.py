@@ -8,6 +8,7 @@ Outputs inside the input folder are never read back as inputs, and the input fol
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -45,11 +46,11 @@ def resolve_input(spec: str, *, recursive: bool = False, exclude: Path | None = 
     """
     path = Path(spec)
     if path.is_dir():
-        images = _exclude(list_images(path, recursive=recursive), exclude, path)
+        images = _exclude(list_images(path, recursive=recursive, unusable=True), exclude, path)
         if not images:
             raise InputFileError(path, f"no images found{'' if recursive else ' (use --recursive for subfolders)'}")
         return EnhanceInput("images", str(path), tuple(images), root=path)
-    if path.is_file():
+    if path.is_file() or (os.path.lexists(path) and not _GLOB_CHARS & set(spec)):  # a FIFO: its reader says so
         if path.suffix.lower() in VIDEO_SUFFIXES:
             return EnhanceInput("video", str(path), target=str(path))
         return EnhanceInput("images", str(path), (path,), root=path.parent)

@@ -33,9 +33,32 @@ def no_space_error(path: str | Path, code: int = errno.ENOSPC) -> OutputError:
     return OutputError(code, f"no space left on device{quota}", str(path))
 
 
+UNWRITABLE_ERRNOS = frozenset(
+    e for e in (errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOTDIR, errno.EISDIR, errno.ENAMETOOLONG) if e
+)
+"""errno values that mean a path cannot be written at all (permissions, a read-only file system, a file where a
+folder is expected, a name too long)."""
+
+
+def unwritable_error(path: str | Path, exc: OSError, what: str = "output file") -> OutputError:
+    """The error murk raises when the ``what`` at ``path`` cannot be written (names the folder to check)."""
+    path = Path(path)
+    reason = (exc.strerror or str(exc)).lower()
+    if exc.errno in (errno.EACCES, errno.EPERM):
+        hint = f"; check that the folder {path.parent} is writable by this user"
+    elif exc.errno == errno.EROFS:
+        hint = "; the file system is mounted read-only"
+    elif exc.errno == errno.ENOTDIR:
+        hint = "; a file stands where a folder of this path should be"
+    else:
+        hint = ""
+    return OutputError(int(exc.errno or 0), f"cannot write the {what} ({reason}{hint})", str(path))
+
+
 @contextlib.contextmanager
-def no_space_as_error(path: str | Path) -> Iterator[None]:
-    """Turn ``OSError`` ENOSPC/EDQUOT raised inside the block into :class:`OutputError` naming ``path``."""
+def no_space_as_error(path: str | Path, what: str = "output file") -> Iterator[None]:
+    """Turn ``OSError`` raised inside the block into :class:`OutputError` naming ``path``: ENOSPC/EDQUOT as
+    "no space left on device", permission and read-only errors as "cannot write the <what> (...)"."""
     try:
         yield
     except OutputError:
@@ -43,7 +66,33 @@ def no_space_as_error(path: str | Path) -> Iterator[None]:
     except OSError as exc:
         if exc.errno in NO_SPACE_ERRNOS:
             raise no_space_error(path, int(exc.errno or 0)) from exc
+        if exc.errno in UNWRITABLE_ERRNOS:
+            raise unwritable_error(path, exc, what) from exc
         raise
+
+
+def make_output_folder(path: str | Path, what: str = "output folder") -> Path:
+    """Create the folder ``path`` (and its parents) if needed; return it.
+
+    Raises:
+        OutputError: it cannot be created (permission denied, read-only file system, a file in the way, no
+            space), naming the folder and what it is for.
+    """
+    path = Path(path)
+    if path.is_dir():
+        return path
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except FileExistsError as exc:  # a file of that name
+        raise OutputError(errno.EEXIST, f"cannot create the {what}: a file of this name exists", str(path)) from exc
+    except OSError as exc:
+        if exc.errno in NO_SPACE_ERRNOS:
+            raise no_space_error(path, int(exc.errno or 0)) from exc
+        reason = (exc.strerror or str(exc)).lower()
+        parent = next((p for p in path.parents if p.exists()), None)
+        hint = f"; check that {parent} is writable by this user" if exc.errno in (errno.EACCES, errno.EPERM) else ""
+        raise OutputError(int(exc.errno or 0), f"cannot create the {what} ({reason}{hint})", str(path)) from exc
+    return path
 
 
 @contextlib.contextmanager
@@ -51,13 +100,14 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path next to ``path``; on a clean exit rename it onto ``path``, else delete it.
 
     Raises:
-        OutputError: no space left on the device (or quota) while the block wrote the temporary file.
+        OutputError: no space left on the device (or quota) while the block wrote the temporary file; the
+            folder cannot be created or written (permission denied, read-only): the message names ``path``.
     """
     path = Path(path)
     tmp = path.with_name(f"{TMP_PREFIX}{uuid.uuid4().hex[:12]}-{path.name}")
+    make_output_folder(path.parent)
     try:
         with no_space_as_error(path):
-            path.parent.mkdir(parents=True, exist_ok=True)
             yield tmp
             os.replace(tmp, path)
     finally:

@@ -36,7 +36,8 @@ import numpy as np
 
 from murk.errors import InputFileError
 from murk.io.atomic import write_bytes_atomic
-from murk.io.images import check_declared_size, encode_image, max_pixels
+from murk.io.images import check_declared_size, encode_image, max_pixels, read_input_bytes
+from murk.io.listing import describe_unusable
 
 InvalidDepthMode = Literal["fill", "far", "fail"]
 DepthEncoding = Literal["linear", "sun", "kinect-disparity"]
@@ -62,8 +63,9 @@ def read_depth(
             ``relative=True``, or a ``.npy`` file refused by :func:`read_npy_depth`.
     """
     path = Path(path)
-    if not path.is_file():
-        raise InputFileError(path, "depth file not found")
+    why = describe_unusable(path)
+    if why is not None:
+        raise InputFileError(path, f"depth {why}" if why.startswith("file not found") else why)
     if not (np.isfinite(depth_scale) and depth_scale > 0):
         raise ValueError(f"depth_scale: expected a finite number > 0, got {depth_scale}")
     if encoding not in DEPTH_ENCODINGS:
@@ -71,7 +73,7 @@ def read_depth(
     if path.suffix.lower() == ".npy":
         return read_npy_depth(path)
     check_declared_size(path)
-    data = np.fromfile(str(path), dtype=np.uint8)
+    data = read_input_bytes(path, "depth file")
     raw = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
     if raw is None:
         raise InputFileError(path, "cannot decode depth image (unsupported format or corrupt file)")
@@ -119,7 +121,14 @@ def read_npy_depth(path: str | Path) -> np.ndarray:
             structured, strings, ...), or a file too short for the data its header declares.
     """
     path = Path(path)
-    with open(path, "rb") as f:
+    why = describe_unusable(path)
+    if why is not None:
+        raise InputFileError(path, why)
+    try:
+        f = open(path, "rb")  # closed by the with below; the open itself names the file on failure
+    except OSError as exc:
+        raise InputFileError(path, f"cannot read this depth file ({exc.strerror or exc})") from None
+    with f:
         readers = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}
         try:
             version = np.lib.format.read_magic(f)

@@ -19,7 +19,7 @@ import numpy as np
 from murk._checks import check_rgb
 from murk.errors import InputFileError
 from murk.io.atomic import write_bytes_atomic
-from murk.io.listing import walk_files
+from murk.io.listing import describe_unusable, walk_files
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".ppm", ".webp")
 """File suffixes treated as images when scanning folders."""
@@ -133,15 +133,12 @@ def read_image(path: str | Path) -> tuple[np.ndarray, ImageInfo]:
             many pixels, cannot be decoded (or not in the memory available), or has an unsupported sample type.
     """
     path = Path(path)
-    if not path.is_file():
-        raise InputFileError(path, "file not found")
+    why = describe_unusable(path)
+    if why is not None:
+        raise InputFileError(path, why)
     check_declared_size(path)
     limit = max_pixels()
-    # Decode from bytes so that non-ASCII paths work on every platform.
-    try:
-        data = np.fromfile(str(path), dtype=np.uint8)
-    except OSError as exc:  # permission denied, I/O error: this file fails, a batch goes on
-        raise InputFileError(path, f"cannot read file ({exc.strerror or exc})") from None
+    data = read_input_bytes(path)
     try:
         bgr = cv2.imdecode(data, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH) if data.size else None
     except cv2.error as exc:
@@ -162,6 +159,23 @@ def read_image(path: str | Path) -> tuple[np.ndarray, ImageInfo]:
         notes.append(f"alpha channel of {mode} image dropped")
     info = ImageInfo(str(path), 16 if bgr.dtype == np.uint16 else 8, mode, tuple(notes))
     return np.ascontiguousarray(bgr[:, :, ::-1]), info
+
+
+def read_input_bytes(path: str | Path, what: str = "input file") -> np.ndarray:
+    """The bytes of an input file as a uint8 array (decoding from bytes makes non-ASCII paths work everywhere).
+
+    Raises:
+        InputFileError: ``path`` is not a readable regular file (it says what it is: missing, a broken link, a
+            FIFO, a device), or reading it failed (permission denied, I/O error), naming ``what`` it was.
+    """
+    path = Path(path)
+    why = describe_unusable(path)
+    if why is not None:
+        raise InputFileError(path, why)
+    try:
+        return np.fromfile(str(path), dtype=np.uint8)
+    except OSError as exc:  # permission denied, I/O error: this file fails, a batch goes on
+        raise InputFileError(path, f"cannot read this {what} ({_reason(exc)})") from None
 
 
 def to_float(image: np.ndarray) -> np.ndarray:
@@ -240,14 +254,39 @@ def encode_image(path: str | Path, image: np.ndarray, params: Sequence[int] = ()
     return buf.tobytes()
 
 
-def list_images(folder: str | Path, *, recursive: bool = False) -> list[Path]:
+def list_images(folder: str | Path, *, recursive: bool = False, unusable: bool = False) -> list[Path]:
     """Image files in ``folder`` (sorted), by suffix; hidden files and murk temporaries are skipped.
 
     ``recursive=True`` follows directory symlinks but enters each real folder once and lists each real file
     once (see :func:`murk.io.listing.walk_files`), so a symlink loop neither hangs nor repeats files.
+
+    ``unusable=True`` (batch commands that record one error per input) also lists the entries with an image
+    suffix that cannot be read as files (broken symlinks, FIFOs, devices) and the subfolders a recursive walk
+    cannot list: :func:`read_image` refuses each with a message saying what it is.
+
+    Raises:
+        InputFileError: ``folder`` is not a folder or cannot be listed.
     """
     folder = Path(folder)
     if not folder.is_dir():
         raise InputFileError(folder, "not a folder")
-    files = walk_files(folder, recursive=recursive)
-    return [p for p in files if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".")]
+    try:
+        files = walk_files(folder, recursive=recursive, unusable=unusable)
+    except OSError as exc:
+        raise InputFileError(folder, f"cannot list this input folder ({_reason(exc)})") from None
+    return [
+        p
+        for p in files
+        if not p.name.startswith(".") and (p.suffix.lower() in IMAGE_SUFFIXES or (unusable and _unlisted(p)))
+    ]
+
+
+def _unlisted(path: Path) -> bool:
+    """A subfolder that a listing could not enter (kept so that it is reported, not silently skipped)."""
+    return path.is_dir() and not os.access(path, os.R_OK | os.X_OK)
+
+
+def _reason(exc: OSError) -> str:
+    """An OSError's reason in lower case without the path ('permission denied')."""
+    text = exc.strerror or str(exc)
+    return text[:1].lower() + text[1:]

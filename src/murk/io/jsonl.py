@@ -13,7 +13,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from murk.io.atomic import no_space_as_error, write_text_atomic
+from murk.io.atomic import make_output_folder, no_space_as_error, write_text_atomic
 
 
 def json_safe(obj: Any) -> Any:
@@ -39,7 +39,7 @@ def append_jsonl(path: str | Path, records: Iterable[dict[str, Any]]) -> None:
         return
     path = Path(path)
     with no_space_as_error(path):
-        path.parent.mkdir(parents=True, exist_ok=True)
+        make_output_folder(path.parent)
         with open(path, "a", encoding="utf-8") as f:
             f.write(text)
             f.flush()

@@ -151,9 +151,16 @@ def load_pair(source: RGBDSource, options: DepthOptions) -> tuple[np.ndarray, np
 
 
 def _by_stem(folder: Path, suffixes: tuple[str, ...]) -> tuple[dict[str, Path], dict[str, list[Path]]]:
-    """Files of ``folder`` by stem: (stems with one file, stems shared by several files such as x.png + x.jpg)."""
+    """Files of ``folder`` by stem: (stems with one file, stems shared by several files such as x.png + x.jpg).
+
+    Entries that cannot be read as files (broken links, FIFOs, devices) are kept: the reader refuses each,
+    so the pair is recorded as failed rather than reported as missing its other half."""
     groups: dict[str, list[Path]] = {}
-    for p in walk_files(folder):
+    try:
+        listed = walk_files(folder, unusable=True)
+    except OSError as exc:
+        raise InputFileError(folder, f"cannot list this input folder ({exc.strerror or exc})") from None
+    for p in listed:
         if p.suffix.lower() in suffixes and not p.name.startswith("."):
             groups.setdefault(p.stem, []).append(p)
     unique = {stem: files[0] for stem, files in groups.items() if len(files) == 1}

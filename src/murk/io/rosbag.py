@@ -87,7 +87,10 @@ def _require() -> None:
 def is_bag(path: str | Path) -> bool:
     """True for a ROS 1 bag (a ``.bag`` file) or a ROS 2 bag (a folder holding ``metadata.yaml``)."""
     p = Path(path)
-    return (p.suffix.lower() == ".bag" and p.is_file()) or (p.is_dir() and (p / "metadata.yaml").is_file())
+    try:
+        return (p.suffix.lower() == ".bag" and p.is_file()) or (p.is_dir() and (p / "metadata.yaml").is_file())
+    except OSError:  # a folder that cannot be entered is no bag (its reader reports why it cannot be read)
+        return False
 
 
 def bag_family(path: str | Path) -> BagFamily:

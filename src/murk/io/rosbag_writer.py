@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from murk.errors import OutputError
-from murk.io.atomic import TMP_PREFIX, no_space_as_error
+from murk.io.atomic import TMP_PREFIX, make_output_folder, no_space_as_error
 from murk.io.ros_image import COMPRESSED_MSG, IMAGE_MSG, encode_pixels
 from murk.io.rosbag import STORAGES, BagFamily, Storage, _require
 
@@ -85,7 +85,7 @@ class BagSink:
         self._connections: dict[str, Any] = {}
         self._seq: dict[str, int] = {}
         self.closed = False
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        make_output_folder(self.path.parent)
         with no_space_as_error(self.path):
             if family == "ros1":
                 from rosbags.rosbag1 import Writer as Writer1

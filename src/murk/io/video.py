@@ -47,7 +47,7 @@ import cv2
 import numpy as np
 
 from murk.errors import InputFileError, OutputError, ShapeError
-from murk.io.atomic import TMP_PREFIX, no_space_as_error, no_space_error
+from murk.io.atomic import TMP_PREFIX, make_output_folder, no_space_as_error, no_space_error
 
 VIDEO_SUFFIXES = (".mp4", ".m4v", ".mov", ".mkv", ".avi", ".mpg", ".mpeg", ".wmv", ".webm", ".ts", ".mts", ".flv")
 """File suffixes read as video."""
@@ -290,7 +290,7 @@ class VideoSink:
         self.atomic = atomic
         self.frames_written = 0
         self._even = (w + w % 2, h + h % 2)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        make_output_folder(self.path.parent)
         self._target = (
             self.path.with_name(f"{TMP_PREFIX}{uuid.uuid4().hex[:12]}-{self.path.name}") if atomic else self.path
         )

@@ -62,6 +62,15 @@ def first_line(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {lines[0] if lines else ''}"
 
 
+TRUST_HINT = (
+    "If you made this file or trust where it comes from, allow it with --trust-checkpoint (murk enhance, "
+    "compare, export), model.trust_checkpoint: true in a murk train config, or trust=True in Python: the file "
+    "is then loaded with weights_only=False, which runs any code it holds. It is off by default so that a "
+    "checkpoint from elsewhere cannot run code on this machine; checkpoints written by murk never need it."
+)
+"""How a refused checkpoint can be allowed, and why it is refused by default (part of every refusal)."""
+
+
 def torch_load(path: str | Path, *, trust: bool = False, hint: str = "") -> Any:
     """Read a checkpoint file onto the CPU, with ``weights_only=True`` unless ``trust``.
 
@@ -93,8 +102,7 @@ def torch_load(path: str | Path, *, trust: bool = False, hint: str = "") -> Any:
         raise InputFileError(
             path,
             f"refusing to load it with weights_only=True: it pickles {what}, and unpickling arbitrary objects "
-            "can run code from the file. If you trust where it comes from, pass --trust-checkpoint "
-            f"(trust=True in Python).{' ' + hint if hint else ''}",
+            f"can run code from the file. {TRUST_HINT}{' ' + hint if hint else ''}",
         ) from exc
     except Exception as exc:
         raise InputFileError(path, f"not a readable PyTorch checkpoint ({first_line(exc)})") from exc

@@ -16,6 +16,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
 import time
 import warnings
 from collections.abc import Callable, Sequence
@@ -27,7 +28,7 @@ import cv2
 import numpy as np
 
 from murk._version import __version__
-from murk.io.atomic import write_text_atomic
+from murk.io.atomic import make_output_folder, write_text_atomic
 from murk.io.images import read_image, to_float, to_uint, write_rgb, write_uint
 from murk.io.jobs import ErrorRecord, JobSummary
 from murk.io.jsonl import json_safe
@@ -139,10 +140,16 @@ def real_images(real_dir: Path, out: Path, *, recursive: bool = False) -> list[P
     if real_dir.is_file() or is_bag(real_dir):  # a bag's frames are read by run_compare (topic, every)
         return [real_dir]
     check_output_location(out, [real_dir], inside="allow")  # an --out inside REAL_DIR is left out below
-    images = [p for p in list_images(real_dir, recursive=recursive) if out.resolve() not in p.resolve().parents]
+    listed = list_images(real_dir, recursive=recursive, unusable=True)
+    images = [p for p in listed if out.resolve() not in p.resolve().parents]
     if not images:
         raise ValueError(f"{real_dir}: no images found")
     return images
+
+
+def _listable(path: Path) -> bool:
+    """A folder whose images are listed (a folder that cannot be entered stays one input its reader refuses)."""
+    return path.is_dir() and os.access(path, os.R_OK | os.X_OK)
 
 
 def run_compare(
@@ -181,7 +188,7 @@ def run_compare(
     with bag_frames_as_files(images, topic, every=every) as frames:
         from murk.io.images import list_images
 
-        files = [f for p in frames.paths for f in (list_images(p) if p.is_dir() else [p])]
+        files = [f for p in frames.paths for f in (list_images(p) if _listable(p) else [p])]
         result = _run_compare(
             files,
             methods,
@@ -276,7 +283,7 @@ def _run_compare(
     if len(set(labels)) != len(labels):
         raise ValueError(f"--method: labels must be unique, got {labels}; name them with LABEL=METHOD")
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    make_output_folder(out, "report folder")
     restorers = [build_restorer(m, **(restorer_options or {})) for m in methods]
     result = CompareResult(out=out)
     for failure in failures:

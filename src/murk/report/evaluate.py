@@ -10,6 +10,7 @@ writes them to ``errors.jsonl`` beside the JSON/CSV output when one is given (re
 from __future__ import annotations
 
 import math
+import os
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -172,12 +173,12 @@ def _collect_images(paths: Sequence[Path], recursive: bool) -> list[tuple[str, P
     found: list[tuple[str, Path]] = []
     for p in paths:
         if p.is_dir():
-            inside = list_images(p, recursive=recursive)
+            inside = list_images(p, recursive=recursive, unusable=True)
             if not inside:
                 hint = "" if recursive else " (use --recursive for subfolders)"
                 raise InputFileError(p, f"no image files in this folder{hint}")
             found.extend((str(f.relative_to(p)), f) for f in inside)
-        elif p.is_file():
+        elif p.is_file() or os.path.lexists(p):  # a FIFO, device or broken link: its reader records why
             found.append((str(p), p))
         else:
             raise InputFileError(p, "no such file or folder")

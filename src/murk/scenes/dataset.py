@@ -16,12 +16,13 @@ scenes that failed in the latest run (rewritten by every run, absent when none).
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from murk._workers import worker_pool
+from murk.io.atomic import make_output_folder
 from murk.io.jobs import ErrorRecord, JobSummary
 
 CONFIG_NAME = "scenes_config.yaml"
@@ -40,16 +41,33 @@ def stem_of(index: int) -> str:
     return f"scene_{index:06d}"
 
 
-def load_textures(folder: Path) -> dict[str, Any]:
-    """Image textures of ``folder`` by file name, resized by :func:`murk.scenes.prepare_image_texture`."""
+def load_textures(folder: Path, problems: list[ErrorRecord] | None = None) -> dict[str, Any]:
+    """Image textures of ``folder`` by file name, resized by :func:`murk.scenes.prepare_image_texture`.
+
+    With ``problems``, a texture that cannot be read (corrupt, unreadable, a broken link, a FIFO) is appended
+    to it as one error record (stage ``texture``) and the others are used; without it, it is an error.
+
+    Raises:
+        InputFileError: no image in ``folder``, none of them readable, or (without ``problems``) one unreadable.
+    """
     from murk.errors import InputFileError
     from murk.io import list_images, read_rgb
     from murk.scenes import prepare_image_texture
 
-    paths = list_images(folder)
+    paths = list_images(folder, unusable=problems is not None)
     if not paths:
         raise InputFileError(folder, "no images found for --textures")
-    return {p.name: prepare_image_texture(read_rgb(p)) for p in paths}
+    textures: dict[str, Any] = {}
+    for p in paths:
+        try:
+            textures[p.name] = prepare_image_texture(read_rgb(p))
+        except InputFileError as exc:
+            if problems is None:
+                raise
+            problems.append(ErrorRecord(str(p), "texture", f"{exc}; the scenes use the other textures"))
+    if not textures:
+        raise InputFileError(folder, f"no readable texture image ({problems[0].error if problems else ''})")
+    return textures
 
 
 def _init_worker(textures: dict[str, Any]) -> None:
@@ -175,8 +193,12 @@ def write_scenes(
     textures: dict[str, Any] | None = None,
     rgb_format: str = "png",
     on_progress: Callable[[int, int], None] | None = None,
+    texture_problems: Sequence[ErrorRecord] = (),
 ) -> ScenesSummary:
     """Render ``count`` scenes into ``out_dir`` (see the module docstring); resumable.
+
+    ``texture_problems``: the textures :func:`load_textures` could not read; recorded in ``errors.jsonl``
+    (the run exits 1) while the scenes are made with the other textures.
 
     Raises:
         ValueError: bad ``rgb_format``, or a folder written with different settings.
@@ -196,15 +218,17 @@ def write_scenes(
     if fmt not in ("png", "jpg"):
         raise ValueError(f"rgb_format: expected png or jpg, got {rgb_format!r}")
     suffix = ".png" if fmt == "png" else ".jpg"
-    out_dir.mkdir(parents=True, exist_ok=True)
+    make_output_folder(out_dir)
     remove_stale_temporaries(out_dir)
     settings = _settings(seed, size, cfg, fmt, sorted(tex))
     _check_resume(out_dir / CONFIG_NAME, settings)
     write_text_atomic(out_dir / CONFIG_NAME, yaml.safe_dump(settings, sort_keys=False))
-    (out_dir / "rgb").mkdir(exist_ok=True)
-    (out_dir / "depth").mkdir(exist_ok=True)
+    make_output_folder(out_dir / "rgb")
+    make_output_folder(out_dir / "depth")
     jobs = [(i, str(out_dir), seed, size, cfg, suffix) for i in range(count)]
     summary = ScenesSummary(out=out_dir)
+    for rec in texture_problems:
+        summary.add_failure(rec)
     done = 0
     with contextlib.ExitStack() as stack:
         tmp = stack.enter_context(atomic_path(out_dir / JSONL_NAME))

@@ -40,7 +40,7 @@ import numpy as np
 from murk._config import dump_yaml, read_yaml, to_dict
 from murk._version import __version__
 from murk._workers import stop_if_orphaned, worker_pool
-from murk.io.atomic import remove_stale_temporaries, write_text_atomic
+from murk.io.atomic import make_output_folder, remove_stale_temporaries, write_text_atomic
 from murk.io.depth import write_depth_png
 from murk.io.images import to_uint, write_rgb, write_uint
 from murk.io.jobs import ErrorRecord, JobSummary
@@ -398,7 +398,7 @@ def run_synthesis(
         from murk.snow.bank import load_bank
 
         load_bank(bank_path)  # a bad bank fails here (InputFileError naming it), before any output or worker
-    out.mkdir(parents=True, exist_ok=True)
+    make_output_folder(out)
     check_config_compatible(out, config)
     remove_stale_temporaries(out)
     write_text_atomic(out / "config.yaml", dump_yaml(config, murk_version=__version__))

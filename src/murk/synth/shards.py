@@ -41,7 +41,7 @@ import numpy as np
 
 from murk._config import dump_yaml
 from murk._version import __version__
-from murk.io.atomic import atomic_path, remove_stale_temporaries, write_text_atomic
+from murk.io.atomic import atomic_path, make_output_folder, remove_stale_temporaries, write_text_atomic
 from murk.io.images import encode_image, to_uint
 from murk.io.jobs import ErrorRecord, JobSummary
 from murk.io.jsonl import append_jsonl, read_jsonl
@@ -407,7 +407,7 @@ def write_shards(
 
         load_bank(bank_path)  # a bad bank fails here, before any output or worker
     plans = plan_shards(sources, config.variants, samples_per_shard)
-    out.mkdir(parents=True, exist_ok=True)
+    make_output_folder(out)
     check_shard_folder(out, config, samples_per_shard)
     remove_stale_temporaries(out)
     write_text_atomic(

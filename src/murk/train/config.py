@@ -28,6 +28,8 @@ class ModelConfig:
     """Random initialisation: the recipe's, or with ICNR for the convolutions before pixel shuffles
     (:func:`murk.models.jointid.network.icnr_init_`; no sub-pixel grid at the start; jointid only)."""
     trust_checkpoint: bool = False
+    """Load ``init_checkpoint`` (and a resumed ``latest.pt``) even when it pickles objects other than tensors and
+    plain data (``torch.load(weights_only=False)``: runs code from the file; only for files you trust)."""
     trainable: Literal["all", "depth_head"] = "all"
     """``all``, or ``depth_head``: train only the depth decoder's skip convolutions and head
     (:func:`murk.models.jointid.depth_head_parameter_names`), the parameters that feed nothing but the depth

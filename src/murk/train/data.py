@@ -14,7 +14,7 @@ clean image never land on both sides.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -26,6 +26,7 @@ from torch.utils.data import Dataset
 from murk.errors import InputFileError
 from murk.io.depth import read_depth
 from murk.io.images import read_rgb
+from murk.io.jobs import ErrorLog, ErrorRecord
 from murk.io.jsonl import read_jsonl
 from murk.io.pairs import DepthOptions, RGBDSource, discover, load_pair
 from murk.rng import derive_seed
@@ -110,9 +111,54 @@ def _chw(a: np.ndarray) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(a.transpose(2, 0, 1)))
 
 
+MAX_SUBSTITUTES = 16
+"""How many following samples a dataset tries in place of an unreadable one before the run stops."""
+
+
+def first_readable(n: int, i: int, load: Callable[[int], dict[str, Any]]) -> dict[str, Any]:
+    """``load(i)``, or, when sample ``i`` cannot be read (:class:`InputFileError`), the first readable of the
+    next samples ``i+1, i+2, ...`` (wrapping; at most :data:`MAX_SUBSTITUTES` tries). The sample's ``failed``
+    entry lists what could not be read, one ``path<TAB>problem`` per line ("" when nothing failed), so that the
+    training loop records each in ``errors.jsonl`` and the run goes on (deterministically: the substitute
+    depends on ``i`` only).
+
+    Raises:
+        InputFileError: none of the tried samples could be read (the last problem, and how many were tried).
+    """
+    failed: list[str] = []
+    last: InputFileError | None = None
+    for k in range(min(n, MAX_SUBSTITUTES + 1)):
+        try:
+            sample = load((i + k) % n)
+        except InputFileError as exc:
+            failed.append(f"{exc.path}\t{exc.problem}")
+            last = exc
+            continue
+        sample["failed"] = "\n".join(failed)
+        return sample
+    assert last is not None
+    raise InputFileError(last.path, f"{last.problem} (and the {len(failed) - 1} samples after it could not be read)")
+
+
+def record_unreadable(batch: dict[str, Any], errors: ErrorLog | None) -> None:
+    """Record in ``errors.jsonl`` each input a dataset could not read (the ``failed`` entries of ``batch``;
+    each file once per run) and drop the entry from the batch."""
+    failed = batch.pop("failed", None)
+    if errors is None or not failed:
+        return
+    seen = {r.input for r in (errors.summary.failures if errors.summary else [])}
+    for text in failed:
+        for line in str(text).splitlines():
+            path, _, problem = line.partition("\t")
+            if path not in seen:
+                seen.add(path)
+                errors.add(ErrorRecord(path, "read", f"{path}: {problem}; a readable sample was used in its place"))
+
+
 class PairDataset(Dataset):
     """Triplets from files, centre-cropped to ``size_hw``: ``input``, ``target`` (3, H, W) in [0, 1],
-    ``depth`` (1, H, W) metres with 0 = invalid, and ``index``."""
+    ``depth`` (1, H, W) metres with 0 = invalid, ``index``, and ``failed`` (see :func:`first_readable`: an
+    unreadable sample is replaced by the next readable one and reported)."""
 
     def __init__(self, items: Sequence[PairItem], size_hw: tuple[int, int]) -> None:
         self.items = list(items)
@@ -122,6 +168,9 @@ class PairDataset(Dataset):
         return len(self.items)
 
     def __getitem__(self, i: int) -> dict[str, Any]:
+        return first_readable(len(self.items), i, self._load)
+
+    def _load(self, i: int) -> dict[str, Any]:
         it = self.items[i]
         x = read_rgb(it.input_path)
         y = read_rgb(it.target_path)
@@ -135,7 +184,8 @@ class PairDataset(Dataset):
 
 class CleanRGBDDataset(Dataset):
     """Clean RGB-D for online synthesis, centre-cropped: ``clean`` (3, H, W), ``depth_filled`` (1, H, W)
-    (holes filled, for the physics), ``depth`` (1, H, W) (0 = invalid, the training target), ``index``."""
+    (holes filled, for the physics), ``depth`` (1, H, W) (0 = invalid, the training target), ``index``, and
+    ``failed`` (see :func:`first_readable`)."""
 
     def __init__(self, sources: Sequence[RGBDSource], size_hw: tuple[int, int], options: DepthOptions) -> None:
         self.sources = list(sources)
@@ -146,6 +196,9 @@ class CleanRGBDDataset(Dataset):
         return len(self.sources)
 
     def __getitem__(self, i: int) -> dict[str, Any]:
+        return first_readable(len(self.sources), i, self._load)
+
+    def _load(self, i: int) -> dict[str, Any]:
         src = self.sources[i]
         rgb, depth, valid = load_pair(src, self.options)
         rgb, depth, valid = centre_crop([rgb, depth[:, :, None], valid[:, :, None]], self.size_hw, source=src.rgb_path)

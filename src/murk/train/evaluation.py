@@ -10,7 +10,9 @@ import torch
 import torch.nn.functional as F
 from torch.utils.data import DataLoader
 
+from murk.io.jobs import ErrorLog
 from murk.train.config import TrainConfig
+from murk.train.data import record_unreadable
 from murk.train.losses import jointid_loss
 from murk.train.setup import DataSetup
 
@@ -22,7 +24,12 @@ def to_device(batch: dict[str, Any], device: torch.device) -> dict[str, Any]:
 
 @torch.no_grad()
 def evaluate(
-    model: torch.nn.Module, data: DataSetup, config: TrainConfig, device: torch.device, step: int
+    model: torch.nn.Module,
+    data: DataSetup,
+    config: TrainConfig,
+    device: torch.device,
+    step: int,
+    errors: ErrorLog | None = None,
 ) -> dict[str, float]:
     """Loss, PSNR/SSIM (and the degraded input's PSNR) and depth errors on the held-out synthetic split (the
     same ``eval.val_batches`` batches every time, unaugmented); UIQM/UCIQE on real images."""
@@ -41,6 +48,7 @@ def evaluate(
         for bi, batch in enumerate(loader):
             if bi >= config.eval.val_batches:
                 break
+            record_unreadable(batch, errors)  # an unreadable validation sample: replaced, recorded
             batch = to_device(batch, device)
             if data.online is not None:
                 # fixed validation degradations: epoch -1 is never used for training

@@ -34,12 +34,13 @@ from torch.utils.data import DataLoader
 
 from murk._config import dump_yaml, to_dict
 from murk._version import __version__
-from murk.io.atomic import write_text_atomic
-from murk.io.jobs import JobSummary
+from murk.io.atomic import make_output_folder, write_text_atomic
+from murk.io.jobs import ErrorLog, JobSummary
 from murk.io.jsonl import append_jsonl, json_safe
 from murk.rng import derive_seed
 from murk.train.augment import apply_augment, sample_augment
 from murk.train.config import TrainConfig
+from murk.train.data import record_unreadable
 from murk.train.evaluation import evaluate, to_device
 from murk.train.losses import jointid_loss
 from murk.train.setup import (
@@ -143,7 +144,7 @@ def train(
     check_run_folder(out, config, resume=resume)
     data = build_data(config)  # a bad source or snow bank stops here, before anything is written
     if main_rank:
-        out.mkdir(parents=True, exist_ok=True)
+        make_output_folder(out, "run folder")
         write_text_atomic(out / "config.yaml", dump_yaml(config, murk_version=__version__, world_size=world))
     logger = _Logger(out, main_rank)
 
@@ -165,6 +166,7 @@ def train(
         net = torch.compile(net)
 
     summary = TrainSummary(out=out, out_dir=str(out), steps_done=start, skipped=start, total_steps=total, best=best)
+    errors = ErrorLog(out, summary=summary).start() if main_rank else None
     if resume:  # a resumed run that has no step left to do keeps the loss its last step logged
         summary.last_loss = _previous_last_loss(out / "summary.json")
     autocast = (
@@ -205,6 +207,7 @@ def train(
     net.train()
     while step < end:
         epoch, batch = next(it)
+        record_unreadable(batch, errors)
         batch = to_device(batch, device)
         if data.online is not None:
             with torch.no_grad():
@@ -254,7 +257,7 @@ def train(
                 del record["silog"]
             emit(record)
         if step % config.eval.every == 0 or step == end:
-            metrics = evaluate(model, data, config, device, step) if main_rank else {}
+            metrics = evaluate(model, data, config, device, step, errors) if main_rank else {}
             if metrics:
                 emit({"kind": "eval", "step": step, **metrics})
                 summary.last_eval = metrics

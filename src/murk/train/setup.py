@@ -289,7 +289,7 @@ def resume_state(
 
     if not latest.is_file():
         raise ValueError(f"--resume: {latest} not found (nothing to resume)")
-    state, meta = read_network_checkpoint(config.model.kind, latest)
+    state, meta = read_network_checkpoint(config.model.kind, latest, trust=config.model.trust_checkpoint)
     missing = [k for k in ("optimizer", "step") if k not in meta]
     if missing:
         raise ValueError(

@@ -26,7 +26,7 @@ from typing import Any
 
 from murk._config import dump_yaml, load_yaml, merge
 from murk._workers import TerminateAsExit, subprocess_dies_with_parent
-from murk.io.atomic import write_text_atomic
+from murk.io.atomic import make_output_folder, write_text_atomic
 from murk.synth.config import parse_stages
 from murk.train.config import TrainConfig
 
@@ -191,7 +191,7 @@ def train_arms(
     reported (its ``train.out`` holds the traceback) and the others go on.
     """
     study_dir = Path(study_dir)
-    (study_dir / "configs").mkdir(parents=True, exist_ok=True)
+    make_output_folder(study_dir / "configs", "study folder")
     say = on_event or (lambda _m: None)
     runs: dict[str, ArmRun] = {}
     pending: list[tuple[ArmConfig, TrainConfig, Path]] = []
@@ -230,7 +230,7 @@ def _run_arms(
             while pending and len(active) < study.jobs:
                 arm, cfg, cfg_path = pending.pop(0)
                 out = Path(cfg.out)
-                out.mkdir(parents=True, exist_ok=True)
+                make_output_folder(out)
                 cmd = [python, "-m", "murk", "train", "--config", str(cfg_path), "--quiet"]
                 if (out / "latest.pt").is_file():
                     cmd.append("--resume")

@@ -30,9 +30,11 @@ def errors_path_of(bank_path: Path) -> Path:
     return bank_path.with_name(bank_path.stem + "_errors.jsonl")
 
 
-def list_footage(inputs: Sequence[Path]) -> list[Path | ErrorRecord]:
+def list_footage(inputs: Sequence[Path], exclude: Sequence[Path] = ()) -> list[Path | ErrorRecord]:
     """In input order: the files to read (image files and videos as given, the images of folders, recursively;
-    each file once) and a record for each input that cannot be used."""
+    each file once) and a record for each input that cannot be used. Images found in a folder below one of
+    ``exclude`` (murk's own preview folder) are left out."""
+    skip = [os.path.realpath(e) + os.sep for e in exclude]
     from murk.io.images import list_images
     from murk.io.rosbag import is_bag
 
@@ -44,19 +46,21 @@ def list_footage(inputs: Sequence[Path]) -> list[Path | ErrorRecord]:
             inside = [inp]
         elif inp.is_dir():
             try:
-                inside = list_images(inp, recursive=True)
+                inside = list_images(inp, recursive=True, unusable=True)
             except OSError as exc:
                 problems.append(ErrorRecord(str(inp), "list", f"{inp}: cannot list folder ({exc.strerror or exc})"))
                 continue
             if not inside:
                 problems.append(ErrorRecord(str(inp), "list", f"{inp}: folder holds no images"))
-        elif inp.is_file():
+        elif inp.is_file() or os.path.lexists(inp):  # a FIFO, device or broken link: the reader records why
             inside = [inp]
         else:
             problems.append(ErrorRecord(str(inp), "list", f"{inp}: not found"))
             continue
         for f in inside:
             real = os.path.realpath(f)
+            if f is not inp and any(real.startswith(e) for e in skip):
+                continue
             if real not in seen:
                 seen.add(real)
                 files.append(f)
@@ -139,8 +143,9 @@ def extract_snow_bank(
     particles, grey = components dropped by the area or elongation filters).
 
     Raises:
-        ValueError: ``every`` < 1; the preview folder lies inside an input folder; no particle was found (the
-            message names the unreadable inputs first).
+        ValueError: ``every`` < 1; the preview folder is an input folder; no particle was found (the message
+            names the unreadable inputs first). A preview folder inside an input folder is fine: the recursive
+            listing leaves its images out, on the first run and on reruns.
         OutputError: no space left on the device.
     """
     import cv2
@@ -153,15 +158,16 @@ def extract_snow_bank(
     if every < 1:
         raise ValueError(f"--every: expected >= 1, got {every}")
     preview_dir = out.with_name(out.stem + "_preview")
-    if preview:  # folders are listed recursively: previews inside one would be read back as footage on a rerun
+    if preview:  # the preview folder may lie inside an input folder: its images are left out of the listing
         check_output_location(
             preview_dir,
             [p for p in inputs if p.is_dir() and not is_bag(p)],
             option=f"--out {out}: the preview folder",
-            why="its previews would be read back as footage on a rerun (or use --no-preview)",
+            inside="allow",
+            why="its previews would be mixed with the footage",
         )
     summary = SnowExtractSummary(out=out, preview_dir=preview_dir if preview else None)
-    files = list_footage(inputs)
+    files = list_footage(inputs, exclude=[preview_dir])
     problems: list[ErrorRecord] = []
     paths = [f for f in files if isinstance(f, Path)]
     names = {str(p): n for p, n in output_names(paths).items()}  # a/x.jpg and b/x.jpg: two previews
