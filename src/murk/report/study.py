@@ -137,7 +137,7 @@ def evaluate_study(
     report["heldout"] = heldout
 
     real_dir = Path(resolve_builtin(ev.real))
-    images = list_images(real_dir, recursive=True)
+    images = list_images(real_dir, recursive=True, unusable=True)
     if not images:
         raise ValueError(f"eval.real: {real_dir} holds no images")
     last = study.arms[-1].name
@@ -228,7 +228,7 @@ def evaluate_real_pairs(
     say = on_event or (lambda _m: None)
     sets: dict[str, Any] = {}
     for name, path in pair_sets(folder).items():
-        images = list_images(path / "input")
+        images = list_images(path / "input", unusable=True)
         say(f"real pairs {name}: {len(images)} images x {len(methods)} methods")
         res = run_compare(
             images,
