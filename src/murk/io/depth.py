@@ -36,7 +36,7 @@ import numpy as np
 
 from murk.errors import InputFileError
 from murk.io.atomic import write_bytes_atomic
-from murk.io.images import check_declared_size, encode_image, max_pixels, read_input_bytes
+from murk.io.images import check_declared_size, encode_image, max_pixels, png_params, read_input_bytes
 from murk.io.listing import describe_unusable
 
 InvalidDepthMode = Literal["fill", "far", "fail"]
@@ -213,7 +213,8 @@ def write_depth_png(path: str | Path, depth_m: np.ndarray, *, depth_scale: float
     path = Path(path)
     d = np.where(validity_mask(depth_m), depth_m, 0.0).astype(np.float64) * depth_scale
     raw = np.clip(np.rint(d), 0, 65535).astype(np.uint16)
-    write_bytes_atomic(path, encode_image(path, raw), fsync=False)
+    params = png_params() if path.suffix.lower() == ".png" else []
+    write_bytes_atomic(path, encode_image(path, raw, params), fsync=False)
     return path
 
 

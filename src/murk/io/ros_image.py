@@ -18,6 +18,8 @@ from typing import Any, Literal
 import cv2
 import numpy as np
 
+from murk.io.images import png_params
+
 IMAGE_MSG = "sensor_msgs/msg/Image"
 COMPRESSED_MSG = "sensor_msgs/msg/CompressedImage"
 CAMERA_INFO_MSG = "sensor_msgs/msg/CameraInfo"
@@ -160,7 +162,7 @@ def encode_pixels(rgb: np.ndarray, msgtype: str, encoding: str, *, jpeg_quality:
         if kind == "jpeg":
             ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)])
         else:
-            ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 3])
+            ok, buf = cv2.imencode(".png", bgr, png_params())
         if not ok:
             raise ValueError(f"OpenCV could not encode a {kind} image ({rgb.dtype}, {rgb.shape})")
         return f"rgb8; {kind} compressed bgr8", buf.tobytes(), 0

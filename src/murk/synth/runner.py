@@ -27,10 +27,12 @@ cancelled; what was finished is kept and a rerun resumes).
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import as_completed
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any, Literal
 
@@ -47,6 +49,7 @@ from murk.io.jobs import ErrorRecord, JobSummary
 from murk.io.jsonl import append_jsonl, read_jsonl, write_jsonl
 from murk.io.pairs import DepthOptions, RGBDSource, load_pair
 from murk.io.paths import check_output_location
+from murk.io.writer import BackgroundWriter
 from murk.rng import derive_seed
 from murk.synth.config import SynthConfig
 from murk.synth.params import VariantParams, sample_variant, snow_sampler_for, variant_to_dict
@@ -241,31 +244,58 @@ def process_source(
     note = depth_range_note(source, depth[valid])
     png = config.output.png_compression
     files0 = paths_for(source.stem, 0)
-    if not (out / files0["clean"]).exists():
-        write_rgb(out / files0["clean"], rgb, png_compression=png)
-    if not (out / files0["depth"]).exists():
-        write_depth_png(out / files0["depth"], np.where(valid, depth, 0.0), depth_scale=DEPTH_SCALE_OUT)
-    snow_sampler = snow_sampler_for(config, bank) if "marine_snow" in config.stages else None
-    records = []
-    h, w = depth.shape
-    for k in variants:
-        stop_if_orphaned()  # a worker whose parent died stops here (see murk._workers)
-        seed = derive_seed(config.seed, source.stem, k)
-        params = sample_variant(np.random.default_rng(seed), config, snow_sampler=snow_sampler)
-        res = render(rgb, depth, params, bank=bank, keep_intermediate=config.output.save_intermediate)
-        files = paths_for(source.stem, k)
-        keep = {"degraded": files["degraded"], "clean": files["clean"], "depth": files["depth"]}
-        if res.snow_alpha is not None:
-            write_uint(out / files["snow_alpha"], to_uint(res.snow_alpha[:, :, None], 8)[:, :, 0], png_compression=png)
-            keep["snow_alpha"] = files["snow_alpha"]
-        if config.output.save_intermediate:
-            write_rgb(out / files["basic"], res.basic, png_compression=png)  # type: ignore[arg-type]
-            write_rgb(out / files["transmission"], res.transmission, png_compression=png)  # type: ignore[arg-type]
-            keep.update(basic=files["basic"], transmission=files["transmission"])
-        write_rgb(out / files["degraded"], res.degraded, png_compression=png)  # last: its presence marks done
-        info = variant_info(res, w, h, valid, note)
-        records.append(manifest_record(source, k, seed, params, info, keep))
+    writer = _writer()  # files are encoded and written on writer threads while the next variant renders
+    try:
+        if not (out / files0["clean"]).exists():
+            writer.submit(partial(write_rgb, out / files0["clean"], rgb, png_compression=png))
+        if not (out / files0["depth"]).exists():
+            depth_out = np.where(valid, depth, 0.0)
+            writer.submit(partial(write_depth_png, out / files0["depth"], depth_out, depth_scale=DEPTH_SCALE_OUT))
+        snow_sampler = snow_sampler_for(config, bank) if "marine_snow" in config.stages else None
+        records = []
+        h, w = depth.shape
+        for k in variants:
+            stop_if_orphaned()  # a worker whose parent died stops here (see murk._workers)
+            seed = derive_seed(config.seed, source.stem, k)
+            params = sample_variant(np.random.default_rng(seed), config, snow_sampler=snow_sampler)
+            res = render(rgb, depth, params, bank=bank, keep_intermediate=config.output.save_intermediate)
+            files = paths_for(source.stem, k)
+            keep = {"degraded": files["degraded"], "clean": files["clean"], "depth": files["depth"]}
+            group = []  # one variant's files, written in this order on one writer thread
+            if res.snow_alpha is not None:
+                alpha_u8 = to_uint(res.snow_alpha[:, :, None], 8)[:, :, 0]
+                group.append(partial(write_uint, out / files["snow_alpha"], alpha_u8, png_compression=png))
+                keep["snow_alpha"] = files["snow_alpha"]
+            if config.output.save_intermediate:
+                group.append(partial(write_rgb, out / files["basic"], res.basic, png_compression=png))
+                group.append(partial(write_rgb, out / files["transmission"], res.transmission, png_compression=png))
+                keep.update(basic=files["basic"], transmission=files["transmission"])
+            # last: its presence marks the variant done
+            group.append(partial(write_rgb, out / files["degraded"], res.degraded, png_compression=png))
+            writer.submit(*group)
+            info = variant_info(res, w, h, valid, note)
+            records.append(manifest_record(source, k, seed, params, info, keep))
+    except BaseException:
+        with contextlib.suppress(Exception):  # the first error wins; the queued writes still finish
+            writer.drain()
+        raise
+    writer.drain()  # the records are returned (and logged as done) only once every file is complete
     return records, []
+
+
+_WRITER: BackgroundWriter | None = None
+
+
+def _writer() -> BackgroundWriter:
+    """This process's writer threads (created on first use; worker processes each have their own)."""
+    global _WRITER
+    if _WRITER is None:
+        _WRITER = BackgroundWriter(threads=WRITER_THREADS)
+    return _WRITER
+
+
+WRITER_THREADS = 2
+"""Writer threads per process: PNG encoding (about as long as rendering a variant) overlaps the rendering."""
 
 
 def variant_info(res: Any, w: int, h: int, valid: np.ndarray, note: str | None) -> dict[str, Any]:

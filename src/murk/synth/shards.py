@@ -42,7 +42,7 @@ import numpy as np
 from murk._config import dump_yaml
 from murk._version import __version__
 from murk.io.atomic import atomic_path, make_output_folder, remove_stale_temporaries, write_text_atomic
-from murk.io.images import encode_image, to_uint
+from murk.io.images import encode_image, png_params, to_uint
 from murk.io.jobs import ErrorRecord, JobSummary
 from murk.io.jsonl import append_jsonl, read_jsonl
 from murk.io.pairs import DepthOptions, RGBDSource, load_pair
@@ -147,7 +147,7 @@ def _png(image: np.ndarray, level: int) -> bytes:
     """PNG bytes of a uint8/uint16 RGB (H, W, 3) or (H, W) array (fixed zlib level: deterministic)."""
     if image.ndim == 3:
         image = np.ascontiguousarray(image[:, :, ::-1])
-    return encode_image("x.png", image, [cv2.IMWRITE_PNG_COMPRESSION, int(level)])
+    return encode_image("x.png", image, png_params(level))
 
 
 def _depth_png(depth_m: np.ndarray, valid: np.ndarray) -> bytes:
