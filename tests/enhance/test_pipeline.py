@@ -347,3 +347,20 @@ def test_a_file_source_loses_nothing_with_read_ahead(tmp_path: Path) -> None:
     report = enhance_frames(FakeSource(make_frames(12), live=False), _SlowPost(), tmp_path / "f", OutputOptions("png"))
     assert (report.processed, report.dropped) == (12, 0)
     assert len(list(tmp_path.joinpath("f").glob("fake_*.png"))) == 12
+
+
+@pytest.mark.parametrize("out_name", ["v.avi", "frames"])
+def test_overlapped_decode_restore_encode_writes_the_serial_bytes(tmp_path: Path, out_name: str) -> None:
+    """Issue 29: read-ahead and write-behind threads change when frames are written, never what is written; a
+    broken frame is still recorded and repeated in order."""
+    frames = make_frames(9)
+    outs = {}
+    for overlap in (True, False):
+        out = tmp_path / str(overlap) / out_name
+        source = FakeSource(frames, live=False, broken=(4,))  # frame 4: repeated in the video, recorded
+        report = enhance_frames(source, PostRestorer(), out, OutputOptions("png"), read_ahead=overlap)
+        assert (report.processed, report.failed) == (8, 1)
+        files = [out] if out.suffix else sorted(out.glob("*.png"))
+        outs[overlap] = [f.read_bytes() for f in files]
+        assert read_jsonl(out.parent / "errors.jsonl" if out.suffix else out / "errors.jsonl")[0]["frame"] == 4
+    assert outs[True] == outs[False] and outs[True]

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +34,10 @@ from murk.io.images import IMAGE_SUFFIXES, to_float, to_uint, write_uint
 from murk.io.jobs import ErrorLog, ErrorRecord
 from murk.io.readahead import ReadAhead
 from murk.io.video import DEFAULT_FPS, VIDEO_SUFFIXES, WRITABLE_VIDEO_SUFFIXES, FrameSource, VideoSink, av_available
+from murk.io.writer import BackgroundWriter
+
+WRITE_BEHIND = 4
+"""Restored frames that may wait for the write-behind thread (bounded memory; the restorer waits beyond)."""
 
 
 @dataclass
@@ -218,30 +223,39 @@ def enhance_frames(
         for it in items:
             if it.replay:  # its file exists (counted as skipped); restoring it kept the temporal average exact
                 continue
-            if it.index not in outputs:
-                repeated = writer.repeat_last()
-                stage = "read" if it.image is None else "restore"
-                errors.add(ErrorRecord(label, stage, _frame_error(it, repeated), frame=it.index))
-                continue
-            image, depth = outputs[it.index]
-            saw_depth |= depth is not None
-            panel = side_by_side(it.image, image) if options.side_by_side else image  # type: ignore[arg-type]
-            try:
-                writer.write(it.index, to_uint(panel, 8), depth)
-                report.processed += 1
-            except OutputError:  # a full disk ends the run; finish() discards the partial video
-                raise
-            except INPUT_ERRORS as exc:
-                errors.add(ErrorRecord(label, "write", str(exc), frame=it.index))
-        report.write_s += time.perf_counter() - t0
+            if it.index in outputs:
+                saw_depth |= outputs[it.index][1] is not None
+            # encoded and written on the write-behind thread, in frame order, while the next frames restore
+            behind.submit(partial(write_item, it, outputs.get(it.index)))
+        report.write_s += time.perf_counter() - t0  # the wait for the writer, when it is the slowest stage
         items.clear()
         report.tick()
         if on_progress:
             on_progress(report)
 
+    def write_item(it: _FrameItem, output: tuple[np.ndarray, np.ndarray | None] | None) -> None:
+        """Write one frame (or repeat the previous one for a broken frame) and record what failed."""
+        if output is None:
+            repeated = writer.repeat_last()
+            stage = "read" if it.image is None else "restore"
+            errors.add(ErrorRecord(label, stage, _frame_error(it, repeated), frame=it.index))
+            return
+        image, depth = output
+        panel = side_by_side(it.image, image) if options.side_by_side else image  # type: ignore[arg-type]
+        try:
+            writer.write(it.index, to_uint(panel, 8), depth)
+            report.processed += 1
+        except OutputError:  # a full disk ends the run; finish() discards the partial video
+            raise
+        except INPUT_ERRORS as exc:
+            errors.add(ErrorRecord(label, "write", str(exc), frame=it.index))
+
     complete = False
     n_read = 0
     reader: FrameSource = ReadAhead(source) if read_ahead else source
+    # decode (ReadAhead), restore (here) and encode (this write-behind thread) overlap; one thread keeps the
+    # frame order, and at most WRITE_BEHIND frames wait, so memory stays bounded and nothing is dropped
+    behind = BackgroundWriter(threads=1 if read_ahead else 0, max_pending=WRITE_BEHIND)
     with restorer.sequence():  # one video: methods with state over time carry it from frame to frame
         try:
             while True:
@@ -271,6 +285,11 @@ def enhance_frames(
             if isinstance(reader, ReadAhead):
                 reader.stop()
                 report.dropped = reader.dropped
+            try:
+                behind.close()  # every queued frame is written before the video is closed
+            except BaseException:
+                writer.finish(False)  # a full disk while writing: the partial video is discarded
+                raise
             writer.finish(complete)
             report.tick()
     if report.dropped:
