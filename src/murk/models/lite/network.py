@@ -203,7 +203,7 @@ def work_size_tensor(height: Tensor, width: Tensor, work_area_px: int) -> tuple[
     tensor arithmetic only (an ONNX graph traced through it computes the size of each frame it gets): float64,
     rounded half to even as Python's ``round``; equal to :func:`work_size` (pinned by a test)."""
     pixels = (height * width).to(torch.float64)
-    scale = torch.sqrt(work_area_px / pixels)
+    scale = torch.sqrt(torch.full_like(pixels, work_area_px) / pixels)  # a Div (a scalar / tensor is 1 / x * a)
 
     def side(n: Tensor) -> Tensor:
         rounded = torch.round(n.to(torch.float64) * scale / SIZE_MULTIPLE).to(torch.int64) * SIZE_MULTIPLE
