@@ -66,7 +66,6 @@ def _trace(net: LiteNet, path: LitePath, size_hw: tuple[int, int], opset: int) -
         file = Path(tmp) / f"{path}.onnx"
         warnings.simplefilter("ignore", DeprecationWarning)  # the legacy exporter announces its successor
         warnings.simplefilter("ignore", torch.jit.TracerWarning)  # the path choice, fixed per branch
-        warnings.filterwarnings("ignore", message="The feature will be removed", category=FutureWarning)
         torch.onnx.export(
             LiteImageGraph(net, path).eval(),
             (torch.zeros(1, 3, *size_hw),),
