@@ -35,7 +35,7 @@ def test_export_writes_a_verified_onnx_file(tiny_files):
     assert result.exit_code == 0, result.output
     assert out.is_file() and out.stat().st_size > 1_000_000
     assert str(out) in result.stdout
-    assert "verified 64x96" in result.output and "verified 96x64" in result.output
+    assert "verified 61x97" in result.output and "verified 96x64" in result.output
 
 
 def test_untrusted_pickles_are_refused_until_the_user_opts_in(tiny_files):

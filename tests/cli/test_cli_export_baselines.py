@@ -1,5 +1,6 @@
-"""``murk export --model udaformer|ursct``: fixed-size ONNX graphs of the full-size baselines, verified with ONNX
-Runtime at batch 1 and 2; the untrusted official UDAformer file is refused."""
+"""``murk export --model udaformer|ursct``: fixed-size ONNX graphs of the full-size baselines (one RGB input in
+[0, 1], the restored RGB frame out, as the restorers' native policy), verified with ONNX Runtime at batch 1 and 2;
+the untrusted official UDAformer file is refused."""
 
 from __future__ import annotations
 
@@ -9,6 +10,8 @@ import torch
 from typer.testing import CliRunner
 
 from murk.cli.main import app
+from murk.enhance.udaformer_restorer import UDAformerRestorer
+from murk.enhance.ursct_restorer import URSCTRestorer
 from murk.models.baseline_onnx import export_baseline_onnx
 from murk.models.udaformer import UDAformer
 from murk.models.ursct_sesr import URSCT, URSCTConfig
@@ -24,14 +27,14 @@ def test_export_udaformer_fixed_size(tmp_path):
     args = ["export", "-c", str(tmp_path / "u.pkl"), "-o", str(tmp_path / "u.onnx"), "--model", "udaformer"]
     refused = runner.invoke(app, [*args, "--size", "40x24"])
     assert refused.exit_code == 2 and "--trust-checkpoint" in refused.output
-    res = runner.invoke(app, [*args, "--size", "40x24", "--trust-checkpoint"])
+    res = runner.invoke(app, [*args, "--size", "37x21", "--trust-checkpoint"])
     assert res.exit_code == 0, res.output
-    assert "fixed 40x24" in res.output and "verified batch 2" in res.output
+    assert "fixed 37x21" in res.output and "verified batch 2" in res.output
     session = ort.InferenceSession(str(tmp_path / "u.onnx"), providers=["CPUExecutionProvider"])
-    x = torch.rand(3, 3, 24, 40, generator=torch.Generator().manual_seed(1))
-    (y,) = session.run(None, {"image": x.numpy()})
-    with torch.no_grad():
-        np.testing.assert_allclose(y, model(x).numpy(), rtol=0, atol=1e-4)
+    x = torch.rand(3, 3, 21, 37, generator=torch.Generator().manual_seed(1))
+    (y,) = session.run(None, {"image": x.numpy()})  # RGB in; padded to 40x24 and BGR inside the graph
+    ref = UDAformerRestorer(model).restore_tensor(x).images
+    np.testing.assert_allclose(y, ref.numpy(), rtol=0, atol=1e-4)
 
 
 @pytest.mark.slow
@@ -49,6 +52,11 @@ def test_export_reduced_ursct_and_bad_sizes(tmp_path):
     done = export_baseline_onnx(small, tmp_path / "small.onnx", size_hw=(128, 128))
     assert done.size_hw == (128, 128) and set(done.max_abs_diff) == {1, 2}
     assert max(done.max_abs_diff.values()) < 1e-4
+    session = ort.InferenceSession(str(done.path), providers=["CPUExecutionProvider"])
+    x = torch.rand(1, 3, 128, 128, generator=torch.Generator().manual_seed(2))
+    (y,) = session.run(None, {"image": x.numpy()})
+    ref = URSCTRestorer(small, tile=128).restore_tensor(x).images  # one tile: the whole frame
+    np.testing.assert_allclose(y, ref.numpy(), rtol=0, atol=1e-4)
     with pytest.raises(ValueError, match="square size that is a multiple of 128"):
         export_baseline_onnx(small, tmp_path / "x.onnx", size_hw=(128, 256))
     with pytest.raises(TypeError, match="UDAformer or a URSCT"):

@@ -33,6 +33,19 @@ def test_reflect_padding_equals_numpy_reflect_and_crops_back_exactly(hw):
     assert torch.equal(pad.crop(padded), x)
 
 
+@pytest.mark.parametrize("hw", [(45, 70), (5, 7), (2, 33), (1, 3), (64, 96)])
+@pytest.mark.parametrize("multiple", [16, 32])
+def test_reflect_index_gathers_what_reflect_padding_makes(hw, multiple):
+    # The tensor-arithmetic twin that ONNX graphs use (murk.models.padding.reflect_index) against the padding.
+    from murk.models.padding import reflect_index
+
+    x = torch.rand(1, 2, *hw, generator=torch.Generator().manual_seed(1))
+    padded, pad = pad_to_multiple(x, multiple)
+    rows = reflect_index(torch.arange(padded.shape[2]) - pad.top, torch.tensor(hw[0]))
+    cols = reflect_index(torch.arange(padded.shape[3]) - pad.left, hw[1])
+    assert torch.equal(x[:, :, rows][:, :, :, cols], padded)
+
+
 def test_single_pixel_axes_are_replicated():
     x = torch.arange(3.0).reshape(1, 1, 1, 3)
     padded, pad = pad_to_multiple(x, 32)

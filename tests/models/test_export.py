@@ -26,7 +26,7 @@ def test_a_jointid_checkpoint_is_exported_and_verified_on_two_shapes(tiny_checkp
     done = export_checkpoint(tiny_checkpoint, tmp_path / "tiny.onnx")
     assert isinstance(done, ExportedModel) and done.kind == "jointid" and done.fixed_size_hw is None
     assert done.path.is_file() and done.parameters == sum(p.numel() for p in build_jointid("tiny").parameters())
-    assert [c.label for c in done.checks] == ["64x96", "96x64"]
+    assert [c.label for c in done.checks] == ["61x97", "96x64"]
     for check in done.checks:
         assert set(check.max_abs_diff) == {"depth_m", "enhanced"}
         assert max(check.max_abs_diff.values()) < export_mod.VERIFY_TOLERANCE
@@ -40,7 +40,7 @@ def test_a_difference_above_the_tolerance_is_an_error_naming_the_file_and_shape(
 
     monkeypatch.setattr(jointid_onnx, "compare_onnx", lambda *a: {"depth_m": 0.5, "enhanced": 1e-7})
     out = tmp_path / "bad.onnx"
-    with pytest.raises(ValueError, match=r"bad\.onnx: ONNX Runtime differs from torch by 0\.5 at 64x96"):
+    with pytest.raises(ValueError, match=r"bad\.onnx: ONNX Runtime differs from torch by 0\.5 at 61x97"):
         export_checkpoint(tiny_checkpoint, out)
 
 

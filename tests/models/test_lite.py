@@ -281,33 +281,43 @@ def test_checkpoint_errors(tmp_path: Path) -> None:
 def test_onnx_round_trip(tmp_path: Path) -> None:
     pytest.importorskip("onnxruntime")
     onnx = pytest.importorskip("onnx")
+    from murk.models.lite.graph import restore_reference
     from murk.models.lite.onnx_export import OnnxLite, export_lite_onnx
 
     net = _trained_like("base")
     path = export_lite_onnx(net, tmp_path / "lite.onnx")
-    ops = {n.op_type for n in onnx.load(str(path)).graph.node}
+    model = onnx.load(str(path))
+    ops = {n.op_type for n in model.graph.node}
+    for node in model.graph.node:
+        ops |= {n.op_type for a in node.attribute if a.type == a.GRAPH for n in a.g.node}
     assert not ops & {"DepthToSpace", "SpaceToDepth", "ConvTranspose"}  # no sub-pixel grids
     assert "BatchNormalization" not in ops  # exported folded
     runner = OnnxLite(path, threads=1)
     folded = reparameterize(net)
     assert runner.work_area_px == net.config.work_area_px  # stored in the model's metadata
-    # dynamic height and width: small frames (multiples of 16, their own working image) and large ones of any
-    # size (a downsampled working image)
-    for hw in ((64, 96), (48, 80), (96, 32), (150, 211), (480, 640)):
+    # dynamic height and width: small frames of any size (their own working image, padded in the graph) and
+    # large ones (a downsampled working image)
+    for hw in ((64, 96), (48, 80), (96, 32), (37, 53), (150, 211), (480, 640)):
         x = torch.rand(2, 3, *hw, generator=torch.Generator().manual_seed(hw[0]))
         with torch.no_grad():
-            assert (runner(x) - folded(x)).abs().max().item() <= 1e-4
-    with pytest.raises(ValueError, match="multiples of 16"):
-        export_lite_onnx(net, tmp_path / "x.onnx", sample_size=(40, 64))
+            assert (runner(x) - restore_reference(folded, x)).abs().max().item() <= 1e-4
+    with pytest.raises(ValueError, match="opset: expected >= 13"):
+        export_lite_onnx(net, tmp_path / "x.onnx", opset=12)
     from murk.enhance.lite_restorer import LiteRestorer
 
     with pytest.raises(ValueError, match="temporal: needs the torch network"):
         LiteRestorer(runner, temporal=0.5)
-    # An export with the earlier single input is refused with what to do.
+    # Exports of earlier murks are refused with what to do: the first one (one input, frames of multiples of 16,
+    # no murk.format metadata) and the second one (a second input, the working image).
     old = tmp_path / "old.onnx"
+    older = tmp_path / "older.onnx"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        torch.onnx.export(folded, (torch.zeros(1, 3, 32, 32),), str(old), dynamo=False, input_names=["image"],
+        torch.onnx.export(folded, (torch.zeros(1, 3, 32, 32),), str(older), dynamo=False, input_names=["image"],
                           output_names=["enhanced"])  # fmt: skip
-    with pytest.raises(InputFileError, match="export it again"):
+        torch.onnx.export(folded, (torch.zeros(1, 3, 32, 32), torch.zeros(1, 3, 16, 16)), str(old), dynamo=False,
+                          input_names=["image", "work"], output_names=["enhanced"])  # fmt: skip
+    with pytest.raises(InputFileError, match=r"no 'murk\.format'.*export it again"):
+        OnnxLite(older)
+    with pytest.raises(InputFileError, match=r"the working image.*export it again"):
         OnnxLite(old)

@@ -107,7 +107,7 @@ def test_murk_export_folds_a_lite_checkpoint(trained: Path, tmp_path: Path) -> N
     out = tmp_path / "lite.onnx"
     r = runner.invoke(app, ["export", "--checkpoint", str(trained / "latest.pt"), "--out", str(out)])
     assert r.exit_code == 0, r.output
-    assert out.is_file() and "folded" in r.output and "verified 64x96" in r.output
+    assert out.is_file() and "folded" in r.output and "verified 97x131" in r.output
     img = np.random.default_rng(1).random((1, 48, 64, 3), dtype=np.float32)
     ref = create("lite", checkpoint=str(trained / "latest.pt")).restore(img).images
     np.testing.assert_allclose(create("lite", checkpoint=str(out)).restore(img).images, ref, atol=1e-4)

@@ -1,4 +1,4 @@
-"""``murk export``: a Joint-ID or ``lite`` checkpoint to an ONNX file (dynamic batch, height and width)."""
+"""``murk export``: a Joint-ID, ``lite`` or baseline checkpoint to an ONNX file of one input, the image in [0, 1]."""
 
 from __future__ import annotations
 
@@ -21,7 +21,8 @@ def export(
         bool,
         typer.Option(
             "--verify/--no-verify",
-            help="Run the file with ONNX Runtime on two sizes and compare with torch (fails above 1e-3).",
+            help="Run the file with ONNX Runtime on random frames of a few sizes and compare with murk's torch "
+            "restorer (fails above 1e-3; lite: 1e-4).",
         ),
     ] = True,
     trust_checkpoint: Annotated[
@@ -47,18 +48,20 @@ def export(
     ] = "256x256",
     quiet: QuietOpt = False,
 ) -> None:
-    """Export a Joint-ID or lite checkpoint to ONNX (dynamic batch, height and width).
+    """Export a Joint-ID or lite checkpoint to ONNX: one input, the image, any size (dynamic batch, height, width).
 
-    Joint-ID: the graph takes 'image' (B, 3, H, W), normalised, H and W multiples of 32, and returns 'depth_m'
-    and 'enhanced'. Run it with: murk enhance IMAGES --out OUT --method jointid --checkpoint model.onnx
+    Every graph takes ONE input 'image' (B, 3, H, W) float32 RGB in [0, 1] and returns the restored frames as
+    murk's restorer computes them (padding, normalisation, working image and clamping are inside the graph).
 
-    lite (told apart by the file's format): the folded network; 'image' is RGB in [0, 1], H and W multiples of
-    16, the output 'enhanced'. Run it with: murk enhance IMAGES --out OUT --method lite --checkpoint lite.onnx
+    Joint-ID: outputs 'depth_m' (metres) and 'enhanced'. Run it with: murk enhance IMAGES --out OUT --method
+    jointid --checkpoint model.onnx
 
-    udaformer, ursct (--model): the paper's baselines for ONE frame size (--size; dynamic batch): 'image' is
-    what the network takes (UDAformer BGR, URSCT-SESR RGB, [0, 1]), the output 'enhanced' (unclamped). Their
-    size-dependent window padding and masks are traced as constants, so the graph rejects or miscomputes other
-    sizes; murk's torch restorers (--method udaformer/ursct) take any size.
+    lite (told apart by the file's format): output 'enhanced' (the working image is made inside the graph). Run it
+    with: murk enhance IMAGES --out OUT --method lite --checkpoint lite.onnx, or with ONNX Runtime alone.
+
+    udaformer, ursct (--model): the paper's baselines for ONE frame size (--size; dynamic batch), output
+    'enhanced'. Their size-dependent window padding and masks are traced as constants, so the graph rejects or
+    miscomputes other sizes; murk's torch restorers (--method udaformer/ursct) take any size.
     """
     from murk.cli._common import parse_size
     from murk.models.export import EXPORT_MODELS, export_checkpoint

@@ -3,7 +3,8 @@
 Pipeline per batch: normalise (training recipe's mean/std) -> reflect-pad to multiples of 32 -> the network
 (whole frame, or overlapping tiles blended at the seams when ``tile`` is set) -> crop back. Frames are never
 resized. Backends: a torch :class:`~murk.models.jointid.JointID` (fp32, or bf16/fp16 autocast; channels-last
-memory; optional ``torch.compile`` and CUDA-graph replay) or an exported ONNX file run by ONNX Runtime.
+memory; optional ``torch.compile`` and CUDA-graph replay) or an exported ONNX file run by ONNX Runtime (its graph
+takes the frame in [0, 1] and normalises it itself; the restorer pads and tiles as for torch).
 
 Registry options (``murk.enhance.create("jointid", **options)``; any other option is an error):
 ``checkpoint`` (murk or official ``.pth``/``.pt``, or an ``.onnx`` file; required), ``onnx`` (an ``.onnx``
@@ -196,7 +197,9 @@ class JointIDRestorer(Restorer):
         if images.ndim != 4 or images.shape[1] != 3 or images.shape[0] < 1:
             raise ShapeError(f"images: expected shape (B, 3, H, W), got {tuple(images.shape)}")
         with torch.inference_mode():
-            x = self._normalize(images.to(self.device, torch.float32))
+            x = images.to(self.device, torch.float32)
+            if self.model is not None:  # an ONNX export normalises inside its graph
+                x = self._normalize(x)
             x, pad = pad_to_multiple(x, SIZE_MULTIPLE, "reflect")
             if self.channels_last:
                 x = x.contiguous(memory_format=torch.channels_last)

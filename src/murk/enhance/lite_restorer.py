@@ -2,9 +2,10 @@
 
 Pipeline per batch: the working image (a frame larger than the network's ``work_area_px``, 128x160 for the
 shipped weights, is area-downsampled to about that many pixels; a smaller frame is reflect-padded to multiples of
-16 and used itself) -> the folded (re-parameterised) network, or its ONNX export run by ONNX Runtime, computes
-gain and offset maps from it -> upsampled to the frame -> ``gain * frame + offset`` -> clamp to [0, 1]. The frame
-itself is never resampled. No depth.
+16 and used itself) -> the folded (re-parameterised) network computes gain and offset maps from it -> upsampled to
+the frame -> ``gain * frame + offset`` -> clamp to [0, 1]. The frame itself is never resampled. No depth. An ONNX
+export (:mod:`murk.models.lite.onnx_export`) does all of it inside its graph: the runner gets the frames as they
+are.
 
 Registry options (``murk.enhance.create("lite", **options)``; any other option is an error):
 ``checkpoint`` (a ``murk train`` checkpoint with ``model.kind: lite``, or an ``.onnx`` export; default: the
@@ -113,25 +114,28 @@ class LiteRestorer(Restorer):
             raise ShapeError(f"images: expected shape (B, 3, H, W), got {tuple(images.shape)}")
         with torch.inference_mode():
             x = images.to(self.device, torch.float32)
+            step = self.batch or x.shape[0]
+            model = self.model
+            if model is None:  # an ONNX export: working image, padding and clamping are in its graph
+                outs = [self._backend(x[i : i + step]) for i in range(0, x.shape[0], step)]
+                return RestoredTensor(outs[0] if len(outs) == 1 else torch.cat(outs), None)
             native = work_size(x.shape[-2], x.shape[-1], self.work_area_px) is None
             if native:  # the frame itself is the working image: its sides must be multiples of 16
                 x, pad = pad_to_multiple(x, SIZE_MULTIPLE, "reflect")
-            if self.model is not None:
-                x = x.contiguous(memory_format=torch.channels_last)
-            step = self.batch or x.shape[0]
+            x = x.contiguous(memory_format=torch.channels_last)
             outs = []
             for i in range(0, x.shape[0], step):
                 chunk = x[i : i + step]
                 work = chunk if native else work_image(chunk, self.work_area_px)
                 ema = self.temporal_hook()
-                if self.model is not None and self.device.type == "cpu":
-                    outs.append(_forward_cpu(self.model, chunk, work, ema))
-                elif self.model is not None and ema is not None:
-                    lo = ema(self.model.maps(work))  # type: ignore[operator]
+                if self.device.type == "cpu":
+                    outs.append(_forward_cpu(model, chunk, work, ema))
+                elif ema is not None:
+                    lo = ema(model.maps(work))  # type: ignore[operator]
                     maps = F.interpolate(lo, size=chunk.shape[-2:], mode="bilinear")
                     outs.append(apply_maps(maps, chunk))  # LiteNet.forward with the averaged maps
                 else:
-                    outs.append(self._backend(chunk, work))
+                    outs.append(model(chunk, work))
             out = outs[0] if len(outs) == 1 else torch.cat(outs)
             out = out.clamp_(0.0, 1.0)
             enhanced = pad.crop(out) if native else out

@@ -6,8 +6,12 @@ odd-size paths (a graph exported at one size gives wrong results at another: che
 square window grids and shift masks (the network itself is built for one size). Export one file per size
 you need; for any frame size, run murk's torch restorers (``--method udaformer``/``ursct``), which pad and tile.
 
-Graph contract: input ``image`` (B, 3, H, W) float32 as the network takes it (UDAformer: BGR in [0, 1];
-URSCT-SESR: RGB in [0, 1]), output ``enhanced`` (B, 3, H, W), unclamped.
+Graph contract (:class:`BaselineImageGraph`): ONE input ``image`` (B, 3, H, W) float32 RGB in [0, 1] at the
+exported size, output ``enhanced`` (B, 3, H, W), the restored frames in RGB clamped to [0, 1]: what the
+restorers' ``native`` policy computes for one whole frame (UDAformer: RGB -> BGR, reflect padding to a multiple
+of 8 and the crop back happen inside the graph; URSCT-SESR: the network on the whole frame). murk's restorers
+tile frames larger than that (UDAformer above 1024x1024 pixels, URSCT-SESR above its 256x256 tile); the graph
+does not.
 """
 
 from __future__ import annotations
@@ -19,15 +23,35 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from torch import nn
+from torch import Tensor, nn
 
 from murk.io.atomic import atomic_path
-from murk.models.udaformer.network import UDAformer
+from murk.models.padding import pad_to_multiple
+from murk.models.udaformer.network import WINDOW, UDAformer
 from murk.models.ursct_sesr.network import SIZE_MULTIPLE, URSCT
 
 INPUT_NAME = "image"
 OUTPUT_NAME = "enhanced"
 DEFAULT_OPSET = 17
+
+
+class BaselineImageGraph(nn.Module):
+    """A baseline on one whole frame as its restorer's ``native`` policy runs it: RGB (B, 3, H, W) in [0, 1] ->
+    restored RGB clamped to [0, 1] (UDAformer: BGR inside, reflect-padded to a multiple of its window, cropped)."""
+
+    def __init__(self, model: UDAformer | URSCT) -> None:
+        super().__init__()
+        self.model = model
+        self.bgr = isinstance(model, UDAformer)
+
+    def forward(self, image: Tensor) -> Tensor:
+        x = image[:, [2, 1, 0]] if self.bgr else image  # the released UDAformer weights take BGR
+        if self.bgr:  # the size is fixed: the padding is traced as constants
+            x, pad = pad_to_multiple(x, WINDOW, "reflect")
+            y = pad.crop(self.model(x))[:, [2, 1, 0]]
+        else:
+            y = self.model(x)
+        return y.clamp(0.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -57,8 +81,8 @@ def export_baseline_onnx(
     opset: int = DEFAULT_OPSET,
     verify: bool = True,
 ) -> OnnxExport:
-    """Export ``model`` for (H, W) = ``size_hw`` with a dynamic batch, atomically; optionally run the file with
-    ONNX Runtime at batch 1 and 2 on random inputs and compare with torch (fp32, CPU).
+    """Export ``model`` as :class:`BaselineImageGraph` for (H, W) = ``size_hw`` with a dynamic batch, atomically;
+    optionally run the file with ONNX Runtime at batch 1 and 2 on random inputs and compare with torch (fp32, CPU).
 
     Raises:
         TypeError: not a UDAformer or URSCT.
@@ -70,7 +94,7 @@ def export_baseline_onnx(
     if opset < 14:
         raise ValueError(f"opset: expected >= 14, got {opset}")
     _check_size(model, size_hw)
-    net = copy.deepcopy(model).float().cpu().eval()
+    net = BaselineImageGraph(copy.deepcopy(model).float().cpu().eval()).eval()
     h, w = size_hw
     path = Path(path)
     dynamic = {INPUT_NAME: {0: "batch"}, OUTPUT_NAME: {0: "batch"}}
@@ -91,7 +115,8 @@ def export_baseline_onnx(
 
 
 def verify_baseline_onnx(model: nn.Module, path: str | Path, size_hw: tuple[int, int]) -> dict[int, float]:
-    """Max |ONNX Runtime - torch| per batch size (1 and 2) on seeded random inputs of ``size_hw``."""
+    """Max |ONNX Runtime - torch| per batch size (1 and 2) on seeded random inputs of ``size_hw``; ``model`` is
+    what the graph computes (a :class:`BaselineImageGraph`)."""
     import onnxruntime as ort
 
     session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])

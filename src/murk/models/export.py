@@ -1,12 +1,14 @@
 """What ``murk export`` does: a checkpoint (Joint-ID, ``lite``, or one of the paper's baselines) to an ONNX file,
 verified with ONNX Runtime against torch (:func:`export_checkpoint`).
 
-- Joint-ID (murk's checkpoints or the official ``.pth``): dynamic batch, height and width; input ``image``
-  normalised (H, W multiples of 32), outputs ``depth_m`` and ``enhanced``
-  (:mod:`murk.models.jointid.onnx_export`).
-- ``lite`` (told apart by the file's format): the folded network, dynamic shapes, RGB in [0, 1]
+Every graph takes ONE input, ``image`` (B, 3, H, W) float32 RGB in [0, 1], and returns what murk's restorer
+returns for it (normalisation, padding, working image and clamping are inside the graph):
+
+- Joint-ID (murk's checkpoints or the official ``.pth``): dynamic batch, height and width (any size), outputs
+  ``depth_m`` and ``enhanced`` (:mod:`murk.models.jointid.onnx_export`).
+- ``lite`` (told apart by the file's format): dynamic batch, height and width (any size), output ``enhanced``
   (:mod:`murk.models.lite.onnx_export`).
-- ``udaformer``, ``ursct``: ONE frame size, dynamic batch (:mod:`murk.models.baseline_onnx`).
+- ``udaformer``, ``ursct``: ONE frame size, dynamic batch, output ``enhanced`` (:mod:`murk.models.baseline_onnx`).
 """
 
 from __future__ import annotations
@@ -23,8 +25,8 @@ EXPORT_MODELS: tuple[str, ...] = ("auto", "udaformer", "ursct")
 VERIFY_TOLERANCE = 1e-3
 """Max absolute difference (depth in metres, enhanced in [0, 1]) allowed between ONNX Runtime and torch."""
 
-_JOINTID_SIZES = ((64, 96), (96, 64))
-"""(H, W) of the two random inputs a Joint-ID export is verified on."""
+_JOINTID_SIZES = ((61, 97), (96, 64))
+"""(H, W) of the two random frames a Joint-ID export is verified on (the first padded inside the graph)."""
 
 
 @dataclass(frozen=True)
@@ -104,7 +106,7 @@ def export_checkpoint(
 
 
 def _export_jointid(checkpoint: str | Path, out: Path, opset: int, verify: bool, trust: bool) -> ExportedModel:
-    from murk.models.jointid import load_checkpoint, normalize_input
+    from murk.models.jointid import load_checkpoint
     from murk.models.jointid.onnx_export import OnnxJointID, compare_onnx, export_onnx
 
     net = load_checkpoint(checkpoint, trust=trust)
@@ -114,7 +116,7 @@ def _export_jointid(checkpoint: str | Path, out: Path, opset: int, verify: bool,
         runner = OnnxJointID(out)
         g = torch.Generator().manual_seed(0)
         for h, w in _JOINTID_SIZES:
-            x = normalize_input(torch.rand(1, 3, h, w, generator=g))
+            x = torch.rand(1, 3, h, w, generator=g)
             checks.append(ExportCheck(f"{h}x{w}", compare_onnx(net, runner, x)))
     return ExportedModel(out, "jointid", sum(p.numel() for p in net.parameters()), tuple(checks))
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+import torch
 import torch.nn.functional as F
 from torch import Tensor
 
@@ -63,6 +64,24 @@ def _pad_axis(x: Tensor, before: int, after: int, dim: int, mode: PadMode) -> Te
         x = F.pad(x, pads, mode=mode)
         before, after = before - b, after - a
     return x
+
+
+def reflect_index(pos: Tensor, n: Tensor | int) -> Tensor:
+    """The source index of each position ``pos`` (integers, any sign or size) of an axis of length ``n`` extended by
+    :func:`pad_to_multiple`'s ``reflect`` (mirrored without repeating the edge, repeated when the padding exceeds
+    the axis: periodic with period ``2 (n - 1)``; a 1-pixel axis is replicated). Gathering the axis at
+    ``reflect_index(arange(n + before + after) - before, n)`` equals the padding (pinned by a test); written with
+    tensor arithmetic only, so that a traced ONNX graph computes it for any ``n``."""
+    period = torch.clamp(2 * torch.as_tensor(n) - 2, min=1)
+    m = torch.remainder(pos.abs(), period)
+    return torch.where(m < n, m, period - m)
+
+
+def reflect_rows(n: Tensor, n_padded: Tensor, before: Tensor) -> Tensor:
+    """The rows (or columns) to gather from an axis of length ``n`` to pad it to ``n_padded`` with ``before`` of them
+    first, as :func:`pad_to_multiple`'s ``reflect`` does (0-dim int64 tensors: traced, an ONNX graph computes the
+    padding of each frame it gets)."""
+    return reflect_index(torch.arange(n_padded) - before, n)  # type: ignore[call-overload]  # a 0-dim tensor
 
 
 def pad_to_multiple(

@@ -1,8 +1,11 @@
-"""ONNX export of Joint-ID with dynamic batch, height and width (multiples of 32), and an ONNX Runtime runner.
+"""ONNX export of Joint-ID as a graph of ONE input with dynamic batch, height and width, and an ONNX Runtime runner.
 
-The graph is the network's ``forward``: input ``image`` is the *normalised* batch (B, 3, H, W) (see
-``normalize_input``), outputs ``depth_m`` (B, 1, H, W) and ``enhanced`` (B, 3, H, W). The TorchScript-based
-exporter is used (``dynamo=False``): it needs no extra package (the torch.export-based one needs onnxscript).
+Graph contract (:class:`JointIDImageGraph`, what the ``jointid`` restorer computes): input ``image``
+(B, 3, H, W) float32 RGB in [0, 1], any H, W >= 1; outputs ``depth_m`` (B, 1, H, W), metres, and ``enhanced``
+(B, 3, H, W) in [0, 1]. Inside: the training recipe's normalisation, reflect padding to multiples of 32 (a gather
+per axis, :func:`murk.models.padding.reflect_rows`), the network, the crop back and a clamp of ``enhanced``.
+Model metadata ``murk.format`` = ``murk.jointid.image``. The TorchScript-based exporter is used
+(``dynamo=False``): it needs no extra package (the torch.export-based one needs onnxscript).
 
 Reference: Yang, Kang, Lee, Cho, IEEE Sensors Journal 2023, doi:10.1109/JSEN.2023.3338730.
 """
@@ -21,10 +24,15 @@ from torch import Tensor, nn
 from murk.errors import InputFileError
 from murk.io.atomic import atomic_path
 from murk.models.jointid.checkpoint import unwrap
+from murk.models.jointid.network import INPUT_MEAN, INPUT_STD, SIZE_MULTIPLE, normalize_input
+from murk.models.padding import pad_to_multiple, reflect_rows
 
 INPUT_NAME = "image"
 OUTPUT_NAMES = ("depth_m", "enhanced")
 DEFAULT_OPSET = 17
+FORMAT_KEY = "murk.format"
+FORMAT = "murk.jointid.image"
+"""The ``murk.format`` metadata of a one-input Joint-ID export."""
 
 
 def _cpu_fp32(model: nn.Module) -> nn.Module:
@@ -36,16 +44,40 @@ def _cpu_fp32(model: nn.Module) -> nn.Module:
     return net
 
 
-class _Plain(nn.Module):
-    """Returns a plain tuple (exporters and runtimes do not know NamedTuple)."""
+class JointIDImageGraph(nn.Module):
+    """Joint-ID as the ``jointid`` restorer runs it (whole frames), on one input that the tracer follows for any
+    size: frames (B, 3, H, W) RGB in [0, 1] -> ``(depth_m, enhanced)`` at the frame's size (see the module
+    docstring); equal to :func:`restore_reference`."""
+
+    mean: Tensor
+    std: Tensor
 
     def __init__(self, model: nn.Module) -> None:
         super().__init__()
         self.model = model
+        self.register_buffer("mean", torch.tensor(INPUT_MEAN).view(1, 3, 1, 1), persistent=False)
+        self.register_buffer("std", torch.tensor(INPUT_STD).view(1, 3, 1, 1), persistent=False)
 
-    def forward(self, x: Tensor) -> tuple[Tensor, Tensor]:
+    def forward(self, image: Tensor) -> tuple[Tensor, Tensor]:
+        shape = torch._shape_as_tensor(image)  # traced: the graph pads and crops each frame by its own size
+        h, w = shape[2], shape[3]
+        h_pad = h + torch.remainder(-h, SIZE_MULTIPLE)
+        w_pad = w + torch.remainder(-w, SIZE_MULTIPLE)
+        top = torch.div(h_pad - h, 2, rounding_mode="floor")  # as murk.models.padding.padding_for
+        left = torch.div(w_pad - w, 2, rounding_mode="floor")
+        x = (image - self.mean) / self.std
+        x = x[:, :, reflect_rows(h, h_pad, top)][:, :, :, reflect_rows(w, w_pad, left)]
         out = self.model(x)
-        return out.depth_m, out.enhanced
+        depth = out.depth_m[:, :, top : top + h, left : left + w]
+        return depth, out.enhanced[:, :, top : top + h, left : left + w].clamp(0.0, 1.0)
+
+
+def restore_reference(model: nn.Module, x: Tensor) -> tuple[Tensor, Tensor]:
+    """What the ``jointid`` restorer computes for frames ``x`` (B, 3, H, W) in [0, 1] (whole frames, fp32),
+    written plainly: normalise, reflect-pad to multiples of 32, the network, crop, clamp ``enhanced``."""
+    padded, pad = pad_to_multiple(normalize_input(x), SIZE_MULTIPLE, "reflect")
+    out = model(padded)
+    return pad.crop(out.depth_m), pad.crop(out.enhanced).clamp(0.0, 1.0)
 
 
 def export_onnx(
@@ -53,25 +85,28 @@ def export_onnx(
     path: str | Path,
     *,
     opset: int = DEFAULT_OPSET,
-    sample_size: tuple[int, int] = (64, 96),
+    sample_size: tuple[int, int] = (45, 70),
 ) -> Path:
-    """Export ``model`` to an ONNX file (atomic write) with dynamic batch/height/width.
+    """Export ``model`` as the one-input graph of the module docstring (:class:`JointIDImageGraph`) to an ONNX
+    file (atomic write) with dynamic batch/height/width.
 
     Args:
         model: a JointID (optionally wrapped); exported in fp32 on the CPU in eval mode (from a copy when the
             model is elsewhere or in training mode; the caller's model is not changed).
         path: the ``.onnx`` file to write.
         opset: ONNX opset (>= 14 for scaled dot-product attention).
-        sample_size: (H, W) of the tracing input, multiples of 32; the graph accepts any multiple of 32.
+        sample_size: (H, W) of the tracing input; the graph accepts any size.
 
     Raises:
-        ValueError: opset < 14 or a sample size that is not a positive multiple of 32.
+        ValueError: opset < 14 or a sample size that is not positive.
     """
+    import onnx
+
     if opset < 14:
         raise ValueError(f"opset: expected >= 14 (attention export), got {opset}")
     h, w = sample_size
-    if h < 32 or w < 32 or h % 32 or w % 32:
-        raise ValueError(f"sample_size: expected positive multiples of 32, got {sample_size}")
+    if h < 1 or w < 1:
+        raise ValueError(f"sample_size: expected a positive height and width, got {sample_size}")
     net = _cpu_fp32(model)
     x = torch.zeros(1, 3, h, w)
     dynamic = {INPUT_NAME: {0: "batch", 2: "height", 3: "width"}}
@@ -83,7 +118,7 @@ def export_onnx(
         # The exporter's note that strided slices are not constant-folded: an optimisation it skips, not a fault.
         warnings.filterwarnings("ignore", message="Constant folding - Only steps=1", category=UserWarning)
         torch.onnx.export(
-            _Plain(net),
+            JointIDImageGraph(net).eval(),
             (x,),
             str(tmp),
             dynamo=False,
@@ -93,11 +128,16 @@ def export_onnx(
             opset_version=opset,
             do_constant_folding=True,
         )
+        graph = onnx.load(str(tmp))
+        entry = graph.metadata_props.add()
+        entry.key, entry.value = FORMAT_KEY, FORMAT
+        onnx.save(graph, str(tmp))
     return path
 
 
 class OnnxJointID:
-    """Runs an exported Joint-ID file with ONNX Runtime: ``runner(x) -> (depth_m, enhanced)`` on tensors.
+    """Runs an exported Joint-ID file with ONNX Runtime: ``runner(x) -> (depth_m, enhanced)`` on tensors
+    (B, 3, H, W) RGB in [0, 1] of any size (normalisation and padding are in the graph).
 
     Args:
         path: the ``.onnx`` file.
@@ -142,10 +182,16 @@ class OnnxJointID:
             raise InputFileError(
                 path, f"not a murk Joint-ID export (inputs {names}, outputs {outs}; expected {expected})"
             )
+        if self.session.get_modelmeta().custom_metadata_map.get(FORMAT_KEY) != FORMAT:
+            raise InputFileError(
+                path,
+                "a Joint-ID export from an earlier murk (a normalised input, sides multiples of 32); export it "
+                "again with 'murk export' (one input: the image in [0, 1], any size)",
+            )
         self.path = path
 
     def run_numpy(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(B, 3, H, W) float32 normalised input -> (depth_m, enhanced) float32 arrays."""
+        """(B, 3, H, W) float32 RGB in [0, 1], any H, W -> (depth_m, enhanced) float32 arrays."""
         depth, enhanced = self.session.run(list(OUTPUT_NAMES), {INPUT_NAME: np.ascontiguousarray(x, np.float32)})
         return depth, enhanced
 
@@ -158,12 +204,13 @@ class OnnxJointID:
 
 
 def compare_onnx(model: nn.Module, runner: OnnxJointID, x: Tensor) -> dict[str, Any]:
-    """Max absolute differences between the torch model (fp32, CPU) and the ONNX runner on ``x``."""
+    """Max absolute differences between torch (:func:`restore_reference`, fp32, CPU) and the ONNX runner on frames
+    ``x`` (B, 3, H, W) in [0, 1]."""
     net = _cpu_fp32(model)
     with torch.inference_mode():
-        ref = net(x.float().cpu())
+        ref_depth, ref_enhanced = restore_reference(net, x.float().cpu())
     depth, enhanced = runner(x.float().cpu())
     return {
-        "depth_m": float((depth - ref.depth_m).abs().max()),
-        "enhanced": float((enhanced - ref.enhanced).abs().max()),
+        "depth_m": float((depth - ref_depth).abs().max()),
+        "enhanced": float((enhanced - ref_enhanced).abs().max()),
     }

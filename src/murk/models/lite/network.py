@@ -198,6 +198,20 @@ def work_size(height: int, width: int, work_area_px: int) -> tuple[int, int] | N
     return tuple(max(SIZE_MULTIPLE, round(n * s / SIZE_MULTIPLE) * SIZE_MULTIPLE) for n in (height, width))  # type: ignore[return-value]
 
 
+def work_size_tensor(height: Tensor, width: Tensor, work_area_px: int) -> tuple[Tensor, Tensor]:
+    """:func:`work_size` for a frame larger than ``work_area_px`` (> 0) with the sizes as 0-dim int64 tensors and
+    tensor arithmetic only (an ONNX graph traced through it computes the size of each frame it gets): float64,
+    rounded half to even as Python's ``round``; equal to :func:`work_size` (pinned by a test)."""
+    pixels = (height * width).to(torch.float64)
+    scale = torch.sqrt(torch.full_like(pixels, work_area_px) / pixels)  # a Div (a scalar / tensor is 1 / x * a)
+
+    def side(n: Tensor) -> Tensor:
+        rounded = torch.round(n.to(torch.float64) * scale / SIZE_MULTIPLE).to(torch.int64) * SIZE_MULTIPLE
+        return torch.clamp(rounded, min=SIZE_MULTIPLE)
+
+    return side(height), side(width)
+
+
 def work_image(x: Tensor, work_area_px: int) -> Tensor:
     """The working image of a batch (B, 3, H, W): area-downsampled to :func:`work_size`, or ``x`` itself."""
     size = work_size(int(x.shape[-2]), int(x.shape[-1]), work_area_px)

@@ -1,20 +1,29 @@
-"""ONNX export of the folded ``lite`` network (dynamic batch, height and width) and an ONNX Runtime runner.
+"""ONNX export of the ``lite`` restorer as a graph of ONE input (dynamic batch, height and width) and an ONNX Runtime
+runner.
 
-The graph takes ``image``, RGB in [0, 1] (B, 3, H, W) (no normalisation), and ``work``, its working image
-(B, 3, h, w) with h and w multiples of 16 (:func:`~murk.models.lite.network.work_image`: the image itself when it
-has at most ``work_area_px`` pixels, else area-downsampled; the runner makes it), and returns ``enhanced``
-(B, 3, H, W), not clamped (as the torch network). The network's ``work_area_px`` is stored in the model's
-metadata (key ``murk.work_area_px``). The TorchScript-based exporter is used (``dynamo=False``: no
-extra package needed). Operators: Conv, LeakyRelu, AveragePool, ReduceMean, Resize (bilinear), Tanh, Exp,
-Mul, Add, Slice, Concat.
+Graph contract: input ``image`` (B, 3, H, W) float32 RGB in [0, 1], any H, W >= 1 (no normalisation, no size
+multiple); output ``enhanced`` (B, 3, H, W), the restored frames clamped to [0, 1]: what ``murk enhance --method
+lite`` computes before any post-processing. The working image is made inside the graph
+(:mod:`murk.models.lite.graph`): an ``If`` on the frame's area (more than ``work_area_px`` pixels) picks the
+``downsample`` branch (area-downsampling by a gather per axis) or the ``native`` one (reflect padding to
+multiples of 16 by a gather per axis, cropped back); both run the folded network and apply its maps at full
+resolution. Model metadata: ``murk.format`` = ``murk.lite.image`` and ``murk.work_area_px``.
+
+Each branch is traced with the TorchScript-based exporter (``dynamo=False``: no extra package needed) and the two
+are joined into one model with ``onnx``. Operators: Conv, LeakyRelu, AveragePool, ReduceMean, ReduceSum,
+ReduceMax, Resize (bilinear), Tanh, Exp, Mul, Add, Sub, Div, Slice, Concat, Gather, Range, Shape, Sqrt, Round,
+Mod, Where, Clip, If and a few more of shape arithmetic; opset >= 13.
 """
 
 from __future__ import annotations
 
 import copy
+import math
+import tempfile
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -22,15 +31,24 @@ from torch import Tensor, nn
 
 from murk.errors import InputFileError
 from murk.io.atomic import atomic_path
-from murk.models.lite.network import SIZE_MULTIPLE, LiteNet, reparameterize, unwrap, work_image
+from murk.models.lite.graph import LiteImageGraph, LitePath, restore_reference
+from murk.models.lite.network import LiteNet, reparameterize, unwrap
 
 INPUT_NAME = "image"
-WORK_NAME = "work"
 OUTPUT_NAME = "enhanced"
+FORMAT_KEY = "murk.format"
+FORMAT = "murk.lite.image"
+"""The ``murk.format`` metadata of a one-input lite export."""
 WORK_AREA_KEY = "murk.work_area_px"
 DEFAULT_OPSET = 17
+MIN_OPSET = 13
 VERIFY_TOLERANCE = 1e-4
 """Max absolute difference (enhanced, in [0, 1] units) allowed between ONNX Runtime and torch."""
+VERIFY_SIZES = ((64, 48), (97, 131), (192, 320), (480, 640))
+"""(H, W) of the random frames an export is verified on: native (even and odd sizes, padded inside the graph) and
+downsampled (one odd-sized)."""
+
+_AXES = {0: "batch", 2: "height", 3: "width"}
 
 
 def _inference_copy(model: nn.Module) -> LiteNet:
@@ -40,57 +58,123 @@ def _inference_copy(model: nn.Module) -> LiteNet:
     return folded.float().cpu().eval()
 
 
-def export_lite_onnx(
-    model: nn.Module, path: str | Path, *, opset: int = DEFAULT_OPSET, sample_size: tuple[int, int] = (64, 96)
-) -> Path:
-    """Export a ``lite`` network (training form or folded; it is folded first) to ONNX, atomically.
+def _trace(net: LiteNet, path: LitePath, size_hw: tuple[int, int], opset: int) -> Any:
+    """One branch of the graph: :class:`LiteImageGraph` traced on a frame of ``size_hw`` along ``path``."""
+    import onnx
+
+    with tempfile.TemporaryDirectory(prefix="murk-lite-onnx-") as tmp, warnings.catch_warnings():
+        file = Path(tmp) / f"{path}.onnx"
+        warnings.simplefilter("ignore", DeprecationWarning)  # the legacy exporter announces its successor
+        warnings.simplefilter("ignore", torch.jit.TracerWarning)  # the path choice, fixed per branch
+        torch.onnx.export(
+            LiteImageGraph(net, path).eval(),
+            (torch.zeros(1, 3, *size_hw),),
+            str(file),
+            dynamo=False,
+            input_names=[INPUT_NAME],
+            output_names=[OUTPUT_NAME],
+            dynamic_axes={INPUT_NAME: _AXES, OUTPUT_NAME: _AXES},
+            opset_version=opset,
+            do_constant_folding=True,
+        )
+        return onnx.load(str(file))
+
+
+def _as_branch(model: Any, prefix: str) -> Any:
+    """``model``'s graph as the branch of an ``If``: no inputs (``image`` is the outer graph's), every other name
+    prefixed so that the two branches and the outer graph share none."""
+    graph = copy.deepcopy(model.graph)
+    names = {v for node in graph.node for v in node.output} | {t.name for t in graph.initializer}
+    names |= {v.name for v in graph.output} | {v.name for v in graph.value_info}
+    rename = {v: f"{prefix}{v}" for v in names if v and v != INPUT_NAME}
+
+    def new(v: str) -> str:
+        return rename.get(v, v)
+
+    for node in graph.node:
+        if any(a.type in (a.GRAPH, a.GRAPHS) for a in node.attribute):  # the traced graphs have no control flow
+            raise ValueError(f"lite export: unexpected subgraph in node {node.op_type}")
+        node.name = f"{prefix}{node.name}"
+        node.input[:] = [new(v) for v in node.input]
+        node.output[:] = [new(v) for v in node.output]
+    for seq in (graph.initializer, graph.output, graph.value_info):
+        for item in seq:
+            item.name = new(item.name)
+    del graph.input[:]
+    graph.name = prefix.strip("/")
+    return graph
+
+
+def _join_on_area(native: Any, downsample: Any, work_area_px: int) -> Any:
+    """One model: ``If(H * W > work_area_px)`` runs ``downsample``, else ``native`` (the restorer's choice)."""
+    from onnx import TensorProto, helper
+
+    def const(name: str, values: list[int], dims: list[int]) -> Any:
+        return helper.make_node("Constant", [], [name], value=helper.make_tensor(name, TensorProto.INT64, dims, values))
+
+    nodes = [
+        helper.make_node("Shape", [INPUT_NAME], ["/area/shape"], name="/area/Shape"),
+        const("/area/starts", [2], [1]),
+        const("/area/ends", [4], [1]),
+        helper.make_node("Slice", ["/area/shape", "/area/starts", "/area/ends"], ["/area/hw"], name="/area/Slice"),
+        helper.make_node("ReduceProd", ["/area/hw"], ["/area/pixels"], name="/area/ReduceProd", keepdims=0),
+        const("/area/limit", [work_area_px], []),
+        helper.make_node("Greater", ["/area/pixels", "/area/limit"], ["/area/large"], name="/area/Greater"),
+        helper.make_node(
+            "If",
+            ["/area/large"],
+            [OUTPUT_NAME],
+            name="/If",
+            then_branch=_as_branch(downsample, "/downsample/"),
+            else_branch=_as_branch(native, "/native/"),
+        ),
+    ]
+    graph = helper.make_graph(
+        nodes, "lite", [copy.deepcopy(native.graph.input[0])], [copy.deepcopy(native.graph.output[0])]
+    )
+    model = helper.make_model(graph, opset_imports=list(native.opset_import), producer_name=native.producer_name)
+    model.producer_version = native.producer_version
+    model.ir_version = native.ir_version
+    return model
+
+
+def export_lite_onnx(model: nn.Module, path: str | Path, *, opset: int = DEFAULT_OPSET) -> Path:
+    """Export a ``lite`` network (training form or folded; it is folded first) as the one-input graph of the
+    module docstring, atomically.
 
     Args:
         model: a LiteNet, optionally wrapped.
         path: the ``.onnx`` file to write.
-        opset: ONNX opset (>= 11).
-        sample_size: (H, W) of the tracing input, multiples of 16; the graph accepts any size (the working
-            image: multiples of 16).
+        opset: ONNX opset (>= 13).
 
     Raises:
-        ValueError: opset < 11 or a sample size that is not a positive multiple of 16.
+        ValueError: opset < 13.
     """
-    if opset < 11:
-        raise ValueError(f"opset: expected >= 11 (bilinear Resize), got {opset}")
-    h, w = sample_size
-    if h < SIZE_MULTIPLE or w < SIZE_MULTIPLE or h % SIZE_MULTIPLE or w % SIZE_MULTIPLE:
-        raise ValueError(f"sample_size: expected positive multiples of {SIZE_MULTIPLE}, got {sample_size}")
-    net = _inference_copy(model)
-    axes = {0: "batch", 2: "height", 3: "width"}
-    work_axes = {0: "batch", 2: "work_height", 3: "work_width"}
-    path = Path(path)
-    with atomic_path(path) as tmp, warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)  # the legacy exporter announces its successor
-        warnings.simplefilter("ignore", torch.jit.TracerWarning)  # the input shape check
-        # Traced with a working image of another size than the frame, so that the upsampling to the frame's
-        # size is recorded from the frame's shape, not as a fixed scale.
-        torch.onnx.export(
-            net,
-            (torch.zeros(1, 3, 2 * h, 2 * w), torch.zeros(1, 3, h, w)),
-            str(tmp),
-            dynamo=False,
-            input_names=[INPUT_NAME, WORK_NAME],
-            output_names=[OUTPUT_NAME],
-            dynamic_axes={INPUT_NAME: axes, WORK_NAME: work_axes, OUTPUT_NAME: axes},
-            opset_version=opset,
-            do_constant_folding=True,
-        )
-        import onnx
+    import onnx
 
-        graph = onnx.load(str(tmp))
+    if opset < MIN_OPSET:
+        raise ValueError(f"opset: expected >= {MIN_OPSET} (ReduceSum with axes as an input), got {opset}")
+    net = _inference_copy(model)
+    area = net.config.work_area_px
+    native = _trace(net, "native", (9, 13), opset)  # 9x13: padded on every side; any frame of <= 256 px is native
+    if area > 0:
+        side = math.isqrt(area) + 3  # side x (side + 7) > area: downsampled, windows of two sizes
+        graph = _join_on_area(native, _trace(net, "downsample", (side, side + 7), opset), area)
+    else:
+        graph = native
+    for key, value in ((FORMAT_KEY, FORMAT), (WORK_AREA_KEY, str(area))):
         entry = graph.metadata_props.add()
-        entry.key, entry.value = WORK_AREA_KEY, str(net.config.work_area_px)
+        entry.key, entry.value = key, value
+    onnx.checker.check_model(graph, full_check=True)
+    path = Path(path)
+    with atomic_path(path) as tmp:
         onnx.save(graph, str(tmp))
     return path
 
 
 class OnnxLite:
-    """Runs an exported ``lite`` file with ONNX Runtime: ``runner(x) -> enhanced`` on (B, 3, H, W) tensors.
+    """Runs an exported ``lite`` file with ONNX Runtime: ``runner(x) -> enhanced`` on (B, 3, H, W) tensors of any
+    size (the whole restorer is in the graph; the output is clamped to [0, 1]).
 
     Args:
         path: the ``.onnx`` file.
@@ -120,32 +204,29 @@ class OnnxLite:
             raise InputFileError(path, f"not a loadable ONNX model ({type(exc).__name__}: {exc})") from exc
         ins = [i.name for i in self.session.get_inputs()]
         outs = [o.name for o in self.session.get_outputs()]
-        if ins == [INPUT_NAME] and outs == [OUTPUT_NAME]:
-            raise InputFileError(
-                path, "a lite export from an earlier murk (no working-image input); export it again with 'murk export'"
-            )
-        if ins != [INPUT_NAME, WORK_NAME] or outs != [OUTPUT_NAME]:
-            raise InputFileError(
-                path, f"not a murk lite export (inputs {ins}, outputs {outs}; expected image, work -> enhanced)"
-            )
         meta = self.session.get_modelmeta().custom_metadata_map
+        earlier = "a lite export from an earlier murk"
+        again = "export it again with 'murk export' (one input: the image)"
+        if ins == [INPUT_NAME, "work"] and outs == [OUTPUT_NAME]:
+            raise InputFileError(path, f"{earlier} (a second input, the working image); {again}")
+        if ins != [INPUT_NAME] or outs != [OUTPUT_NAME]:
+            raise InputFileError(
+                path, f"not a murk lite export (inputs {ins}, outputs {outs}; expected image -> enhanced)"
+            )
+        if meta.get(FORMAT_KEY) != FORMAT:
+            raise InputFileError(path, f"{earlier} (no {FORMAT_KEY!r}: {FORMAT!r} metadata); {again}")
         try:
             self.work_area_px = int(meta[WORK_AREA_KEY])
         except (KeyError, ValueError) as exc:
             raise InputFileError(path, f"not a murk lite export (no valid {WORK_AREA_KEY!r} metadata)") from exc
         self.path = path
 
-    def run_numpy(self, x: np.ndarray, work: np.ndarray | None = None) -> np.ndarray:
-        """(B, 3, H, W) float32 RGB in [0, 1] (and its working image; default: made here) -> enhanced
-        (B, 3, H, W) float32."""
-        if work is None:
-            work = work_image(torch.from_numpy(np.asarray(x, np.float32)), self.work_area_px).numpy()
-        feeds = {INPUT_NAME: np.ascontiguousarray(x, np.float32), WORK_NAME: np.ascontiguousarray(work, np.float32)}
-        return self.session.run([OUTPUT_NAME], feeds)[0]
+    def run_numpy(self, x: np.ndarray) -> np.ndarray:
+        """(B, 3, H, W) float32 RGB in [0, 1], any H, W -> restored (B, 3, H, W) float32 in [0, 1]."""
+        return self.session.run([OUTPUT_NAME], {INPUT_NAME: np.ascontiguousarray(x, np.float32)})[0]
 
-    def __call__(self, x: Tensor, work: Tensor | None = None) -> Tensor:
-        w = None if work is None else work.detach().float().cpu().numpy()
-        return torch.from_numpy(self.run_numpy(x.detach().float().cpu().numpy(), w)).to(x.device)
+    def __call__(self, x: Tensor) -> Tensor:
+        return torch.from_numpy(self.run_numpy(x.detach().float().cpu().numpy())).to(x.device)
 
     def __repr__(self) -> str:
         return f"OnnxLite({str(self.path)!r})"
@@ -170,8 +251,9 @@ def export_lite_checkpoint(
     trust: bool = False,
     tolerance: float = VERIFY_TOLERANCE,
 ) -> LiteExport:
-    """Load a ``lite`` checkpoint, fold it, export it to ONNX and (``verify``) compare ONNX Runtime with torch on
-    two random inputs of different shapes.
+    """Load a ``lite`` checkpoint, fold it, export it to ONNX and (``verify``) compare ONNX Runtime with torch
+    (:func:`~murk.models.lite.graph.restore_reference`: what the restorer computes) on random frames of
+    :data:`VERIFY_SIZES`.
 
     Raises:
         InputFileError: the checkpoint cannot be read.
@@ -190,10 +272,10 @@ def export_lite_checkpoint(
     if verify:
         runner = OnnxLite(out)
         g = torch.Generator().manual_seed(0)
-        for h, w in ((64, 96), (96, 64), (192, 320)):  # the last one larger than the working area
+        for h, w in VERIFY_SIZES:
             x = torch.rand(2, 3, h, w, generator=g)
             with torch.inference_mode():
-                ref = model(x)
+                ref = restore_reference(model, x)
             diffs[(h, w)] = float((runner(x) - ref).abs().max())
             if diffs[(h, w)] > tolerance:
                 raise ValueError(
