@@ -108,7 +108,8 @@ def synth(
     """
     from murk._config import load_yaml
     from murk.synth.config import SynthConfig
-    from murk.synth.runner import Shard, synthesize
+    from murk.synth.common import Shard
+    from murk.synth.runner import synthesize
 
     if list_file is not None and len(paths) != 1:
         raise ValueError("with --list give exactly one argument, OUT_DIR")
