@@ -68,7 +68,7 @@ def parse_size(text: str, *, option: str = "--size") -> tuple[int, int]:
         raise ValueError(f"{option}: expected WxH with integers >= 1 (e.g. 640x480), got {text!r}") from None
     if w < 1 or h < 1:
         raise ValueError(f"{option}: expected WxH with integers >= 1 (e.g. 640x480), got {text!r}")
-    from murk.io.images import max_pixels
+    from murk._limits import max_pixels
 
     if w * h > max_pixels():
         raise ValueError(
