@@ -54,7 +54,7 @@ def test_yaml_errors_name_file_and_key(tmp_path: Path) -> None:
 
 
 def test_the_resume_check_names_a_corrupt_earlier_config(tmp_path: Path) -> None:
-    from murk.synth.runner import check_config_compatible
+    from murk.synth.common import check_config_compatible
 
     (tmp_path / "config.yaml").write_text("variants: [1\n")
     with pytest.raises(ValueError, match=r"config\.yaml: invalid YAML"):

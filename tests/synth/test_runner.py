@@ -12,10 +12,11 @@ from murk._config import merge
 from murk.data import default_snow_bank
 from murk.io import DepthOptions, discover, load_pair, read_jsonl, read_rgb
 from murk.snow.bank import load_bank
+from murk.synth.common import Shard, fit_size
 from murk.synth.config import SynthConfig
 from murk.synth.params import variant_from_dict
 from murk.synth.pipeline import render
-from murk.synth.runner import Shard, fit_size, run_synthesis
+from murk.synth.runner import run_synthesis
 
 
 def _digest(folder: Path) -> dict[str, str]:

@@ -17,8 +17,8 @@ from murk.io import discover, read_jsonl
 from murk.io.atomic import TMP_PREFIX
 from murk.io.jobs import read_errors
 from murk.synth import shards as shards_mod
+from murk.synth.common import Shard
 from murk.synth.config import SynthConfig
-from murk.synth.runner import Shard
 from murk.synth.shards import plan_shards, sample_key, write_shards
 
 pytest.importorskip("webdataset", reason="the webdataset package is needed for --format webdataset")

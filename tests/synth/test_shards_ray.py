@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 
 from murk.io import discover
+from murk.synth.common import Shard
 from murk.synth.config import SynthConfig
-from murk.synth.runner import Shard
 from murk.synth.shards import write_shards
 
 pytest.importorskip("webdataset", reason="the webdataset package is needed for --format webdataset")

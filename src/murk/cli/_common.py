@@ -81,7 +81,7 @@ def parse_size(text: str, *, option: str = "--size") -> tuple[int, int]:
         raise ValueError(f"{option}: expected WxH with integers >= 1 (e.g. 640x480), got {text!r}") from None
     if w < 1 or h < 1:
         raise ValueError(f"{option}: expected WxH with integers >= 1 (e.g. 640x480), got {text!r}")
-    from murk.io.images import max_pixels
+    from murk._limits import max_pixels
 
     if w * h > max_pixels():
         raise ValueError(
@@ -91,13 +91,14 @@ def parse_size(text: str, *, option: str = "--size") -> tuple[int, int]:
 
 
 def resolve_device(device: str) -> str:
-    """Validate a ``--device`` value; ``cuda`` without a GPU is an error that says so."""
-    import torch
-
+    """Validate a ``--device`` value; ``cuda`` without a GPU is an error that says so (only that asks torch, so
+    ``cpu`` and a misspelt value answer without importing it)."""
     dev = device.strip().lower()
     if dev == "cpu":
         return "cpu"
     if dev.startswith("cuda"):
+        import torch
+
         if not torch.cuda.is_available():
             raise ValueError(f"--device {device}: CUDA is not available on this machine (torch {torch.__version__})")
         return dev

@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
 from rich.markup import escape
 
-from murk.io.jobs import JobSummary, summary_line
+if TYPE_CHECKING:  # (murk.io pulls in numpy and OpenCV: not needed for --help or a usage error)
+    from murk.io.jobs import JobSummary
 
 STATUS_EVERY_S = 10.0
 """Headless logs (no terminal) get a plain status line at most this often."""
@@ -124,6 +125,8 @@ def _done_of(report: Any) -> int:
 def print_summary(summary: JobSummary, unit: str, *, detail: str = "", console: Console | None = None) -> int:
     """Print the job's summary line, its notes and its first failures (always, even under ``--quiet``);
     return its exit code (0, or 1 when inputs failed)."""
+    from murk.io.jobs import summary_line
+
     out = console or Console(stderr=True, highlight=False)
     out.print(escape(summary_line(summary, unit, detail)), soft_wrap=True, highlight=False)
     for note in summary.notes:

@@ -208,7 +208,7 @@ def enhance(
     Unreadable inputs go to errors.jsonl in the output folder (exit code 1); reruns skip finished outputs.
     """
     from murk.enhance.job import OutputOptions
-    from murk.enhance.restorer import create
+    from murk.enhance.restorer import check, create
     from murk.enhance.run import BagOptions, run_enhance, weights_line
 
     dev = resolve_device(device)
@@ -228,7 +228,8 @@ def enhance(
         "policy": policy,
     }
     shared = method_options(device=dev, batch=batch, **given)
-    restorer = create(method, shared=shared, given={k: FLAGS[k] for k in shared if k in FLAGS})
+    flags = {k: FLAGS[k] for k in shared if k in FLAGS}
+    check(method, shared=shared, given=flags)  # names and options, before anything is loaded
     options = OutputOptions(
         format=format,
         side_by_side=side_by_side,
@@ -240,9 +241,13 @@ def enhance(
     )
     console = make_console(quiet)
     summary = make_console(False)
-    line = weights_line(restorer, shipped=checkpoint is None)
-    if line:
-        console.print(line, soft_wrap=True, highlight=False)
+
+    def build() -> Any:  # called by run_enhance once INPUT is found: a missing input answers before torch loads
+        restorer = create(method, shared=shared, given=flags)
+        line = weights_line(restorer, shipped=checkpoint is None)
+        if line:
+            console.print(line, soft_wrap=True, highlight=False)
+        return restorer
 
     def display(title: str, unit: str, total: int | None, live: bool) -> JobProgress:
         return JobProgress(console, title, total=total, unit=unit, live=live, status=_status_line, rate=_rate)
@@ -251,7 +256,7 @@ def enhance(
         inp, report = run_enhance(
             input,
             out,
-            restorer,
+            build,
             options,
             recursive=recursive,
             batch=batch,

@@ -51,9 +51,9 @@ def _root(
     ] = None,
 ) -> None:
     """murk: realistic underwater data synthesis, restoration and metrics for underwater robots."""
+    from murk._limits import max_pixels as pixel_limit
+    from murk._limits import set_max_pixels
     from murk._perf import tune_allocator
-    from murk.io.images import max_pixels as pixel_limit
-    from murk.io.images import set_max_pixels
 
     tune_allocator()
     set_max_pixels(max_pixels)

@@ -107,8 +107,9 @@ def synth(
     and config.yaml into OUT_DIR. Rerunning the same command resumes; results do not depend on --workers.
     """
     from murk._config import load_yaml
+    from murk.synth.common import Shard
     from murk.synth.config import SynthConfig
-    from murk.synth.runner import Shard, synthesize
+    from murk.synth.runner import synthesize
 
     if list_file is not None and len(paths) != 1:
         raise ValueError("with --list give exactly one argument, OUT_DIR")

@@ -54,7 +54,7 @@ def train(
     from murk._config import load_yaml, merge
     from murk.data import resolve_builtin
     from murk.train.config import TrainConfig
-    from murk.train.loop import train as run_train
+    from murk.train.sources import check_sources
 
     flags = {"out": None if out is None else str(out), "eval_real": None if eval_real is None else str(eval_real)}
     values = {**locals(), **flags}
@@ -65,6 +65,7 @@ def train(
     if config.data.val_source:
         resolved["data"]["val_source"] = resolve_builtin(config.data.val_source)
     config = merge(config, resolved, where="config")
+    check_sources(config)  # a missing data source answers here, before the trainer (and torch) is imported
     console = make_console(quiet)
     total = config.steps if config.steps is not None else "?"
 
@@ -78,6 +79,8 @@ def train(
         else:
             shown = "  ".join(f"{k} {v:.4g}" for k, v in rec.items() if k not in ("kind", "step") and v is not None)
             console.print(f"eval @ {rec['step']}: {shown}", highlight=False)
+
+    from murk.train.loop import train as run_train  # torch
 
     summary = run_train(config, resume=resume, stop_after=stop_after, on_log=on_log)
     detail = (

@@ -18,12 +18,11 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
-from murk.enhance.choices import POLICIES, Policy
+from murk.enhance.choices import DEFAULT_OVERLAP, POLICIES, Policy
 from murk.errors import ShapeError
 
 OFFICIAL_SIZE = 256
 """Side of the square the official test scripts resize every image to (and leave the output at)."""
-DEFAULT_OVERLAP = 64
 _DTYPES: dict[str, torch.dtype] = {"bf16": torch.bfloat16, "fp16": torch.float16}
 
 

@@ -1,8 +1,10 @@
-"""The option strings of restoration and ``murk enhance`` as ``Literal`` types, in one light module.
+"""The option strings of restoration and ``murk enhance`` as ``Literal`` types, and the defaults the methods'
+factories declare, in one light module.
 
 The library annotates with them and the CLI uses them directly as its choices (typer turns a ``Literal``
 annotation into a choice list), so the two never drift apart; importing this module pulls in neither torch nor
-OpenCV, so ``murk --help`` stays fast.
+OpenCV, so ``murk --help`` stays fast, and the registry's declarations (:mod:`murk.enhance.methods`) can name
+them without importing the networks.
 """
 
 from __future__ import annotations
@@ -13,6 +15,8 @@ HEMode = Literal["y", "rgb", "clahe"]
 """Histogram equalisation of the ``post`` method: luma only, each channel, or CLAHE on luma."""
 Precision = Literal["fp32", "bf16", "fp16"]
 """Arithmetic of the network restorers: fp32, or bf16/fp16 autocast."""
+PostPreset = Literal["real", "paper"]
+"""Named settings of the ``post`` method: see :data:`murk.enhance.post.POST_PRESETS`."""
 Policy = Literal["native", "official"]
 """Input policy of the comparison baselines (:mod:`murk.enhance.baseline`)."""
 ImageFormat = Literal["png", "jpg"]
@@ -24,3 +28,6 @@ BagStorage = Literal["mcap", "sqlite3"]
 
 HE_MODES: tuple[str, ...] = get_args(HEMode)
 POLICIES: tuple[str, ...] = get_args(Policy)
+
+DEFAULT_OVERLAP = 64
+"""Tile overlap in pixels of the network restorers (``jointid``, ``udaformer``, ``ursct``) unless set."""

@@ -12,7 +12,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import torch
 
 from murk.enhance.choices import ImageFormat, VideoBackendChoice
 from murk.enhance.preview import DEPTH_PREVIEW_RANGE_M, colorize_depth
@@ -112,6 +111,8 @@ def should_end(report: EnhanceReport, should_stop: StopFn | None, max_frames: in
 
 def restore_batch(restorer: Restorer, images: np.ndarray) -> Restored:
     """Run the restorer on a numpy batch; on CUDA through the tensor path (pinned upload, one download)."""
+    import torch
+
     device = getattr(restorer, "device", torch.device("cpu"))
     if torch.device(device).type == "cuda":
         x = torch.from_numpy(np.ascontiguousarray(images)).pin_memory().to(device, non_blocking=True)

@@ -26,14 +26,13 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
-from murk.enhance.choices import Precision
-from murk.enhance.restorer import RestoredTensor, Restorer, register
+from murk.enhance.choices import DEFAULT_OVERLAP, Precision
+from murk.enhance.restorer import RestoredTensor, Restorer
 from murk.enhance.tiling import pad_to_multiple, tiled_apply
 from murk.errors import ShapeError
 from murk.models.jointid.network import INPUT_MEAN, INPUT_STD, SIZE_MULTIPLE
 
 _DTYPES: dict[str, torch.dtype] = {"bf16": torch.bfloat16, "fp16": torch.float16}
-DEFAULT_OVERLAP = 64
 
 Backend = Callable[[Tensor], tuple[Tensor, Tensor]]
 
@@ -216,7 +215,6 @@ class JointIDRestorer(Restorer):
         )
 
 
-@register("jointid")
 def create_jointid(
     *,
     checkpoint: str | Path | None = None,
@@ -230,7 +228,8 @@ def create_jointid(
     compile: bool = False,
     cuda_graph: bool = False,
 ) -> JointIDRestorer:
-    """Registry factory of ``jointid``: load ``checkpoint`` (or the ``onnx`` file) and wrap it.
+    """Factory of ``jointid`` (registered lazily by :mod:`murk.enhance.methods`): load ``checkpoint`` (or the
+    ``onnx`` file) and wrap it.
 
     Without either, the weights shipped with murk are used (``murk.data.shipped_jointid_weights()``: the
     ``small`` Joint-ID murk trained itself, model card ``docs/models.md``). The restorer's ``weights``

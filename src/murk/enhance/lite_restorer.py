@@ -25,7 +25,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
-from murk.enhance.restorer import RestoredTensor, Restorer, register
+from murk.enhance.restorer import RestoredTensor, Restorer
 from murk.enhance.temporal import FrameEMA
 from murk.errors import ShapeError
 from murk.models.lite.network import (
@@ -174,7 +174,6 @@ STRIP_ROWS = 128
 than the whole frame at 1280x720; 128 the fastest)."""
 
 
-@register("lite")
 def create_lite(
     *,
     checkpoint: str | Path | None = None,
@@ -186,7 +185,8 @@ def create_lite(
     threads: int | None = None,
     temporal: float = 0.0,
 ) -> LiteRestorer:
-    """Registry factory of ``lite``: load ``checkpoint`` (or the ``onnx`` file), fold it and wrap it.
+    """Factory of ``lite`` (registered lazily by :mod:`murk.enhance.methods`): load ``checkpoint`` (or the
+    ``onnx`` file), fold it and wrap it.
 
     Without either, the weights shipped with murk are used (``murk.data.shipped_lite_weights()``, model card
     ``docs/models.md``); the restorer's ``weights`` attribute names the file used. A checkpoint path ending in

@@ -49,10 +49,7 @@ def declared_options(factory: Callable[..., Any]) -> dict[str, Option]:
             or an option without a default.
     """
     what = getattr(factory, "__qualname__", repr(factory))
-    try:
-        hints = typing.get_type_hints(factory)
-    except (NameError, TypeError):  # an annotation that cannot be evaluated here: values are not type-checked
-        hints = {}
+    hints = _type_hints(factory)
     out: dict[str, Option] = {}
     for p in inspect.signature(factory).parameters.values():
         if p.kind is inspect.Parameter.VAR_KEYWORD:
@@ -66,6 +63,25 @@ def declared_options(factory: Callable[..., Any]) -> dict[str, Option]:
         text = "Any" if p.annotation is inspect.Parameter.empty else text
         out[p.name] = Option(p.name, text, p.default, hints.get(p.name, Any))
     return out
+
+
+def _type_hints(factory: Callable[..., Any]) -> dict[str, Any]:
+    """The factory's annotations, evaluated. One that cannot be evaluated here is left out (its values are not
+    type-checked), the others are kept: e.g. ``device: str | torch.device`` in a lazy factory whose module imports
+    torch only for type checkers (:mod:`murk.enhance.methods`)."""
+    try:
+        return typing.get_type_hints(factory)
+    except (NameError, TypeError):
+        pass
+    globalns = getattr(factory, "__globals__", {})
+    hints: dict[str, Any] = {}
+    for name, annotation in getattr(factory, "__annotations__", {}).items():
+        one = types.SimpleNamespace(__annotations__={name: annotation})
+        try:
+            hints.update(typing.get_type_hints(one, globalns=globalns))
+        except (NameError, TypeError):
+            continue
+    return hints
 
 
 def check_value(method: str, option: Option, value: Any) -> None:

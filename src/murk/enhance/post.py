@@ -34,7 +34,7 @@ import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any
 
 import cv2
 import numpy as np
@@ -42,8 +42,8 @@ import torch
 import torch.nn.functional as F
 
 from murk._checks import check_positive, check_range, check_rgb
-from murk.enhance.choices import HE_MODES, HEMode
-from murk.enhance.restorer import Restored, RestoredTensor, Restorer, register
+from murk.enhance.choices import HE_MODES, HEMode, PostPreset
+from murk.enhance.restorer import Restored, RestoredTensor, Restorer
 from murk.enhance.temporal import FrameEMA
 from murk.errors import ShapeError
 
@@ -535,11 +535,6 @@ class PostRestorer(Restorer):
         return RestoredTensor(post_process_torch(images, **self.params._kwargs(), tables=self.temporal_hook()))
 
 
-PostPreset = Literal["real", "paper"]
-"""Named settings of the ``post`` method: see :data:`POST_PRESETS`."""
-
-
-@register("post")
 def make_post(
     *,
     device: str | torch.device = "cpu",
@@ -552,10 +547,11 @@ def make_post(
     he_strength: float | None = None,
     temporal: float = 0.0,
 ) -> PostRestorer:
-    """Factory of the ``post`` method: histogram equalisation then LoG edge enhancement (see
-    :func:`post_process`), with the settings of ``preset`` (:data:`POST_PRESETS`: ``real``, murk's default, or
-    ``paper``, Eq. 9 exactly); any parameter given explicitly overrides the preset's. ``temporal`` averages the
-    equalisation tables over the frames of a video (:mod:`murk.enhance.temporal`; 0 = per frame, the paper's)."""
+    """Factory of the ``post`` method (registered lazily by :mod:`murk.enhance.methods`): histogram equalisation
+    then LoG edge enhancement (see :func:`post_process`), with the settings of ``preset`` (:data:`POST_PRESETS`:
+    ``real``, murk's default, or ``paper``, Eq. 9 exactly); any parameter given explicitly overrides the preset's.
+    ``temporal`` averages the equalisation tables over the frames of a video (:mod:`murk.enhance.temporal`; 0 = per
+    frame, the paper's)."""
     if preset not in POST_PRESETS:
         raise ValueError(f"preset: expected one of {', '.join(POST_PRESETS)}, got {preset!r}")
     base = POST_PRESETS[preset]

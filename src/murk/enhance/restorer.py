@@ -6,7 +6,8 @@ depth when the method estimates it (Joint-ID does). Methods are registered by na
 and the depth of the chain is the last depth any stage produced. A spec may carry options after ``?``
 (``post?lam=0.9``). Each factory declares its options in its signature; an option no stage declares is an
 error (:mod:`murk.enhance.options`). This is murk's one registry of methods (networks are built by their
-restorer factories).
+restorer factories). Importing it does not import torch: the torch methods are registered as lazy factories
+(:mod:`murk.enhance.methods`), so names and options are checked before any network is loaded.
 
 Two entry points per restorer:
 
@@ -21,14 +22,16 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import torch
 
 from murk._suggest import did_you_mean
 from murk.enhance.options import Option, check_given, declared_options, parse_spec, route_options
 from murk.enhance.temporal import FrameEMA
+
+if TYPE_CHECKING:
+    import torch
 
 
 @dataclass(frozen=True)
@@ -47,15 +50,28 @@ class RestoredTensor:
     depth_m: torch.Tensor | None = None
 
 
+class _CPUDevice:
+    """The default ``Restorer.device``, ``torch.device("cpu")``, made when first read (so that importing this
+    module, and with it the registry's names and options, does not import torch). A subclass or an instance
+    that sets ``device`` replaces it."""
+
+    def __get__(self, obj: object, owner: type | None = None) -> torch.device:
+        import torch
+
+        return torch.device("cpu")
+
+
 class Restorer:
     """Base class of restoration methods. Subclasses set ``name`` and override ``restore`` and/or
     ``restore_tensor``; ``device`` is where the tensor path runs."""
 
     name: str = "restorer"
-    device: torch.device = torch.device("cpu")
+    device: torch.device = _CPUDevice()  # type: ignore[assignment]
 
     def restore(self, images: np.ndarray) -> Restored:
         """Restore a numpy batch (B, H, W, 3) float32 in [0, 1]."""
+        import torch
+
         if type(self).restore_tensor is Restorer.restore_tensor:
             raise NotImplementedError(f"{type(self).__name__} implements neither restore nor restore_tensor")
         x = torch.from_numpy(np.ascontiguousarray(images)).permute(0, 3, 1, 2).to(self.device, torch.float32)
@@ -66,6 +82,8 @@ class Restorer:
 
     def restore_tensor(self, images: torch.Tensor) -> RestoredTensor:
         """Restore a torch batch (B, 3, H, W) in [0, 1] on ``self.device``."""
+        import torch
+
         if type(self).restore is Restorer.restore:
             raise NotImplementedError(f"{type(self).__name__} implements neither restore nor restore_tensor")
         out = self.restore(images.detach().float().permute(0, 2, 3, 1).cpu().numpy())
@@ -208,6 +226,27 @@ def create(
         ValueError: an unknown method name (the known ones are listed), or an unknown or misspelt option (named,
             with the nearest valid name and the method's valid options).
     """
+    names, kwargs = _plan(spec, shared, given, options)
+    stages = [_REGISTRY[n](**kw) for n, kw in zip(names, kwargs, strict=True)]
+    return stages[0] if len(stages) == 1 else Chain(stages)
+
+
+def check(
+    spec: str, *, shared: dict[str, Any] | None = None, given: Mapping[str, str] | None = None, **options: Any
+) -> None:
+    """Raise what :func:`create` would raise for these arguments about the method names and options, without
+    building anything (no weights are read, torch is not imported): a command checks its ``--method`` at once.
+
+    Raises:
+        ValueError: as :func:`create`.
+    """
+    _plan(spec, shared, given, options)
+
+
+def _plan(
+    spec: str, shared: dict[str, Any] | None, given: Mapping[str, str] | None, options: dict[str, Any]
+) -> tuple[list[str], list[dict[str, Any]]]:
+    """The method names of ``spec`` and the keyword arguments of each stage's factory (validated)."""
     _load_builtin()
     spec, spec_options = parse_spec(spec)
     names = [n.strip() for n in spec.split("+")]
@@ -222,24 +261,17 @@ def create(
     known = {o for f in _REGISTRY.values() for o in declared_options(f)}
     check_given(spec, declared, given or {}, {n: declared_options(f) for n, f in _REGISTRY.items()})
     kwargs = route_options(spec, declared, {**options, **spec_options}, shared or {}, known)
-    stages = [_REGISTRY[n](**kw) for n, kw in zip(names, kwargs, strict=True)]
-    return stages[0] if len(stages) == 1 else Chain(stages)
+    return names, kwargs
 
 
 def _load_builtin() -> None:
-    """Import the modules that register the built-in methods (kept lazy: some pull in large models)."""
+    """Import the modules that register the built-in methods: the classical ones and the lazy factories of the
+    torch ones (:mod:`murk.enhance.methods`), so that names and options are known without importing torch."""
     import importlib
 
     for module in _BUILTIN_MODULES:
         importlib.import_module(module)
 
 
-_BUILTIN_MODULES: list[str] = [
-    "murk.enhance.post",
-    "murk.enhance.classical",
-    "murk.enhance.jointid_restorer",
-    "murk.enhance.lite_restorer",
-    "murk.enhance.udaformer_restorer",
-    "murk.enhance.ursct_restorer",
-]
+_BUILTIN_MODULES: list[str] = ["murk.enhance.classical", "murk.enhance.methods"]
 """Modules whose import registers built-in methods (imported on first use of the registry)."""

@@ -28,10 +28,14 @@ DisplayFactory = Callable[[str, str, int | None, bool], AbstractContextManager[P
 (``unit``: ``"images"`` or ``"frames"``)."""
 
 
+RestorerOrBuilder = Restorer | Callable[[], Restorer]
+"""A restorer, or a function that builds one (called once the input has been found)."""
+
+
 def run_enhance(
     spec: str,
     out: Path,
-    restorer: Restorer,
+    restorer: RestorerOrBuilder,
     options: OutputOptions | None = None,
     *,
     recursive: bool = False,
@@ -44,6 +48,10 @@ def run_enhance(
     """Restore what ``spec`` designates (an image, a folder, a glob, a video file, a camera index, a stream URL,
     a ROS bag) into ``out``; ``max_frames`` caps images or frames. Returns the classified input and the run's
     report. ``bag`` holds the topic and output choices for a ROS bag (:mod:`murk.enhance.bag`).
+
+    ``restorer`` is the method, or a function that builds it (e.g. ``lambda: create("jointid")``): that is called
+    once the input and the output location have been checked, so that a missing input is reported at once, before
+    a network (and torch) is loaded.
 
     Raises:
         InputFileError: nothing usable at ``spec``; ValueError: an output location or option that cannot work
@@ -61,14 +69,14 @@ def run_enhance(
             f"{spec}: --topic, --every, --out-topic, --depth-topic, --storage, --copy-topics need a ROS bag"
         )
     inp = resolve_input(spec, recursive=recursive, exclude=out)
-    title = f"{restorer.name}: {inp.label}"
     if inp.kind == "images":
         jobs, out_dir = plan_images(inp, out, options.format)
         jobs = jobs[:max_frames] if max_frames else jobs
-        with shown(title, "images", len(jobs), False) as d:
+        method = _built(restorer)
+        with shown(f"{method.name}: {inp.label}", "images", len(jobs), False) as d:
             report = enhance_images(
                 jobs,
-                restorer,
+                method,
                 out_dir,
                 options,
                 batch=batch,
@@ -78,10 +86,11 @@ def run_enhance(
         return inp, report
     with CaptureSource(inp.target) as source:  # type: ignore[arg-type]
         total = source.frame_count if max_frames is None else min(source.frame_count or max_frames, max_frames)
-        with shown(title, "frames", total, source.live) as d:
+        method = _built(restorer)
+        with shown(f"{method.name}: {inp.label}", "frames", total, source.live) as d:
             report = enhance_frames(
                 source,
-                restorer,
+                method,
                 out,
                 options,
                 batch=batch,
@@ -92,10 +101,14 @@ def run_enhance(
     return inp, report
 
 
+def _built(restorer: RestorerOrBuilder) -> Restorer:
+    return restorer if isinstance(restorer, Restorer) else restorer()
+
+
 def _run_bag(
     spec: str,
     out: Path,
-    restorer: Restorer,
+    restorer: RestorerOrBuilder,
     options: OutputOptions,
     bag: BagOptions,
     batch: int,
@@ -109,10 +122,11 @@ def _run_bag(
     with BagSource(spec, bag.topic, every=bag.every) as source:
         inp = EnhanceInput("bag", source.label, target=spec)
         total = source.frame_count if max_frames is None else min(source.frame_count or max_frames, max_frames)
-        with shown(f"{restorer.name}: {source.label}", "frames", total, False) as d:
+        method = _built(restorer)
+        with shown(f"{method.name}: {source.label}", "frames", total, False) as d:
             report = enhance_bag(
                 source,
-                restorer,
+                method,
                 out,
                 options,
                 bag=bag,

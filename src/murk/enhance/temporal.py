@@ -13,10 +13,12 @@ applies it inside :meth:`murk.enhance.restorer.Restorer.sequence` and starts afr
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import torch
+
+if TYPE_CHECKING:
+    import torch
 
 
 class FrameEMA:
@@ -44,6 +46,8 @@ class FrameEMA:
         self._last = None
 
     def __call__(self, estimate: Any) -> Any:
+        import torch
+
         if isinstance(estimate, torch.Tensor):
             return self._torch(estimate)
         cur = np.asarray(estimate, np.float32)
@@ -53,6 +57,8 @@ class FrameEMA:
         return last
 
     def _torch(self, batch: torch.Tensor) -> torch.Tensor:
+        import torch
+
         out = torch.empty_like(batch, dtype=torch.float32)
         prev = self._previous(tuple(batch.shape[1:]))
         last = None if prev is None else torch.as_tensor(prev, device=batch.device)
@@ -69,4 +75,6 @@ class FrameEMA:
 
 
 def _numpy(a: np.ndarray | torch.Tensor) -> np.ndarray:
+    import torch
+
     return a.cpu().numpy() if isinstance(a, torch.Tensor) else a

@@ -39,7 +39,7 @@ from murk.enhance.baseline import (
     missing_weights_message,
 )
 from murk.enhance.jointid_restorer import _resolve_device
-from murk.enhance.restorer import Restored, RestoredTensor, Restorer, register
+from murk.enhance.restorer import Restored, RestoredTensor, Restorer
 from murk.enhance.tiling import pad_to_multiple, tiled_apply
 from murk.models.udaformer.network import WINDOW, UDAformer
 
@@ -152,7 +152,6 @@ class UDAformerRestorer(Restorer):
         )
 
 
-@register("udaformer")
 def create_udaformer(
     *,
     checkpoint: str | Path | None = None,
@@ -165,8 +164,9 @@ def create_udaformer(
     batch: int | None = None,
     trust_checkpoint: bool = False,
 ) -> UDAformerRestorer:
-    """Registry factory of ``udaformer``: load ``checkpoint`` (the official file needs ``trust_checkpoint``: it
-    pickles an optimiser object) and wrap it. Options: see :class:`UDAformerRestorer`.
+    """Factory of ``udaformer`` (registered lazily by :mod:`murk.enhance.methods`): load ``checkpoint`` (the
+    official file needs ``trust_checkpoint``: it pickles an optimiser object) and wrap it. Options: see
+    :class:`UDAformerRestorer`.
 
     Raises:
         ValueError: no checkpoint, or bad options.

@@ -41,7 +41,7 @@ from murk.enhance.baseline import (
     missing_weights_message,
 )
 from murk.enhance.jointid_restorer import _resolve_device
-from murk.enhance.restorer import RestoredTensor, Restorer, register
+from murk.enhance.restorer import RestoredTensor, Restorer
 from murk.enhance.tiling import pad_to_multiple, tiled_apply
 from murk.models.ursct_sesr.network import SIZE_MULTIPLE, URSCT
 
@@ -137,7 +137,6 @@ class URSCTRestorer(Restorer):
         )
 
 
-@register("ursct")
 def create_ursct(
     *,
     checkpoint: str | Path | None = None,
@@ -150,7 +149,8 @@ def create_ursct(
     batch: int | None = None,
     trust_checkpoint: bool = False,
 ) -> URSCTRestorer:
-    """Registry factory of ``ursct``: load ``checkpoint`` and wrap it. Options: see :class:`URSCTRestorer`.
+    """Factory of ``ursct`` (registered lazily by :mod:`murk.enhance.methods`): load ``checkpoint`` and wrap
+    it. Options: see :class:`URSCTRestorer`.
 
     Raises:
         ValueError: no checkpoint, or bad options.

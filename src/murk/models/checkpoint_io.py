@@ -13,11 +13,12 @@ import pickle
 import zipfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any, TypeGuard
-
-import torch
+from typing import TYPE_CHECKING, Any, TypeGuard
 
 from murk.errors import InputFileError
+
+if TYPE_CHECKING:
+    import torch
 
 
 def numpy_array_globals() -> list[Any]:
@@ -45,6 +46,8 @@ def _global_names(item: Any) -> list[str]:
 
 def unsafe_globals(path: Path) -> list[str]:
     """Pickle globals of a (zip-format) checkpoint outside torch's and our allow-list; [] when unknown."""
+    import torch
+
     if not zipfile.is_zipfile(path):
         return []
     try:
@@ -71,6 +74,19 @@ TRUST_HINT = (
 """How a refused checkpoint can be allowed, and why it is refused by default (part of every refusal)."""
 
 
+def checkpoint_file(path: str | Path) -> Path:
+    """``path`` as a Path when it is an existing file (checked before torch is imported: a usage error answers
+    at once).
+
+    Raises:
+        InputFileError: the file does not exist, or is not a file.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputFileError(path, "checkpoint not found" if not path.exists() else "not a file")
+    return path
+
+
 def torch_load(path: str | Path, *, trust: bool = False, hint: str = "") -> Any:
     """Read a checkpoint file onto the CPU, with ``weights_only=True`` unless ``trust``.
 
@@ -83,9 +99,9 @@ def torch_load(path: str | Path, *, trust: bool = False, hint: str = "") -> Any:
         InputFileError: missing or unreadable file, or a pickle that ``weights_only`` refuses (the message
             names ``--trust-checkpoint`` and the objects found).
     """
-    path = Path(path)
-    if not path.is_file():
-        raise InputFileError(path, "checkpoint not found" if not path.exists() else "not a file")
+    import torch
+
+    path = checkpoint_file(path)
     if trust:
         try:
             return torch.load(path, map_location="cpu", weights_only=False)
@@ -110,6 +126,8 @@ def torch_load(path: str | Path, *, trust: bool = False, hint: str = "") -> Any:
 
 def is_state_dict(obj: Any) -> TypeGuard[Mapping[str, torch.Tensor]]:
     """A non-empty mapping whose values are all tensors."""
+    import torch
+
     return isinstance(obj, Mapping) and bool(obj) and all(isinstance(v, torch.Tensor) for v in obj.values())
 
 
@@ -174,6 +192,8 @@ def extract_state_dict(
 def check_meta(name: str, value: Any) -> None:
     """Raise TypeError unless ``value`` is plain data that ``torch.load(weights_only=True)`` accepts (numbers,
     strings, None, tensors, lists/dicts of them), naming the offending entry."""
+    import torch
+
     if value is None or isinstance(value, (bool, int, float, str, torch.Tensor)):
         return
     if isinstance(value, (list, tuple)):
@@ -196,6 +216,8 @@ def write_checkpoint(path: str | Path, obj: dict[str, Any]) -> Path:
     """Write a checkpoint dict atomically (fsynced; a crash leaves no partial file under ``path``) after checking
     that its ``meta`` is weights_only-safe (:func:`check_meta`). Used by every murk checkpoint writer."""
     import os
+
+    import torch
 
     from murk.io.atomic import atomic_path
 

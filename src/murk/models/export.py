@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
-import torch
+from murk.models.checkpoint_io import checkpoint_file
 
 ExportModel = Literal["auto", "udaformer", "ursct"]
 EXPORT_MODELS: tuple[str, ...] = ("auto", "udaformer", "ursct")
@@ -87,6 +87,7 @@ def export_checkpoint(
         raise ValueError(f"out: expected a file name ending in .onnx, got {str(out)!r}")
     if model not in EXPORT_MODELS:
         raise ValueError(f"model: expected {', '.join(EXPORT_MODELS)}, got {model!r}")
+    checkpoint_file(checkpoint)  # a missing file is reported before torch and the networks are imported
     if model != "auto":
         done = _export_baseline(model, checkpoint, out, size_hw, opset, verify, trust)
     else:
@@ -106,6 +107,8 @@ def export_checkpoint(
 
 
 def _export_jointid(checkpoint: str | Path, out: Path, opset: int, verify: bool, trust: bool) -> ExportedModel:
+    import torch
+
     from murk.models.jointid import load_checkpoint
     from murk.models.jointid.onnx_export import OnnxJointID, compare_onnx, export_onnx
 

@@ -20,11 +20,13 @@ both, so :func:`apply_camera` and :func:`apply_camera_torch` agree to float roun
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
-import torch
+
+if TYPE_CHECKING:
+    import torch
 
 
 def noise_field(seed: int, shape: tuple[int, ...]) -> np.ndarray:
@@ -70,6 +72,8 @@ def apply_camera_torch(images: torch.Tensor, params: Sequence[Any]) -> torch.Ten
     Gains and noise are applied on the batch's device; the 8-bit quantisation and JPEG round trip go through
     OpenCV on the CPU (there is no JPEG codec in torch), then back to the device.
     """
+    import torch
+
     dev, dt = images.device, images.dtype
     gains = torch.tensor([[p.exposure * g for g in p.wb_gains] for p in params], dtype=torch.float32)
     x = (images.float() * gains.to(dev)[:, :, None, None]).clamp(0.0, 1.0)

@@ -26,12 +26,13 @@ underwater imaging systems", IEEE J. Oceanic Eng. 15(2), 1990, doi:10.1109/48.50
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import cv2
 import numpy as np
-import torch
-import torch.nn.functional as F
+
+if TYPE_CHECKING:
+    import torch
 
 FsMode = Literal["approx", "exact"]
 TRUNCATE = 4.0
@@ -192,6 +193,8 @@ def forward_scatter(
 
 
 def _reflect101_torch(n: int, r: int, device: torch.device) -> torch.Tensor:
+    import torch
+
     return torch.from_numpy(_reflect101(np.arange(-r, n + r), n)).to(device)
 
 
@@ -201,6 +204,9 @@ def gaussian_blur_torch(x: torch.Tensor, sigma: torch.Tensor) -> torch.Tensor:
     ``x`` (B, C, H, W); ``sigma`` (B,) pixels. Kernels are the same sampled, normalised Gaussians (radius
     ``ceil(4 sigma)``, zero-padded to the batch's largest radius) applied as one grouped separable convolution.
     """
+    import torch
+    import torch.nn.functional as F
+
     b, c, h, w = x.shape
     sig = sigma.detach().to("cpu", torch.float64).reshape(-1)
     if sig.numel() != b:
@@ -231,6 +237,8 @@ def forward_scatter_torch(
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Torch twin of :func:`forward_scatter`: basic (B, 3, H, W), dist (B, 1, H, W); per-sample parameters
     as (B,) tensors or scalars. Returns ``(I_fs, sigma_max_px (B,))``."""
+    import torch
+
     b = basic.shape[0]
 
     def per_sample(v: torch.Tensor | float) -> torch.Tensor:

@@ -13,13 +13,15 @@ formation model", CVPR 2018, doi:10.1109/CVPR.2018.00703.
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import cv2
 import numpy as np
-import torch
 
 from murk.physics.jerlov import residual_ratio
+
+if TYPE_CHECKING:
+    import torch
 
 DistanceMode = Literal["normalized", "metric"]
 
@@ -88,6 +90,8 @@ def distance_map_torch(
     depth_m: torch.Tensor, near_m: torch.Tensor, far_m: torch.Tensor, *, mode: DistanceMode = "normalized"
 ) -> torch.Tensor:
     """Torch twin of :func:`distance_map` for a batch: depth (B, 1, H, W); near/far (B,) metres."""
+    import torch
+
     near = near_m.view(-1, 1, 1, 1).to(depth_m)
     far = far_m.view(-1, 1, 1, 1).to(depth_m)
     if mode == "metric":
@@ -103,6 +107,8 @@ def apply_medium_torch(
 
     Implements Eq. (1). Returns ``(I_basic, T)``, both (B, 3, H, W), on the input's device and dtype.
     """
+    import torch
+
     beta = beta_per_m.to(clean).view(-1, 3, 1, 1)
     b = b_inf.to(clean).view(-1, 3, 1, 1)
     t = torch.exp(-beta * dist_m)

@@ -38,7 +38,7 @@ from murk.metrics.fidelity import MEASURE_KEYS, count_flags, flags, join_flags, 
 from murk.metrics.stats import column_stats
 from murk.report.figures import Box, auto_boxes, comparison_grid
 from murk.report.html import SUMMARY_METRICS, render_report
-from murk.report.methods import MethodSpec, build_restorer
+from murk.report.methods import MethodSpec, build_restorer, check_method
 
 SCORE_KEYS = ("uiqm", "uicm", "uism", "uiconm", "uciqe", "sigma_c", "con_l", "mu_s")
 """No-reference scores of the output alone (:func:`score`)."""
@@ -184,7 +184,14 @@ def run_compare(
     method also restores the snow-free image, and each row gets the snow-pair measures of
     :mod:`murk.metrics.snow_pairs` (:data:`SNOW_KEYS`: particle residue on the known particle sites)."""
     from murk.io.rosbag import bag_frames_as_files
+    from murk.metrics import UCIQE_PRESETS, UIQM_PRESETS
 
+    presets = (("--uiqm-preset", uiqm_preset, UIQM_PRESETS), ("--uciqe-preset", uciqe_preset, UCIQE_PRESETS))
+    for flag, preset, known in presets:
+        if preset not in known:
+            raise ValueError(f"{flag}: expected one of {', '.join(known)}, got {preset!r}")
+    for m in methods:  # every method's names and options before any footage is read or network loaded
+        check_method(m, **(restorer_options or {}))
     with bag_frames_as_files(images, topic, every=every) as frames:
         from murk.io.images import list_images
 

@@ -66,14 +66,30 @@ def build_restorer(spec: MethodSpec, **shared: Any) -> Any:
     ``shared`` are the command's settings (device, precision, ...): each stage takes those it declares. The
     spec's own options and checkpoint must be options of the method (misspelt ones are an error).
     """
+    from murk.enhance.restorer import create
+
+    extra = _method_options(spec)
+    return None if extra is None else create(spec.method, shared=shared, **extra)
+
+
+def check_method(spec: MethodSpec, **shared: Any) -> None:
+    """Raise what :func:`build_restorer` would raise about the method's names and options, without building it
+    (no weights read, torch not imported)."""
+    from murk.enhance.restorer import check
+
+    extra = _method_options(spec)
+    if extra is not None:
+        check(spec.method, shared=shared, **extra)
+
+
+def _method_options(spec: MethodSpec) -> dict[str, Any] | None:
+    """The spec's options and checkpoint as keyword arguments of the registry; None for ``raw``."""
     if spec.method == "raw":
         if spec.options or spec.checkpoint:
             raise ValueError(f"--method {spec.text}: raw (the input itself) takes no checkpoint or options")
         return None
-    from murk.enhance.restorer import create
-
     extra = dict(spec.options)
     if spec.checkpoint:
         key = "onnx" if spec.checkpoint.lower().endswith(".onnx") else "checkpoint"
         extra[key] = spec.checkpoint
-    return create(spec.method, shared=shared, **extra)
+    return extra

@@ -23,14 +23,17 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
-import torch
 
 from murk.physics.forward_scatter import gaussian_blur, gaussian_blur_torch, kernel_radius
 from murk.rng import RngLike, as_generator
 from murk.snow.bank import ParticleBank
+
+if TYPE_CHECKING:
+    import torch
 
 
 @dataclass(frozen=True)
@@ -191,6 +194,8 @@ def _accumulate(
     arrays that ``numpy.bincount`` returns). Colour weights are divided by max(C, 1) at their own pixel, so
     where particles overlap their colours are averaged.
     """
+    import torch
+
     it = torch.from_numpy(idx).to(device)
     wt = torch.from_numpy(wts).to(device, torch.float32)
     cover = torch.zeros(n, device=device, dtype=torch.float32)
@@ -204,6 +209,8 @@ def _accumulate(
 def snow_layers(params: SnowParams, bank: ParticleBank, height: int, width: int) -> tuple[np.ndarray, np.ndarray, int]:
     """The unsmoothed mask ``B`` and ``B M`` of one image on a canvas padded by ``pad`` pixels on each side:
     float32 (H + 2 pad, W + 2 pad) and (..., 3), and ``pad``."""
+    import torch
+
     layout = snow_layout(params, len(bank), width, height)
     pad = _canvas_pad(layout, bank, params.rho_px)
     hp, wp = height + 2 * pad, width + 2 * pad
@@ -239,6 +246,8 @@ def composite_snow_torch(
     onto the same padded canvas as the numpy path, and smoothed by a grouped convolution.
     Returns ``(I_ms (B, 3, H, W), a_ms (B, 1, H, W))``.
     """
+    import torch
+
     bsz, _, h, w = images.shape
     if len(params) != bsz:
         raise ValueError(f"params: expected {bsz} snow parameter sets (one per image), got {len(params)}")

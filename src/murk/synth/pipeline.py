@@ -13,10 +13,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import torch
 
 from murk._checks import check_map, check_rgb
 from murk.errors import ShapeError
@@ -25,6 +24,9 @@ from murk.physics.medium import apply_medium, apply_medium_torch, distance_map, 
 from murk.rng import RngLike
 from murk.synth.config import SynthConfig
 from murk.synth.params import VariantParams, sample_variant, snow_sampler_for
+
+if TYPE_CHECKING:
+    import torch
 
 
 @dataclass(frozen=True)
@@ -179,6 +181,8 @@ def render_batch_torch(
         params: one :class:`VariantParams` per sample; all must enable the same stages.
         bank: a :class:`murk.snow.bank.ParticleBank` when the variants have marine snow.
     """
+    import torch
+
     if clean.ndim != 4 or clean.shape[1] != 3:
         raise ShapeError(f"clean: expected (B, 3, H, W), got {tuple(clean.shape)}")
     b, _, h, w = clean.shape

@@ -28,7 +28,6 @@ cancelled; what was finished is kept and a rerun resumes).
 from __future__ import annotations
 
 import contextlib
-import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import as_completed
 from dataclasses import dataclass
@@ -39,7 +38,7 @@ from typing import Any, Literal
 import cv2
 import numpy as np
 
-from murk._config import dump_yaml, read_yaml, to_dict
+from murk._config import dump_yaml
 from murk._version import __version__
 from murk._workers import stop_if_orphaned, worker_pool
 from murk.io.atomic import make_output_folder, remove_stale_temporaries, write_text_atomic
@@ -51,57 +50,23 @@ from murk.io.pairs import DepthOptions, RGBDSource, load_pair
 from murk.io.paths import check_output_location
 from murk.io.writer import BackgroundWriter
 from murk.rng import derive_seed
+from murk.synth.common import (
+    DEPTH_SCALE_OUT,
+    OVERLAP_WHY,
+    Shard,
+    check_config_compatible,
+    depth_range_note,
+    fit_size,
+    input_locations,
+    manifest_record,
+    variant_info,
+)
 from murk.synth.config import SynthConfig
-from murk.synth.params import VariantParams, sample_variant, snow_sampler_for, variant_to_dict
+from murk.synth.params import sample_variant, snow_sampler_for
 from murk.synth.pipeline import render
-
-DEPTH_SCALE_OUT = 1000.0
-"""depth/ PNGs are millimetres."""
 
 DataFormat = Literal["files", "webdataset"]
 """``murk synth --format``: loose PNG folders or tar shards (:mod:`murk.synth.shards`)."""
-
-
-@dataclass(frozen=True)
-class Shard:
-    """Shard ``index`` of ``count`` (0-based): the sorted inputs ``index, index + count, ...``."""
-
-    index: int = 0
-    count: int = 1
-
-    def __post_init__(self) -> None:
-        if not (self.count >= 1 and 0 <= self.index < self.count):
-            raise ValueError(f"shard: expected 0 <= i < N, got {self.index}/{self.count}")
-
-    @property
-    def tag(self) -> str:
-        return "all" if self.count == 1 else f"{self.index}-of-{self.count}"
-
-    @staticmethod
-    def parse(spec: str | None, env: dict[str, str] | None = None) -> Shard:
-        """Parse ``"i/N"``; without a spec use SLURM array variables when set (index = TASK_ID - TASK_MIN)."""
-        if spec:
-            try:
-                i, n = (int(v) for v in spec.split("/"))
-            except ValueError:
-                raise ValueError(f"--shard: expected i/N (e.g. 0/4), got {spec!r}") from None
-            return Shard(i, n)
-        env = dict(os.environ) if env is None else env
-        if "SLURM_ARRAY_TASK_ID" in env and "SLURM_ARRAY_TASK_COUNT" in env:
-
-            def var(name: str, default: str | None = None) -> int:
-                value = env.get(name, default)
-                try:
-                    return int(value)  # type: ignore[arg-type]
-                except (TypeError, ValueError):
-                    raise ValueError(f"{name}: expected an integer (SLURM array variable), got {value!r}") from None
-
-            task = var("SLURM_ARRAY_TASK_ID") - var("SLURM_ARRAY_TASK_MIN", "0")
-            try:
-                return Shard(task, var("SLURM_ARRAY_TASK_COUNT"))
-            except ValueError as exc:
-                raise ValueError(f"SLURM array variables: {exc}") from None
-        return Shard()
 
 
 @dataclass
@@ -132,33 +97,6 @@ class RunSummary(JobSummary):
 # ------------------------------------------------------------------------------------------ per-image work
 
 
-def fit_size(
-    rgb: np.ndarray, depth: np.ndarray, valid: np.ndarray, size: tuple[int, int] | None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Centre-crop to the aspect ratio of ``size`` = (width, height), then resize (area/cubic for RGB,
-    nearest for depth and validity so depth edges are never blended)."""
-    if size is None:
-        return rgb, depth, valid
-    tw, th = size
-    h, w = depth.shape
-    if w * th > tw * h:  # too wide: crop columns
-        cw = max(1, round(h * tw / th))
-        x0 = (w - cw) // 2
-        rgb, depth, valid = rgb[:, x0 : x0 + cw], depth[:, x0 : x0 + cw], valid[:, x0 : x0 + cw]
-    elif w * th < tw * h:
-        ch = max(1, round(w * th / tw))
-        y0 = (h - ch) // 2
-        rgb, depth, valid = rgb[y0 : y0 + ch], depth[y0 : y0 + ch], valid[y0 : y0 + ch]
-    h, w = depth.shape
-    if (w, h) == (tw, th):
-        return np.ascontiguousarray(rgb), np.ascontiguousarray(depth), np.ascontiguousarray(valid)
-    interp = cv2.INTER_AREA if tw < w else cv2.INTER_CUBIC
-    rgb = np.clip(cv2.resize(np.ascontiguousarray(rgb), (tw, th), interpolation=interp), 0.0, 1.0)
-    depth = cv2.resize(np.ascontiguousarray(depth), (tw, th), interpolation=cv2.INTER_NEAREST)
-    valid = cv2.resize(valid.astype(np.uint8), (tw, th), interpolation=cv2.INTER_NEAREST).astype(bool)
-    return rgb, depth, valid
-
-
 def paths_for(stem: str, k: int) -> dict[str, str]:
     """Output paths of variant ``k`` of ``stem``, relative to the output folder."""
     return {
@@ -169,41 +107,6 @@ def paths_for(stem: str, k: int) -> dict[str, str]:
         "basic": f"basic/{stem}_v{k}.png",
         "transmission": f"transmission/{stem}_v{k}.png",
     }
-
-
-def manifest_record(
-    source: RGBDSource, k: int, seed: int, params: VariantParams, result_info: dict[str, Any], files: dict[str, str]
-) -> dict[str, Any]:
-    """One manifest line: flat fields named as in the synthesis spec, plus ``params`` (exact re-render input)."""
-    m, fs, sn = params.medium, params.forward_scatter, params.snow
-    rec: dict[str, Any] = {
-        "stem": source.stem,
-        "variant": k,
-        "seed": seed,
-        "source_rgb": source.rgb_path,
-        "source_depth": source.depth_path,
-        "stages": list(params.stages),
-        **files,
-        **result_info,
-    }
-    if source.mat_index is not None:
-        rec["source_index"] = source.mat_index
-    if m is not None:
-        rec.update(
-            water_type=m.water_type,
-            beta=list(m.beta_per_m),
-            B_inf=list(m.b_inf),
-            D=m.vertical_depth_m,
-            H=m.far_m,
-            d_near=m.near_m,
-            distance_mode=m.distance_mode,
-        )
-    if fs is not None:
-        rec.update(fs_mode=fs.mode, sigma0=fs.sigma0_px, k=fs.k_px_per_m, gamma=fs.gamma_per_m)
-    if sn is not None:
-        rec.update(N_p=sn.n_particles, s=list(sn.scale_range), rho=sn.rho_px, bank_id=sn.bank_id)
-    rec["params"] = variant_to_dict(params)
-    return rec
 
 
 _WORKER_BANK: Any = None
@@ -267,8 +170,8 @@ def process_source(
                 group.append(partial(write_uint, out / files["snow_alpha"], alpha_u8, png_compression=png))
                 keep["snow_alpha"] = files["snow_alpha"]
             if config.output.save_intermediate:
-                group.append(partial(write_rgb, out / files["basic"], res.basic, png_compression=png))
-                group.append(partial(write_rgb, out / files["transmission"], res.transmission, png_compression=png))
+                group.append(partial(write_rgb, out / files["basic"], res.basic, png_compression=png))  # type: ignore[arg-type]
+                group.append(partial(write_rgb, out / files["transmission"], res.transmission, png_compression=png))  # type: ignore[arg-type]
                 keep.update(basic=files["basic"], transmission=files["transmission"])
             # last: its presence marks the variant done
             group.append(partial(write_rgb, out / files["degraded"], res.degraded, png_compression=png))
@@ -296,35 +199,6 @@ def _writer() -> BackgroundWriter:
 
 WRITER_THREADS = 2
 """Writer threads per process: PNG encoding (about as long as rendering a variant) overlaps the rendering."""
-
-
-def variant_info(res: Any, w: int, h: int, valid: np.ndarray, note: str | None) -> dict[str, Any]:
-    """The manifest's per-variant figures: size, distance range, largest blur, valid depth fraction and the
-    depth warning (if any); the same for loose files and shards."""
-    info: dict[str, Any] = {
-        "width": w,
-        "height": h,
-        "dist_min_m": float(res.dist_m.min()),
-        "dist_max_m": float(res.dist_m.max()),
-        "sigma_max": res.sigma_max_px,
-        "valid_depth_fraction": float(valid.mean()),
-    }
-    if note:
-        info["depth_warning"] = note
-    return info
-
-
-def depth_range_note(source: RGBDSource, valid_depth_m: np.ndarray) -> str | None:
-    """A warning when a depth map's values are implausible in metres (a wrong --depth-scale/--depth-encoding)."""
-    if valid_depth_m.size == 0 or source.mat_index is not None:
-        return None
-    med = float(np.median(valid_depth_m))
-    if 0.1 <= med <= 20.0:  # underwater scenes end at 15 m: a larger median means a wrong scale or encoding
-        return None
-    return (
-        f"{source.depth_path}: median depth {med:.3g} m is implausible for a camera scene; check --depth-scale "
-        "(1000 mm, 5000 TUM, 256 KITTI) and --depth-encoding (sun, kinect-disparity)"
-    )
 
 
 # ---------------------------------------------------------------------------------------------- the run
@@ -362,37 +236,6 @@ def write_index(out_dir: Path, records: dict[tuple[str, int], dict[str, Any]]) -
 
 OUTPUT_FOLDERS = ("degraded", "clean", "depth", "snow_alpha", "basic", "transmission", ".murk")
 """The subfolders a run writes into: no input file may lie in one."""
-_OVERLAP_WHY = "the outputs would overwrite or mix with the input files"
-
-
-def input_locations(sources: Sequence[RGBDSource]) -> list[Path]:
-    """The folders of the input files, each once: what the output folder may not be or lie inside, and what its
-    output subfolders may not hold. (A NYU ``.mat`` file is left out: no output can replace it.)"""
-    seen: dict[str, Path] = {}
-    for s in sources:
-        if s.mat_index is None:
-            for folder in (os.path.dirname(s.rgb_path), os.path.dirname(s.depth_path)):
-                seen.setdefault(folder, Path(folder or "."))
-    return list(seen.values())
-
-
-def check_config_compatible(out_dir: Path, config: SynthConfig) -> None:
-    """Refuse to add to a folder made with a different configuration (the results would not be one dataset)."""
-    path = out_dir / "config.yaml"
-    if not path.exists():
-        return
-    old = read_yaml(path, what="the configuration of an earlier run")
-    new = to_dict(config)
-    diffs = [
-        k
-        for k in sorted(set(old) | set(new))
-        if k not in ("workers", "murk_version") and old.get(k) != new.get(k) and k in new
-    ]
-    if diffs:
-        raise ValueError(
-            f"{out_dir}: this folder was generated with a different configuration (differs in: "
-            f"{', '.join(diffs)}); use a new output folder, or delete this one to start over"
-        )
 
 
 def run_synthesis(
@@ -421,7 +264,7 @@ def run_synthesis(
         OutputError: no space left on the device (the message names the file; a rerun resumes).
     """
     out = Path(out_dir)
-    check_output_location(out, input_locations(sources), option="OUT_DIR", writes=OUTPUT_FOLDERS, why=_OVERLAP_WHY)
+    check_output_location(out, input_locations(sources), option="OUT_DIR", writes=OUTPUT_FOLDERS, why=OVERLAP_WHY)
     if "marine_snow" in config.stages and not bank_path:
         raise ValueError("stages: marine_snow needs a particle bank (--snow-bank)")
     if bank_path:

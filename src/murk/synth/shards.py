@@ -47,8 +47,18 @@ from murk.io.jobs import ErrorRecord, JobSummary
 from murk.io.jsonl import append_jsonl, read_jsonl
 from murk.io.pairs import DepthOptions, RGBDSource, load_pair
 from murk.rng import derive_seed
+from murk.synth.common import (
+    DEPTH_SCALE_OUT,
+    OVERLAP_WHY,
+    Shard,
+    check_config_compatible,
+    depth_range_note,
+    fit_size,
+    input_locations,
+    manifest_record,
+    variant_info,
+)
 from murk.synth.config import SynthConfig
-from murk.synth.runner import DEPTH_SCALE_OUT, Shard, depth_range_note, fit_size, manifest_record, variant_info
 
 Backend = Literal["local", "ray"]
 SHARDS_DIR = "shards"
@@ -160,8 +170,9 @@ def render_source_samples(
 ) -> tuple[list[dict[str, Any]], list[ErrorRecord], str | None]:
     """Load one RGB-D pair and render ``variants``: one WebDataset sample dict (``__key__`` + bytes) each.
 
-    The same per-sample work as :func:`murk.synth.runner.process_source` (same seeds, same parameters), but the
-    images go into memory instead of files. Returns (samples, failures, depth-range note).
+    The same per-sample work as :func:`murk.synth.runner.process_source` (same seeds, same parameters, the pieces
+    of :mod:`murk.synth.common`), but the images go into memory instead of files. Returns (samples, failures,
+    depth-range note).
     """
     from murk.synth.params import sample_variant, snow_sampler_for
     from murk.synth.pipeline import render
@@ -275,6 +286,23 @@ def build_shard_in_worker(plan: ShardPlan, config: SynthConfig, out_dir: str) ->
     return build_shard(plan, config, out_dir, _WORKER_BANK)
 
 
+_TASK_BANKS: dict[str, Any] = {}
+
+
+def build_shard_task(plan: ShardPlan, config: SynthConfig, out_dir: str, bank_path: str | None) -> ShardResult:
+    """The body of one Ray task (:mod:`murk.synth.ray_backend`): :func:`build_shard` with one OpenCV thread and the
+    particle bank loaded once per Ray worker process."""
+    cv2.setNumThreads(1)
+    bank = None
+    if bank_path:
+        if bank_path not in _TASK_BANKS:
+            from murk.snow.bank import load_bank
+
+            _TASK_BANKS[bank_path] = load_bank(bank_path)
+        bank = _TASK_BANKS[bank_path]
+    return build_shard(plan, config, out_dir, bank)
+
+
 # ------------------------------------------------------------------------------------------ the run
 
 
@@ -298,8 +326,6 @@ def load_finished(out: Path) -> dict[str, dict[str, Any]]:
 def check_shard_folder(out: Path, config: SynthConfig, samples_per_shard: int) -> None:
     """Refuse a folder written with another configuration, format or shard size (they would not be one dataset)."""
     import yaml
-
-    from murk.synth.runner import check_config_compatible
 
     path = out / "config.yaml"
     if not path.exists():
@@ -383,7 +409,6 @@ def write_shards(
         OutputError: no space left on the device (a rerun resumes).
     """
     from murk.io.paths import check_output_location
-    from murk.synth.runner import _OVERLAP_WHY, input_locations
 
     try:
         import webdataset  # noqa: F401
@@ -398,7 +423,7 @@ def write_shards(
     out = Path(out_dir)
     summary.out = out
     check_output_location(
-        out, input_locations(sources), option="OUT_DIR", writes=(SHARDS_DIR, ".murk"), why=_OVERLAP_WHY
+        out, input_locations(sources), option="OUT_DIR", writes=(SHARDS_DIR, ".murk"), why=OVERLAP_WHY
     )
     if "marine_snow" in config.stages and not bank_path:
         raise ValueError("stages: marine_snow needs a particle bank (--snow-bank)")
@@ -436,9 +461,10 @@ def write_shards(
             on_progress(finished, len(mine))
 
     if backend == "ray":
-        from murk.synth.ray_backend import build_shards_ray
+        from murk.synth.ray_backend import run_ray_tasks
 
-        build_shards_ray(todo, config, str(out), bank_path, address=ray_address, on_result=collect)
+        calls = [(p, config, str(out), bank_path) for p in todo]
+        run_ray_tasks(build_shard_task, calls, address=ray_address, on_result=collect)
     elif config.workers <= 1 or len(todo) <= 1:
         init_shard_worker(bank_path, die_with_parent=False)
         for p in todo:

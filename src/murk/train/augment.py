@@ -20,18 +20,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor
 
-
-@dataclass(frozen=True)
-class AugmentConfig:
-    """Augmentation settings (defaults: the original recipe)."""
-
-    rotate_deg: float = 3.5
-    flip_p: float = 0.5
-    color_p: float = 0.7
-    brightness: tuple[float, float] = (0.5, 1.1)
-    channel_gain: tuple[float, float] = (0.9, 1.1)
-    max_depth_m: float = 600.0
-    enabled: bool = True
+from murk.train.config import AugmentConfig
 
 
 @dataclass(frozen=True)

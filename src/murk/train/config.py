@@ -7,10 +7,33 @@ from typing import Literal
 
 from murk._checks import check_interval, check_positive, check_range
 from murk.synth.config import SynthConfig
-from murk.train.augment import AugmentConfig
-from murk.train.losses import LossWeights
 
 DataKind = Literal["auto", "synth", "list", "rgbd", "scenes", "shards"]
+
+
+@dataclass(frozen=True)
+class AugmentConfig:
+    """Augmentation settings (defaults: the original recipe; applied by :mod:`murk.train.augment`)."""
+
+    rotate_deg: float = 3.5
+    flip_p: float = 0.5
+    color_p: float = 0.7
+    brightness: tuple[float, float] = (0.5, 1.1)
+    channel_gain: tuple[float, float] = (0.9, 1.1)
+    max_depth_m: float = 600.0
+    enabled: bool = True
+
+
+@dataclass(frozen=True)
+class LossWeights:
+    """Weights of the loss terms (defaults: the original recipe; used by :mod:`murk.train.losses`)."""
+
+    enhance: float = 2.0
+    laplacian: float = 0.1
+    depth: float = 1.8
+    ssim: float = 0.0
+    silog_lambda: float = 0.85
+    depth_min_m: float = 0.001
 
 
 @dataclass(frozen=True)

@@ -22,19 +22,9 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor
 
+from murk.train.config import LossWeights
+
 _LAPLACE = torch.tensor([[0.0, -1.0, 0.0], [-1.0, 4.0, -1.0], [0.0, -1.0, 0.0]])
-
-
-@dataclass(frozen=True)
-class LossWeights:
-    """Weights of the loss terms (defaults: the original recipe)."""
-
-    enhance: float = 2.0
-    laplacian: float = 0.1
-    depth: float = 1.8
-    ssim: float = 0.0
-    silog_lambda: float = 0.85
-    depth_min_m: float = 0.001
 
 
 def row_l2(pred: Tensor, target: Tensor) -> Tensor:

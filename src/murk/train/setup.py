@@ -28,6 +28,7 @@ from murk.train.data import (
     split_by_stem,
 )
 from murk.train.schedule import Schedule
+from murk.train.sources import detect_kind
 
 # ------------------------------------------------------------------------------------------------ data
 
@@ -38,28 +39,6 @@ class DataSetup:
     val: Dataset | None
     online: OnlineDegrader | None
     kind: str
-
-
-def detect_kind(source: str) -> str:
-    """``synth`` (folder with manifest.jsonl), ``list`` (a file), ``rgbd`` (rgb/ + depth/), ``scenes`` or
-    ``shards`` (tar shards: a ``.tar`` pattern or an ``index.json``)."""
-    p = Path(source)
-    if source == "scenes" or source.startswith("scenes:"):
-        return "scenes"
-    from murk.train.shard_data import is_shard_source
-
-    if is_shard_source(source):
-        return "shards"
-    if p.is_file():
-        return "list"
-    if (p / "manifest.jsonl").is_file():
-        return "synth"
-    if p.is_dir() and (p / "depth").is_dir():
-        return "rgbd"
-    raise ValueError(
-        f"data.source: {source or '(empty)'} is neither a 'murk synth' folder, a Joint-ID list file, a folder with "
-        "rgb/ and depth/, 'scenes', nor tar shards (a .tar pattern or an index.json)"
-    )
 
 
 def build_data(config: TrainConfig) -> DataSetup:

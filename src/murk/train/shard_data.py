@@ -43,8 +43,8 @@ from torch.utils.data import DataLoader, Dataset, IterableDataset, get_worker_in
 from murk.errors import InputFileError
 from murk.rng import derive_seed
 from murk.train.augment import centre_crop
+from murk.train.sources import INDEX_NAME, is_shard_source
 
-INDEX_NAME = "index.json"
 DEPTH_SCALE = 1000.0
 """Depth members are uint16 millimetres (as ``murk synth`` writes them)."""
 
@@ -72,14 +72,6 @@ class ShardSet:
     def offsets(self) -> list[int]:
         """Global id of the first sample of each shard (ids number the samples of all shards in order)."""
         return [0, *np.cumsum(self.counts)[:-1].tolist()] if self.keys else []
-
-
-def is_shard_source(source: str) -> bool:
-    """True for a brace pattern or path of ``.tar`` shards, an ``index.json``, or a folder holding one."""
-    s = source.strip()
-    if s.endswith((".tar", ".json")):
-        return True
-    return Path(s).is_dir() and (Path(s) / INDEX_NAME).is_file() and not (Path(s) / "manifest.jsonl").exists()
 
 
 def _read_index(path: Path) -> dict[str, Any]:

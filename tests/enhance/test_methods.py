@@ -1,0 +1,72 @@
+"""The lazy factories of the torch methods (murk.enhance.methods): the registry knows every name and option without
+importing torch, each declaration equals the factory it calls, and calling one builds the real restorer."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from murk.enhance import methods
+from murk.enhance.options import declared_options
+from murk.enhance.restorer import create, options_of
+
+
+def _implementation(name: str):  # type: ignore[no-untyped-def]
+    from murk.enhance import jointid_restorer, lite_restorer, post, udaformer_restorer, ursct_restorer
+
+    return {
+        "post": post.make_post,
+        "jointid": jointid_restorer.create_jointid,
+        "lite": lite_restorer.create_lite,
+        "udaformer": udaformer_restorer.create_udaformer,
+        "ursct": ursct_restorer.create_ursct,
+    }[name]
+
+
+@pytest.mark.parametrize("name", ["post", "jointid", "lite", "udaformer", "ursct"])
+def test_the_declaration_equals_the_implementation(name: str) -> None:
+    lazy = declared_options(getattr(methods, name))
+    real = declared_options(_implementation(name))
+    assert [(o.name, o.type, o.default) for o in lazy.values()] == [(o.name, o.type, o.default) for o in real.values()]
+    # the annotations the implementation resolves are resolved the same (torch.device only there)
+    for key, option in lazy.items():
+        if "torch" not in option.type:
+            assert option.annotation == real[key].annotation, key
+    assert options_of(name) == lazy
+
+
+def test_names_and_options_are_checked_without_torch() -> None:
+    code = textwrap.dedent(
+        """
+        import sys
+        from murk.enhance.restorer import available, create, options_of
+        assert available() == ["clahe", "greyworld", "jointid", "lite", "post", "udaformer", "udcp", "ursct"]
+        assert options_of("jointid")["overlap"].default == 64
+        for spec, text in [
+            ("jointd", "unknown 'jointd' (did you mean 'jointid'?)"),
+            ("post?lamda=1", "unknown option 'lamda' (did you mean 'lam'?)"),
+            ("post?lam=abc", "option lam: expected float | None, got 'abc'"),
+            ("jointid?precision=fp64", "option precision: expected one of 'fp32', 'bf16', 'fp16', got 'fp64'"),
+        ]:
+            try:
+                create(spec)
+            except ValueError as exc:
+                assert text in str(exc), (spec, str(exc))
+            else:
+                raise AssertionError(spec)
+        print(sorted(m for m in ("torch", "onnxruntime") if m in sys.modules))
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+
+
+def test_a_lazy_factory_builds_the_real_restorer() -> None:
+    from murk.enhance.post import POST_PRESETS, PostRestorer
+
+    restorer = create("post?preset=paper", shared={"device": "cpu"})
+    assert isinstance(restorer, PostRestorer)
+    assert restorer.params == POST_PRESETS["paper"]
