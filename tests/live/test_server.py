@@ -44,7 +44,7 @@ def test_page_files_are_served_by_exact_name_only(served) -> None:
     server, _ = served
     r, body = request(server, "GET", "/")
     assert r.status == 200 and r.getheader("Content-Type").startswith("text/html") and b"murk live" in body
-    assert b"<script src=\"live.js\">" in body and b"http" not in body.split(b"<body")[1]  # no CDN, no remote file
+    assert b'<script src="live.js">' in body and b"http" not in body.split(b"<body")[1]  # no CDN, no remote file
     r, body = request(server, "GET", "/live.js")
     assert r.status == 200 and b"murkStats" in body
     for path in ("/../../etc/passwd", "/assets/live.js", "/%2e%2e/pyproject.toml", "/live.js/..", "/etc/passwd"):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 
 import pytest
@@ -35,7 +36,7 @@ def test_loop_restarts_a_file_with_increasing_frame_numbers_and_times(tmp_path: 
         source.close()
     assert [f.index for f in frames] == list(range(10))
     times = [f.source_ns for f in frames]
-    assert all(b > a for a, b in zip(times, times[1:], strict=False))
+    assert all(b > a for a, b in itertools.pairwise(times))
     assert source.frame_count is None  # a looped file has no end
 
 
@@ -63,8 +64,8 @@ def test_bag_replay_keeps_header_stamps_and_recorded_spacing(tmp_path: Path) -> 
 
 
 def test_bad_sources_are_named(tmp_path: Path) -> None:
-    with pytest.raises(InputFileError, match="missing.mp4"):
+    with pytest.raises(InputFileError, match=r"missing\.mp4"):
         open_live_source(str(tmp_path / "missing.mp4"))
     path = clip(tmp_path, n=2)
-    with pytest.raises(ValueError, match="--topic /x: .*not a ROS bag"):
+    with pytest.raises(ValueError, match=r"--topic /x: .*not a ROS bag"):
         open_live_source(str(path), topic="/x")

@@ -61,29 +61,41 @@
     }
   }
 
+  function next(after) {
+    return fetch("/api/frame?after=" + after, { headers, cache: "no-store" }).then(async (r) => {
+      if (r.status !== 200) return { r };
+      return { r, blob: await r.blob() };
+    });
+  }
+
   async function frames() {
     let after = -1;
+    let pending = next(after);
     for (;;) {
-      let r;
+      let got;
       try {
-        r = await fetch("/api/frame?after=" + after, { headers, cache: "no-store" });
+        got = await pending;
       } catch (e) {
         say("connection to murk lost; retrying", true);
         await new Promise((res) => setTimeout(res, 1000));
+        pending = next(after);
         continue;
       }
-      if (r.status === 204) continue; // no newer frame yet (or the source ended)
+      const r = got.r;
+      if (r.status === 204) { pending = next(after); continue; } // no newer frame yet (or the source ended)
       if (!r.ok) {
         let msg = "HTTP " + r.status;
         try { msg = (await r.json()).error || msg; } catch (e) { /* keep the status */ }
         say(msg, true);
         await new Promise((res) => setTimeout(res, 1000));
+        pending = next(after);
         continue;
       }
       const index = Number(r.headers.get("X-Murk-Frame"));
       const captureMs = Number(r.headers.get("X-Murk-Capture-Ms"));
       const method = r.headers.get("X-Murk-Method") || "";
-      const bmp = await createImageBitmap(await r.blob());
+      pending = next(index); // ask for the next frame while this one is decoded and drawn
+      const bmp = await createImageBitmap(got.blob);
       const now = Date.now(); // the frame has arrived and is decoded: glass-to-page ends here
       if (after >= 0 && index > after + 1) stats.skipped += index - after - 1;
       after = index;
@@ -146,7 +158,7 @@
         label.textContent = opt.name + " ";
         const input = document.createElement("input");
         input.name = opt.name;
-        input.placeholder = String(opt.default);
+        input.placeholder = opt.default === null ? "default" : String(opt.default);
         input.title = opt.name + ": " + opt.type + " (default " + String(opt.default) + ")";
         if (keep[opt.name]) input.value = keep[opt.name];
         label.appendChild(input);
