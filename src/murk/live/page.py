@@ -27,4 +27,4 @@ def asset(path: str) -> tuple[bytes, str] | None:
     if entry is None:
         return None
     name, content_type = entry
-    return (resources.files("murk.live").joinpath("assets", name).read_bytes(), content_type)
+    return (resources.files("murk.live").joinpath("assets").joinpath(name).read_bytes(), content_type)
