@@ -6,8 +6,11 @@ Exit codes: 0 = everything succeeded; 1 = the job ran but some inputs failed (se
 
 from __future__ import annotations
 
+import contextlib
 import os
-from collections.abc import Mapping
+import signal
+import threading
+from collections.abc import Iterator, Mapping
 from typing import Annotated, Any
 
 import typer
@@ -153,3 +156,25 @@ def merge_flags(config: Any, table: dict[str, str], values: dict[str, Any]) -> A
                 if values.get(name) is not None and text.startswith(prefix):
                     raise ValueError(f"--{name.replace('_', '-')}: {text[len(prefix) :]}") from None
         raise
+
+
+@contextlib.contextmanager
+def stop_on_signals() -> Iterator[Any]:
+    """Yield a ``should_stop`` callable set by SIGINT/SIGTERM, so outputs are closed cleanly; a second
+    Ctrl+C raises KeyboardInterrupt at once. Outside the main thread no handler is installed."""
+    flag = threading.Event()
+    if threading.current_thread() is not threading.main_thread():
+        yield flag.is_set
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        if flag.is_set() and signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        flag.set()
+
+    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield flag.is_set
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)

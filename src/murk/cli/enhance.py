@@ -2,10 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
-import signal
-import threading
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -20,6 +16,7 @@ from murk.cli._common import (
     QuietOpt,
     make_console,
     resolve_device,
+    stop_on_signals,
 )
 from murk.cli._jobs import JobProgress, print_summary
 from murk.enhance.choices import BagStorage, HEMode, ImageFormat, Policy, Precision, VideoBackendChoice
@@ -252,7 +249,7 @@ def enhance(
     def display(title: str, unit: str, total: int | None, live: bool) -> JobProgress:
         return JobProgress(console, title, total=total, unit=unit, live=live, status=_status_line, rate=_rate)
 
-    with _stop_on_signals() as stop:
+    with stop_on_signals() as stop:
         inp, report = run_enhance(
             input,
             out,
@@ -310,25 +307,3 @@ def _status_line(report: Any) -> str:
         f"{done}{of} frames{failed} | {report.fps:.1f} f/s | read {ms['read']:.0f} ms, "
         f"restore {ms['restore']:.0f} ms, write {ms['write']:.0f} ms"
     )
-
-
-@contextlib.contextmanager
-def _stop_on_signals() -> Iterator[Any]:
-    """Yield a ``should_stop`` callable set by SIGINT/SIGTERM, so outputs are closed cleanly; a second
-    Ctrl+C raises KeyboardInterrupt at once. Outside the main thread no handler is installed."""
-    flag = threading.Event()
-    if threading.current_thread() is not threading.main_thread():
-        yield flag.is_set
-        return
-
-    def handler(signum: int, frame: Any) -> None:
-        if flag.is_set() and signum == signal.SIGINT:
-            raise KeyboardInterrupt
-        flag.set()
-
-    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield flag.is_set
-    finally:
-        for s, h in previous.items():
-            signal.signal(s, h)

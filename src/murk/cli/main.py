@@ -12,6 +12,7 @@ from murk.cli import demo as _demo
 from murk.cli import enhance as _enhance
 from murk.cli import eval as _eval
 from murk.cli import export as _export
+from murk.cli import live as _live
 from murk.cli import scenes as _scenes
 from murk.cli import snow as _snow
 from murk.cli import study as _study
@@ -66,6 +67,7 @@ app.command("scenes")(_scenes.scenes)
 app.command("train")(_train.train)
 app.command("study")(_study.study)
 app.command("enhance")(_enhance.enhance)
+app.command("live")(_live.live)
 app.command("eval")(_eval.evaluate)
 app.command("export")(_export.export)
 app.command("compare")(_compare.compare)

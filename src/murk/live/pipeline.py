@@ -1,0 +1,338 @@
+"""The frame pipeline of ``murk live``: capture thread -> restore thread -> the newest restored frame.
+
+Capture: :class:`murk.io.readahead.ReadAhead` over a :class:`murk.live.source.PacedSource` in its live policy
+(``drop_late``): only the newest captured frame waits; when restoration is slower than the source, the frame
+that was waiting is replaced and counted as dropped. Nothing is ever queued without bound.
+
+Restore: one thread restores each frame it takes with the current method (:func:`murk.enhance.job.
+restore_batch`, as ``murk enhance`` does) and publishes a :class:`LiveView` (raw and restored uint8, depth,
+stamps). Readers (the web server, one thread per page) wait for a view newer than the one they have
+(:meth:`LivePipeline.wait_view`) and so also skip frames when they are slower: newest wins everywhere.
+
+The method can be switched while running (:meth:`LivePipeline.set_method`): the new restorer is built in the
+caller's thread (a bad method or option raises ``ValueError`` there and the running one stays) and swapped in
+between two frames; methods with a ``temporal`` weight start their average afresh.
+
+Each view is encoded to JPEG at most once, when a reader first asks for it (:meth:`LiveView.jpeg`), so
+encoding for the page overlaps with the restoration of the next frame.
+"""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import statistics
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from murk.enhance.job import RESTORE_ERRORS, restore_batch
+from murk.enhance.options import parse_spec
+from murk.enhance.restorer import Restorer
+from murk.io.images import to_float, to_uint
+from murk.io.readahead import ReadAhead
+from murk.live.outputs import Recorder, SnapshotFrame, write_snapshot
+from murk.live.source import LiveFrame, PacedSource
+
+RATE_WINDOW_S = 2.0
+"""Frames per second are counted over this last stretch of time."""
+LATENCY_WINDOW = 60
+"""The latency shown is the median over this many last frames."""
+
+RestorerFactory = Callable[[str], Restorer]
+FrameHook = Callable[["LiveView"], None]
+
+
+@dataclass
+class LiveView:
+    """One restored frame as readers see it. ``raw``/``restored`` uint8 RGB (H, W, 3); ``depth_m`` (H, W) or
+    None; times in nanoseconds since the epoch: ``capture_ns`` (left the source), ``source_ns`` (the frame's own
+    time), ``done_ns`` (restored)."""
+
+    index: int
+    raw: np.ndarray
+    restored: np.ndarray
+    depth_m: np.ndarray | None
+    capture_ns: int
+    source_ns: int
+    done_ns: int
+    method: str
+    frame_id: str = ""
+    _jpeg: dict[str, bytes] = field(default_factory=dict, repr=False)
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    def jpeg(self, view: str = "pair", quality: int = 85) -> bytes:
+        """The frame encoded as JPEG, once per ``view``: ``pair`` (raw | restored side by side, what the page
+        shows), ``raw`` or ``restored``."""
+        key = f"{view}:{quality}"
+        with self._lock:
+            if key not in self._jpeg:
+                image = {"raw": self.raw, "restored": self.restored}.get(view)
+                if image is None:
+                    image = np.concatenate([self.raw, self.restored], axis=1)
+                self._jpeg[key] = encode_jpeg(image, quality)
+            return self._jpeg[key]
+
+
+def encode_jpeg(rgb: np.ndarray, quality: int = 85) -> bytes:
+    """uint8 RGB -> JPEG bytes."""
+    ok, buf = cv2.imencode(".jpg", np.ascontiguousarray(rgb[:, :, ::-1]), [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:
+        raise ValueError(f"image: OpenCV could not encode a JPEG of shape {rgb.shape}")
+    return buf.tobytes()
+
+
+class LivePipeline:
+    """Capture and restoration threads around ``source`` (see the module docstring).
+
+    Args:
+        source: the paced source (ownership passes).
+        make_restorer: builds the restorer of a method spec (``"lite+post?temporal=0.8"``); raises ValueError.
+        method: the first method spec.
+        out_dir: where snapshots and recordings go (created on first use).
+        hooks: called with every new view in the restore thread (the Foxglove publisher).
+    """
+
+    def __init__(
+        self,
+        source: PacedSource,
+        make_restorer: RestorerFactory,
+        method: str,
+        out_dir: Path,
+        *,
+        hooks: list[FrameHook] | None = None,
+    ) -> None:
+        self.source = source
+        self.label = source.label
+        self.out_dir = Path(out_dir)
+        self._make_restorer = make_restorer
+        self._restorer = make_restorer(method)
+        self.method = method
+        self.hooks = list(hooks or [])
+        self._cond = threading.Condition()
+        self._view: LiveView | None = None
+        self._restored_times: collections.deque[float] = collections.deque()
+        self._latency_ms: collections.deque[float] = collections.deque(maxlen=LATENCY_WINDOW)
+        self._stop = threading.Event()
+        self._recorder: Recorder | None = None
+        self._rec_lock = threading.Lock()
+        self.restored = 0
+        self.broken = 0
+        self.failed = 0
+        self.last_error: str | None = None
+        self.ended: str | None = None
+        """Why the source ended (``"end"``, ``"disconnected or ended"``, an error), None while it runs."""
+        self.recordings: list[Path] = []
+        self._reader = ReadAhead(source, drop_late=True)
+        self._thread = threading.Thread(target=self._run, name="murk-live-restore", daemon=True)
+
+    # -- running ---------------------------------------------------------------------------------------------
+
+    def start(self) -> LivePipeline:
+        self._thread.start()
+        return self
+
+    @property
+    def dropped(self) -> int:
+        """Captured frames replaced by a newer one before restoration took them."""
+        return self._reader.dropped
+
+    def _run(self) -> None:
+        with contextlib.ExitStack() as sequence:
+            active: Restorer | None = None
+            while not self._stop.is_set():
+                try:
+                    frame = self._reader.read()
+                except Exception as exc:  # the reader failed: the source is over
+                    self._end(f"the source failed ({type(exc).__name__}: {exc})")
+                    return
+                if frame is None:
+                    self._end(self.source.end_reason or "end")
+                    return
+                if frame.image is None:
+                    self.broken += 1
+                    self.last_error = f"frame {frame.index}: {frame.error or 'could not be decoded'}"
+                    continue
+                with self._cond:
+                    restorer, method = self._restorer, self.method
+                if restorer is not active:  # a new method: its average over time starts with this frame
+                    sequence.close()
+                    sequence.enter_context(restorer.sequence())
+                    active = restorer
+                self._restore(frame, restorer, method)  # type: ignore[arg-type]
+
+    def _restore(self, frame: LiveFrame, restorer: Restorer, method: str) -> None:
+        image = frame.image
+        assert image is not None
+        try:
+            out = restore_batch(restorer, to_float(image)[None])
+        except RESTORE_ERRORS as exc:
+            self.failed += 1
+            self.last_error = f"frame {frame.index}: {method} failed ({type(exc).__name__}: {exc})"
+            return
+        raw = image if image.dtype == np.uint8 else to_uint(to_float(image), 8)
+        view = LiveView(
+            index=frame.index,
+            raw=raw,
+            restored=to_uint(out.images[0], 8),
+            depth_m=None if out.depth_m is None else out.depth_m[0],
+            capture_ns=frame.capture_ns,
+            source_ns=frame.source_ns,
+            done_ns=time.time_ns(),
+            method=method,
+            frame_id=frame.frame_id,
+        )
+        now = time.perf_counter()
+        with self._cond:
+            self._view = view
+            self.restored += 1
+            self._restored_times.append(now)
+            while self._restored_times and self._restored_times[0] < now - RATE_WINDOW_S:
+                self._restored_times.popleft()
+            self._latency_ms.append((view.done_ns - view.capture_ns) / 1e6)
+            self._cond.notify_all()
+        with self._rec_lock:
+            recorder = self._recorder
+        if recorder is not None:
+            try:
+                recorder.write(view.index, view.restored)
+            except (OSError, ValueError) as exc:
+                self.last_error = f"recording stopped: {exc}"
+                self._finish_recording()
+        for hook in self.hooks:
+            try:
+                hook(view)
+            except Exception as exc:  # a failing publisher never stops the live view
+                self.last_error = f"{getattr(hook, '__qualname__', hook)}: {type(exc).__name__}: {exc}"
+
+    def _end(self, reason: str) -> None:
+        with self._cond:
+            self.ended = reason
+            self._cond.notify_all()
+
+    def stop(self, timeout_s: float = 20.0) -> list[Path]:
+        """Stop capture and restoration, finish a running recording (a playable file); return the recordings."""
+        self._stop.set()
+        self.source.stop()
+        self._reader.stop()
+        self._thread.join(timeout_s)
+        self._finish_recording()
+        if not self._thread.is_alive():
+            with contextlib.suppress(Exception):
+                self.source.close()
+        with self._cond:
+            if self.ended is None:
+                self.ended = "stopped"
+            self._cond.notify_all()
+        return list(self.recordings)
+
+    # -- readers ---------------------------------------------------------------------------------------------
+
+    def latest(self) -> LiveView | None:
+        with self._cond:
+            return self._view
+
+    def wait_view(self, after: int, timeout_s: float) -> LiveView | None:
+        """The newest view with ``index > after``, waiting at most ``timeout_s``; None if none came (or the
+        source ended)."""
+        deadline = time.monotonic() + timeout_s
+        with self._cond:
+            while True:
+                view = self._view
+                if view is not None and view.index > after:
+                    return view
+                left = deadline - time.monotonic()
+                if left <= 0 or self.ended is not None:
+                    return None
+                self._cond.wait(left)
+
+    def status(self) -> dict[str, Any]:
+        """What the page shows: method, rates, latency, drops, errors, recording, the source's end."""
+        now = time.perf_counter()
+        with self._cond:
+            times = [t for t in self._restored_times if t >= now - RATE_WINDOW_S]
+            span = (times[-1] - times[0]) if len(times) > 1 else 0.0
+            fps = (len(times) - 1) / span if span > 0 else 0.0
+            latency = statistics.median(self._latency_ms) if self._latency_ms else None
+            view = self._view
+        with self._rec_lock:
+            recording = None if self._recorder is None else str(self._recorder.path.name)
+        return {
+            "source": self.label,
+            "method": self.method,
+            "frame": None if view is None else view.index,
+            "size": None if view is None else [int(view.raw.shape[1]), int(view.raw.shape[0])],
+            "restored": self.restored,
+            "fps": round(fps, 2),
+            "latency_ms": None if latency is None else round(latency, 1),
+            "dropped": self.dropped,
+            "broken": self.broken,
+            "failed": self.failed,
+            "last_error": self.last_error,
+            "ended": self.ended,
+            "recording": recording,
+            "has_depth": bool(view is not None and view.depth_m is not None),
+            "out_dir": str(self.out_dir),
+        }
+
+    # -- controls --------------------------------------------------------------------------------------------
+
+    def set_method(self, spec: str) -> str:
+        """Switch to the method ``spec`` from the next frame on; returns it.
+
+        Raises:
+            ValueError: an unknown method or option (the running method stays).
+        """
+        restorer = self._make_restorer(spec)
+        with self._cond:
+            self._restorer, self.method = restorer, spec
+        return spec
+
+    def snapshot(self) -> list[Path]:
+        """Save the newest raw and restored frame (full resolution) with a JSON sidecar; returns the paths.
+
+        Raises:
+            ValueError: no frame has been restored yet.
+        """
+        view = self.latest()
+        if view is None:
+            raise ValueError("snapshot: no frame has been restored yet")
+        method, options = parse_spec(view.method)
+        frame = SnapshotFrame(
+            view.index,
+            view.raw,
+            view.restored,
+            view.depth_m,
+            view.capture_ns,
+            view.source_ns,
+            method,
+            options,
+            self.label,
+        )
+        return write_snapshot(self.out_dir, frame)
+
+    def set_recording(self, on: bool) -> Path | None:
+        """Start (``on``) or stop recording the restored stream; returns the recording's path."""
+        with self._rec_lock:
+            if on and self._recorder is None:
+                self._recorder = Recorder(self.out_dir, self.source.fps)
+                return self._recorder.path
+            if on:
+                return self._recorder.path if self._recorder else None
+        return self._finish_recording()
+
+    def _finish_recording(self) -> Path | None:
+        with self._rec_lock:
+            recorder, self._recorder = self._recorder, None
+        if recorder is None:
+            return None
+        path = recorder.close()
+        if path is not None:
+            self.recordings.append(path)
+        return path

@@ -1,0 +1,73 @@
+"""``murk live`` on the command line: the source's end, bad input, and Ctrl+C finishing a running recording."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from typer.testing import CliRunner
+
+from murk.cli.main import app
+from tests._video import read_video
+from tests.live._live import clip
+
+runner = CliRunner()
+
+
+def test_exit_at_end_reports_the_end(tmp_path: Path) -> None:
+    path = clip(tmp_path, n=6, fps=30.0)
+    result = runner.invoke(
+        app, ["live", str(path), "--method", "post", "--port", "0", "--exit-at-end", "--out", str(tmp_path / "o")]
+    )
+    assert result.exit_code == 0, result.output
+    assert "live view: http://127.0.0.1:" in result.output
+    assert "source ended: end" in result.output
+    assert "frames restored" in result.output
+    assert not (tmp_path / "o").exists()
+
+
+def test_bad_input_is_a_clear_error(tmp_path: Path) -> None:
+    result = runner.invoke(app, ["live", str(tmp_path / "nope.mp4"), "--port", "0"])
+    assert result.exit_code == 2 and "nope.mp4" in result.output and "not found" in result.output
+    path = clip(tmp_path, n=3)
+    result = runner.invoke(app, ["live", str(path), "--method", "nope", "--port", "0"])
+    assert result.exit_code == 2 and "unknown 'nope'" in result.output
+    result = runner.invoke(app, ["live", str(path), "--topic", "/cam", "--port", "0"])
+    assert result.exit_code == 2 and "not a ROS bag" in result.output
+
+
+def test_exposed_host_prints_a_warning(tmp_path: Path) -> None:
+    path = clip(tmp_path, n=3, fps=30.0)
+    result = runner.invoke(
+        app, ["live", str(path), "-m", "post", "--host", "0.0.0.0", "--port", "0", "--exit-at-end", "-o", str(tmp_path)]
+    )
+    assert result.exit_code == 0, result.output
+    assert "warning: serving on 0.0.0.0" in result.output and "--token" in result.output
+
+
+def test_ctrl_c_finishes_the_recording_and_exits_130(tmp_path: Path) -> None:
+    path = clip(tmp_path, n=20, fps=30.0)
+    out = tmp_path / "out"
+    env = os.environ | {"PYTHONPATH": os.pathsep.join([str(Path(__file__).parents[2] / "src"), *sys.path])}
+    cmd = [sys.executable, "-m", "murk", "live", str(path), "-m", "post", "--port", "0", "--loop", "--record"]
+    proc = subprocess.Popen([*cmd, "--out", str(out)], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    try:
+        deadline = time.monotonic() + 120
+        while not list(out.glob("recording_*")) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        time.sleep(1.5)  # a second or so of recording
+        proc.send_signal(signal.SIGINT)
+        output, _ = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    text = output.decode()
+    assert proc.returncode == 130, text
+    (recording,) = out.glob("recording_*")
+    assert f"recording saved: {recording}" in text
+    frames = read_video(recording)
+    assert len(frames) >= 5 and frames[0].shape == (48, 64, 3)  # finished and playable

@@ -1,0 +1,134 @@
+"""The frame pipeline of murk live: newest frame wins, drops counted, method switch, snapshot, recording, end."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from murk.live.pipeline import LiveView
+from tests._video import read_video
+from tests.live._live import clip, pipeline
+
+
+def _views(p, n: int) -> list[LiveView]:
+    out, after = [], -1
+    while len(out) < n:
+        view = p.wait_view(after, 10.0)
+        assert view is not None, p.status()
+        out.append(view)
+        after = view.index
+    return out
+
+
+def test_frames_are_restored_in_order_and_shown_with_stamps(tmp_path: Path) -> None:
+    p = pipeline(clip(tmp_path, n=20, fps=30.0), tmp_path / "out", "post", loop=True).start()
+    try:
+        views = _views(p, 5)
+        status = p.status()
+    finally:
+        p.stop()
+    indices = [v.index for v in views]
+    assert indices == sorted(set(indices))
+    v = views[-1]
+    assert v.raw.shape == v.restored.shape == (48, 64, 3) and v.raw.dtype == v.restored.dtype == np.uint8
+    assert not np.array_equal(v.raw, v.restored)  # post changed the frame
+    assert v.capture_ns <= v.done_ns and v.method == "post"
+    pair = cv2.imdecode(np.frombuffer(v.jpeg("pair"), np.uint8), cv2.IMREAD_COLOR)
+    assert pair.shape == (48, 128, 3)  # raw | restored
+    assert status["method"] == "post" and status["restored"] >= 5 and status["ended"] is None
+    assert not (tmp_path / "out").exists()  # nothing written without a snapshot or a recording
+
+
+def test_slow_method_drops_frames_and_never_queues(tmp_path: Path) -> None:
+    """A method slower than the source: every frame is either restored or counted as dropped."""
+    p = pipeline(clip(tmp_path, n=30, fps=60.0), tmp_path / "out", "slow?delay=0.06").start()
+    try:
+        while p.wait_view(10**9, 10.0) is None and p.ended is None:
+            pass
+        assert p.ended == "end"
+    finally:
+        p.stop()
+    assert p.dropped > 0
+    assert p.restored + p.dropped == 30
+    assert p.status()["dropped"] == p.dropped
+
+
+def test_method_switch_and_bad_method(tmp_path: Path) -> None:
+    p = pipeline(clip(tmp_path, n=20, fps=30.0), tmp_path / "out", "post", loop=True).start()
+    try:
+        _views(p, 1)
+        with pytest.raises(ValueError, match="unknown 'nope'"):
+            p.set_method("nope")
+        with pytest.raises(ValueError, match="unknown option 'lamb'"):
+            p.set_method("post?lamb=0.2")
+        assert p.method == "post"  # a refused method leaves the running one
+        p.set_method("slow?delay=0")
+        after = _views(p, 1)[0].index
+        views = _views(p, 3)
+    finally:
+        p.stop()
+    switched = [v for v in views if v.index > after and v.method == "slow?delay=0"]
+    assert switched
+    v = switched[-1]
+    assert np.array_equal(v.restored.astype(int), 255 - v.raw.astype(int))  # the inverting method ran
+
+
+def test_snapshot_writes_full_resolution_pngs_and_a_sidecar(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    p = pipeline(clip(tmp_path, n=20, fps=30.0), out, "post?lam=0.2", loop=True)
+    with pytest.raises(ValueError, match="no frame has been restored yet"):
+        p.snapshot()
+    p.start()
+    try:
+        _views(p, 2)
+        files = p.snapshot()
+        view = p.latest()
+    finally:
+        p.stop()
+    raw, restored, meta = files
+    assert {f.parent for f in files} == {out}
+    assert raw.name.endswith("_raw.png") and restored.name.endswith("_restored.png")
+    sidecar = json.loads(meta.read_text())
+    frame = sidecar["frame"]
+    assert sidecar["method"] == "post" and sidecar["options"] == {"lam": 0.2}
+    assert sidecar["source"].endswith("clip.avi") and sidecar["size"] == [64, 48]
+    assert sidecar["files"] == {"raw": raw.name, "restored": restored.name}
+    assert f"_f{frame:06d}" in raw.name and "time" in sidecar and sidecar["capture_time_ns"] > 0
+    saved = cv2.imread(str(raw))[:, :, ::-1]
+    assert saved.shape == (48, 64, 3)
+    assert view is not None and view.index >= frame
+
+
+def test_recording_is_a_playable_video_of_restored_frames(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    p = pipeline(clip(tmp_path, n=25, fps=40.0), out, "slow?delay=0").start()
+    try:
+        _views(p, 1)
+        path = p.set_recording(True)
+        assert path is not None and path.parent == out
+        assert p.status()["recording"] == path.name
+        while p.ended is None:
+            p.wait_view(10**9, 0.5)
+    finally:
+        recordings = p.stop()  # the recording is still running: stop finishes it
+    assert recordings == [path]
+    frames = read_video(path)
+    assert len(frames) >= 5
+    # restored (inverted) frames: the red channel is 255 - (20 + 8 i), falling from frame to frame
+    reds = [int(np.median(f[:, :, 0])) for f in frames]
+    assert all(r <= 240 for r in reds) and reds[-1] < reds[0] - 20, reds
+
+
+def test_end_of_source_is_reported(tmp_path: Path) -> None:
+    p = pipeline(clip(tmp_path, n=5, fps=50.0), tmp_path / "out", "post").start()
+    try:
+        while p.ended is None:
+            p.wait_view(10**9, 0.5)
+        assert p.wait_view(10**9, 5.0) is None  # ended: readers are not kept waiting
+    finally:
+        p.stop()
+    assert p.status()["ended"] == "end" and p.restored + p.dropped == 5
