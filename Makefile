@@ -6,7 +6,7 @@ PYTHON ?= python3
 VENV ?= .venv
 TORCH_SPEC ?= torch==2.13.0
 TORCH_INDEX ?=
-EXTRAS ?= dev,onnx,video,ros,webdataset
+EXTRAS ?= dev,onnx,video,ros,webdataset,foxglove
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.murk-installed
 PYTEST_ARGS ?= -n auto

@@ -58,12 +58,15 @@ def test_full_disk_stops_with_one_line_and_a_rerun_completes(
     small_rgbd: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     out = tmp_path / "out"
-    failed = fill_disk(monkeypatch, after=3, only=".png")  # clean/a, depth/a, degraded/a_v0 fit; a_v1 not
+    # three PNG files fit, then the disk is full; the writer threads write a.png's clean image, its depth map and
+    # its variants in parallel, so which files fail depends on their timing, not on the serial order
+    failed = fill_disk(monkeypatch, after=3, only=".png")
     line = one_line_error(_synth(str(small_rgbd), str(out)))
-    assert failed == ["a_v1.png"]
-    assert line == f"error: {out / 'degraded' / 'a_v1.png'}: no space left on device"
+    assert failed
+    named = [out / sub / name for sub in ("clean", "depth", "degraded") for name in failed]
+    assert any(line == f"error: {p}: no space left on device" for p in named), (line, failed)
     assert_nothing_partial(out)
-    assert not (out / "degraded" / "a_v1.png").exists() and not (out / "degraded" / "b_v0.png").exists()
+    assert not (out / "degraded" / "b_v0.png").exists()  # the run stopped with a.png's variants
     monkeypatch.undo()  # space freed
     r = _synth(str(small_rgbd), str(out))
     assert r.exit_code == 0, r.output
