@@ -1,6 +1,7 @@
 """How fast the command line answers ``--help``, ``--version`` and usage errors (issue 29, part 6): wall seconds
-of a whole ``python -m murk ...`` process per case (the median of ``--repeats`` runs), its exit code, and which
-heavy modules (torch, onnxruntime, av, rosbags, ray) it imported. Baseline measured in the same run: the bare
+and CPU seconds (user + sys: on a busy machine the closer estimate of the idle wall time) of a whole
+``python -m murk ...`` process per case (medians of ``--repeats`` runs), its exit code, and which heavy modules
+(torch, onnxruntime, av, rosbags, ray) it imported. Baseline measured in the same run: the bare
 interpreter (``python -c pass``) and the interpreter importing typer + rich (what any typer command pays).
 
 Every case is a usage error or a help/version request, so none does real work; the target is 1 s each on an
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -96,7 +98,7 @@ def cases(tmp: Path) -> list[tuple[str, list[str]]]:
         ("compare IMG --uiqm-preset foo", ["compare", img, "--method", "post", "--out", out, "--uiqm-preset", "foo"]),
         ("compare IMG --box bad", ["compare", img, "--method", "post", "--out", out, "--box", "bad"]),
         (
-            "compare IMG --method post + jointd",
+            "compare IMG --method post --method jointd",
             ["compare", img, "--out", out, "--method", "post", "--method", "jointd"],
         ),
         ("compare MISSING", ["compare", missing, "--method", "post", "--out", out]),
@@ -118,15 +120,22 @@ def cases(tmp: Path) -> list[tuple[str, list[str]]]:
     ]
 
 
-def run_once(args: list[str], env: dict[str, str]) -> tuple[float, int, str, str]:
-    """Wall seconds, exit code, heavy modules imported, last stderr line."""
+def _children_cpu_s() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def run_once(args: list[str], env: dict[str, str]) -> tuple[float, float, int, str, str]:
+    """Wall seconds, CPU seconds (user + sys), exit code, heavy modules imported, first stderr line."""
+    cpu0 = _children_cpu_s()
     t0 = time.perf_counter()
     proc = subprocess.run([sys.executable, "-c", _WRAPPER, *args], capture_output=True, text=True, env=env)
     wall = time.perf_counter() - t0
+    cpu = _children_cpu_s() - cpu0
     lines = proc.stderr.strip().splitlines()
     heavy = next((ln[6:] for ln in reversed(lines) if ln.startswith("HEAVY=")), "?")
     message = next((ln for ln in lines if ln.strip() and not ln.startswith("HEAVY=")), "")
-    return wall, proc.returncode, heavy or "-", message.strip()[:70]
+    return wall, cpu, proc.returncode, heavy or "-", message.strip()[:70]
 
 
 def baseline_s(code: str, repeats: int, env: dict[str, str]) -> float:
@@ -166,24 +175,25 @@ def main() -> None:
         print(f"baseline: python -c pass {bare:.2f} s; import typer + rich {typer_s:.2f} s ({args.repeats} runs each)")
         names = list(trees)
         if args.markdown:
-            cols = " | ".join(f"{n} s | {n}: heavy imports" for n in names)
-            print(f"| case | {cols} | exit | message |\n|---|{'---:|---|' * len(names)}---:|---|")
+            cols = " | ".join(f"{n}: wall s | {n}: CPU s | {n}: heavy imports" for n in names)
+            print(f"| case | {cols} | exit | message |\n|---|{'---:|---:|---|' * len(names)}---:|---|")
         worst = dict.fromkeys(names, 0.0)
         for label, murk_args in todo:
-            runs: dict[str, list[tuple[float, int, str, str]]] = {n: [] for n in names}
+            runs: dict[str, list[tuple[float, float, int, str, str]]] = {n: [] for n in names}
             for _ in range(args.repeats):
                 for n in names:
                     runs[n].append(run_once(murk_args, trees[n]))
             wall = {n: statistics.median(r[0] for r in runs[n]) for n in names}
-            heavy = {n: runs[n][-1][2] for n in names}
-            _, code, _, message = runs["now"][-1]
+            cpu = {n: statistics.median(r[1] for r in runs[n]) for n in names}
+            heavy = {n: runs[n][-1][3] for n in names}
+            _, _, code, _, message = runs["now"][-1]
             for n in names:
                 worst[n] = max(worst[n], wall[n])
             if args.markdown:
-                cells = " | ".join(f"{wall[n]:.2f} | {heavy[n]}" for n in names)
+                cells = " | ".join(f"{wall[n]:.2f} | {cpu[n]:.2f} | {heavy[n]}" for n in names)
                 print(f"| `{label}` | {cells} | {code} | {message.replace('|', '/')} |")
             else:
-                cells = "  ".join(f"{n} {wall[n]:5.2f} s heavy: {heavy[n]:<6}" for n in names)
+                cells = "  ".join(f"{n} {wall[n]:5.2f} s (CPU {cpu[n]:4.2f} s) heavy: {heavy[n]:<6}" for n in names)
                 print(f"{label:<40} {cells}  exit {code}  {message}")
         slowest = ", ".join(f"{n} {worst[n]:.2f} s" for n in names)
         print(f"slowest case: {slowest} (target 1 s on an idle 2-core machine)")
