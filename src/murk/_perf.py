@@ -14,7 +14,9 @@ regions of a Joint-ID forward pass then waits for a thread the kernel has desche
 ``jointid`` on 20 real photos of mixed sizes (long side <= 256 px), 2 threads, on the 2-core development box with
 three other users (load average 4-5, 2026-12-03): 260-2,550 ms per image with the default against 50-92 ms with
 the passive policy, and 45-87 ms with one thread (``benchmarks/bench_mixed_sizes.py`` measures it through
-``murk enhance``). Every ``murk`` command applies it before torch is imported, unless the user chose a policy.
+``murk enhance``). On idle cores it costs 1.27x for such small images (39 against 31 ms) and about 5 % at 640x480;
+a short spin (``GOMP_SPINCOUNT=2000``) keeps the idle speed but is twice as slow as passive next to another torch
+job (BENCHMARKS.md). Every ``murk`` command applies it before torch is imported, unless the user chose a policy.
 """
 
 from __future__ import annotations
