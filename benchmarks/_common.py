@@ -139,7 +139,8 @@ class Recorder:
     each one (``on_change``), so a part killed at its budget keeps what it had measured.
 
     :meth:`attempt` runs one measurement: a failure is recorded (and the rest goes on) instead of raised, and a
-    measurement that needs more than the time left before ``deadline`` (``time.monotonic()``) is skipped."""
+    measurement that needs more than the time left before ``deadline`` (``time.monotonic()``) is skipped; its wall
+    seconds go to ``attempt_s`` (label -> seconds: where a part's time went)."""
 
     def __init__(
         self,
@@ -154,6 +155,7 @@ class Recorder:
         self.figures: list[Figure] = []
         self.problems: list[dict[str, str]] = []
         self.notes: list[str] = []
+        self.attempt_s: dict[str, float] = {}
 
     def left_s(self) -> float:
         return math.inf if self.deadline is None else self.deadline - time.monotonic()
@@ -190,6 +192,7 @@ class Recorder:
         if left < need_s:
             self.problem(label, "budget", f"{left:.0f} s left of the part's budget, needs about {need_s:.0f} s")
             return None
+        t0 = time.perf_counter()
         try:
             return fn()
         except Exception as exc:  # one failing configuration must not hide the others
@@ -197,6 +200,8 @@ class Recorder:
             self.problem(label, "failed", f"{type(exc).__name__}: {first}")
             _release_device_memory()
             return None
+        finally:
+            self.attempt_s[label] = round(time.perf_counter() - t0, 3)
 
 
 def _release_device_memory() -> None:

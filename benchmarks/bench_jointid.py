@@ -145,6 +145,7 @@ def gpu_figures(
     compile_batches: tuple[int, ...] | None = None,
     compile_large: bool = True,
     repeats: int = 20,
+    warmup: int = 3,
     cuda_graph: bool = True,
     compile_need_s: float = 0.0,
     targets: bool = True,
@@ -158,6 +159,7 @@ def gpu_figures(
     ``compile_batches`` (default, in this order: ``batches[0]``, ``batches[-1]``, 1) and at ``large_hw``
     (``compile_large``); each new shape compiles again, so each is skipped when less than ``compile_need_s`` of the
     recorder's budget is left.
+    ``warmup``: untimed calls before each timing (the first call of a compiled shape compiles).
     ``targets``: attach the issue's targets (meant for the base model at 288x512 on an H200).
     """
     dev = torch.device(device)
@@ -179,7 +181,7 @@ def gpu_figures(
         return torch.rand(batch, 3, fh, fw, device=dev, generator=torch.Generator(dev).manual_seed(batch))
 
     def t_of(restorer: JointIDRestorer, x: torch.Tensor, reps: int = repeats) -> float:
-        return median_s(lambda: restorer.restore_tensor(x), repeats=reps, warmup=3, sync=sync)
+        return median_s(lambda: restorer.restore_tensor(x), repeats=reps, warmup=warmup, sync=sync)
 
     def tgt(text: str) -> str | None:
         return text if targets else None

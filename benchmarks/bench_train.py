@@ -42,8 +42,9 @@ def measure(
     steps: int,
     *,
     wrap: Callable[[torch.nn.Module], torch.nn.Module] | None = None,
+    warmup: int = 2,
 ) -> dict:
-    """One configuration: median step and online-synthesis times over ``steps`` steps after 2 warm-up steps.
+    """One configuration: median step and online-synthesis times over ``steps`` steps after ``warmup`` steps.
     ``wrap`` wraps the model for the step (e.g. DistributedDataParallel); the optimiser sees the bare model."""
     torch.manual_seed(0)
     model = build_jointid(variant).to(device)
@@ -81,7 +82,7 @@ def measure(
         return float(loss.detach())
 
     x = synth(0)
-    for _ in range(2):  # warm-up
+    for _ in range(warmup):
         step(x)
     if device.type == "cuda":
         torch.cuda.reset_peak_memory_stats(device)
@@ -121,6 +122,7 @@ def gpu_figures(
     steps: int = 20,
     need_s: float = 0.0,
     targets: bool = True,
+    warmup: int = 2,
 ) -> None:
     """Training images/s, peak memory and online-synthesis share per (batch, precision) in ``configs``; the first
     configuration (fp32 batch 7: the official trainer's) is the same-run baseline of the others. A configuration
@@ -132,7 +134,9 @@ def gpu_figures(
     for i, (batch, precision) in enumerate(configs):
         label = f"{name} {size} {precision} batch {batch}"
         r = rec.attempt(
-            f"train {label}", lambda b=batch, p=precision: measure(variant, hw, b, p, dev, steps), need_s=need_s
+            f"train {label}",
+            lambda b=batch, p=precision: measure(variant, hw, b, p, dev, steps, warmup=warmup),
+            need_s=need_s,
         )
         if r is None:
             continue

@@ -29,19 +29,24 @@ session; when the part's budget runs out the whole process group is killed (SIGK
 - the benchmark modules pin threads and the allocator at import for their one-core baselines: that stays local.
 
 The cost is the start of an interpreter, the imports and the CUDA initialisation per part: 2-5 s, about 40 s of
-the 8 minutes. Within a part the budget is also checked between measurements (``Recorder.attempt``: a
+the 8 minutes. (The dry run saves most of it: its parts are forked, each in a new session, from a server process
+that imported torch once, ``--fork-server``; the watchdog kills a forked part's process group the same way.)
+Within a part the budget is also checked between measurements (``Recorder.attempt``: a
 torch.compile shape that no longer fits is skipped and recorded, not half-run), and every figure is saved as soon
 as it is measured, so a part killed at its budget keeps what it had. Overall, a part starts only with at least
 ``MIN_PART_S`` of the suite's limit left and never gets more than what is left.
 
 ``--cpu-dry-run`` runs the same parts and the same functions on the CPU at tiny sizes (a minimal Joint-ID
-configuration of the same structure, 64x96 frames, batches of 2-4, a few repeats): CUDA-graph figures are skipped
-with a note, NCCL is replaced by gloo (same DDP code), and ``torch.compile`` compiles one shape with inductor's
-C++ backend, built as one file without optimisation (``TORCHINDUCTOR_CPP_WRAPPER=1``,
+configuration of the same structure, 64x96 frames, batches of 2-4, two timed calls after one warm-up, one training
+step after one warm-up), each part on one thread (``DRY_ENV``) and forked from the server above: CUDA-graph
+figures are skipped with a note, NCCL is replaced by gloo (same DDP code), and ``torch.compile`` compiles one
+shape with inductor's C++ backend, built as one file without optimisation (``TORCHINDUCTOR_CPP_WRAPPER=1``,
 ``TORCHINDUCTOR_DEBUG_COMPILE=1``, ``TORCHINDUCTOR_VEC_ISA_OK=0``; measured on the loaded 2-core development box:
 about 25 s to compile, against 65 s with the default flags for the same network, 170 s for the tiny variant); it
-needs a C++ compiler, and fails as a part without one. The figures of a dry run are not GPU figures;
-``merge_gpu_suite.py`` refuses them. ``tests/benchmarks/test_gpu_suite.py`` runs the dry run in CI.
+needs a C++ compiler, and fails as a part without one. The whole dry run costs about 35 s of CPU time with
+inductor's cache warm and 57 s with it empty (each part's ``cpu_s`` in the report; BENCHMARKS.md has timings).
+The figures of a dry run are not GPU figures; ``merge_gpu_suite.py`` refuses them.
+``tests/benchmarks/test_gpu_suite.py`` runs the dry run in CI.
 
 The suite process itself never imports torch (so never touches the GPU): machine and GPU details come from a
 child process too.
@@ -157,8 +162,8 @@ def _base_model(ctx: Ctx) -> Any:
 
 def _inference_sizes(ctx: Ctx) -> dict[str, Any]:
     if ctx.dry:
-        return {"hw": (64, 96), "large_hw": (96, 160), "batches": (2, 4), "repeats": 2}
-    return {"hw": (288, 512), "large_hw": (1088, 1920), "batches": (8, 16, 32, 64), "repeats": 20}
+        return {"hw": (64, 96), "large_hw": (96, 160), "batches": (2, 4), "repeats": 2, "warmup": 1}
+    return {"hw": (288, 512), "large_hw": (1088, 1920), "batches": (8, 16, 32, 64), "repeats": 20, "warmup": 3}
 
 
 def _train_model(ctx: Ctx) -> Any:
@@ -242,6 +247,7 @@ def part_train(ctx: Ctx) -> None:
             hw=(64, 96),
             configs=((2, "fp32"), (2, "bf16"), (3, "bf16")),
             steps=1,
+            warmup=1,
             targets=False,
         )
     else:
@@ -330,6 +336,7 @@ def part_jointid_small(ctx: Ctx) -> None:
             hw=(64, 96),
             configs=((2, "fp32"), (2, "bf16")),
             steps=1,
+            warmup=1,
             targets=False,
         )
     else:
@@ -352,7 +359,7 @@ def part_jointid_lite(ctx: Ctx) -> None:
     from murk.enhance.restorer import create, weights_of
 
     sizes = _inference_sizes(ctx)
-    reps = sizes["repeats"]
+    reps, warmup = sizes["repeats"], (1 if ctx.dry else 2)
     sync = device_sync(ctx.device)
     try:
         lite = create("lite", device=str(ctx.device))
@@ -371,11 +378,11 @@ def part_jointid_lite(ctx: Ctx) -> None:
         x = torch.rand(batch, 3, h, w, device=ctx.device, generator=torch.Generator(ctx.device).manual_seed(batch))
         t_small = ctx.rec.attempt(
             f"small Joint-ID {h}x{w} batch {batch}",
-            lambda x=x: median_s(lambda: small.restore_tensor(x), repeats=reps, warmup=2, sync=sync),
+            lambda x=x: median_s(lambda: small.restore_tensor(x), repeats=reps, warmup=warmup, sync=sync),
         )
         t_lite = ctx.rec.attempt(
             f"lite {h}x{w} batch {batch}",
-            lambda x=x: median_s(lambda: lite.restore_tensor(x), repeats=reps, warmup=2, sync=sync),
+            lambda x=x: median_s(lambda: lite.restore_tensor(x), repeats=reps, warmup=warmup, sync=sync),
         )
         if t_lite is not None:
             base = f"shipped small Joint-ID fp32, {h}x{w} batch {batch}"
@@ -416,8 +423,11 @@ def part_ddp(ctx: Ctx) -> None:
     dist.init_process_group(backend, rank=0, world_size=1)
     try:
         variant, hw, batch, steps = (_train_model(ctx), (64, 96), 2, 1) if ctx.dry else ("base", (288, 512), 7, 6)
+        warmup = 1 if ctx.dry else 2
         ids = [dev.index or 0] if dev.type == "cuda" else None
-        plain = ctx.rec.attempt("plain step", lambda: bench_train.measure(variant, hw, batch, "bf16", dev, steps))
+        plain = ctx.rec.attempt(
+            "plain step", lambda: bench_train.measure(variant, hw, batch, "bf16", dev, steps, warmup=warmup)
+        )
         ddp = ctx.rec.attempt(
             f"DDP {backend} step",
             lambda: bench_train.measure(
@@ -428,6 +438,7 @@ def part_ddp(ctx: Ctx) -> None:
                 dev,
                 steps,
                 wrap=lambda m: torch.nn.parallel.DistributedDataParallel(m, device_ids=ids),
+                warmup=warmup,
             ),
         )
         name = variant if isinstance(variant, str) else "custom"
@@ -447,6 +458,12 @@ def part_ddp(ctx: Ctx) -> None:
     finally:
         dist.destroy_process_group()
 
+
+DRY_ENV = (("OMP_NUM_THREADS", "1"), ("MKL_NUM_THREADS", "1"))
+"""Environment of every part's process in the dry run: one thread. Its timings mean nothing, and on a shared
+2-core machine torch's default of 2 OpenMP threads per process makes every small operation wait for a thread
+that another process has the core of (measured on the loaded dev box, 2026-12-03: the ``jointid_small`` part took
+64-104 s with 2 threads and 12 s with one)."""
 
 _INDUCTOR_DRY = (
     ("TORCHINDUCTOR_CPP_WRAPPER", "1"),
@@ -583,6 +600,7 @@ def run_part(name: str, result_path: Path, budget_s: float, dry: bool) -> int:
             figures=[f.to_dict() for f in rec.figures],
             problems=rec.problems,
             notes=rec.notes,
+            attempt_s=rec.attempt_s,
             details=details,
             wall_s=round(time.monotonic() - started, 2),
         )
@@ -690,10 +708,12 @@ def _nvidia_smi(field_name: str) -> str | None:
 # the suite (parent process)
 
 
-def _spawn(args: list[str], log: Path, timeout_s: float, env: dict[str, str]) -> tuple[int | None, float]:
+def _spawn(args: list[str], log: Path, timeout_s: float, env: dict[str, str]) -> tuple[int | None, float, float]:
     """Run this script with ``args`` in a new session; kill its process group after ``timeout_s``.
-    Returns (exit code or None when killed, wall seconds)."""
+    Returns (exit code or None when killed, wall seconds, CPU seconds of the process and the children it waited
+    for, such as the compiler: unlike the wall time, the same on a loaded machine as on an idle one)."""
     t0 = time.monotonic()
+    cpu0 = _children_cpu_s()
     with open(log, "wb") as out:
         proc = subprocess.Popen(
             [sys.executable, str(Path(__file__).resolve()), *args],
@@ -711,7 +731,133 @@ def _spawn(args: list[str], log: Path, timeout_s: float, env: dict[str, str]) ->
         except BaseException:  # the suite itself is interrupted (Ctrl-C, TERM): end the part too
             _kill_group(proc)
             raise
-    return rc, time.monotonic() - t0
+    return rc, time.monotonic() - t0, _children_cpu_s() - cpu0
+
+
+def _children_cpu_s() -> float:
+    import resource
+
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _fork_server() -> int:
+    """``--fork-server`` (the dry run's): import torch once, then for each request read from stdin (one JSON line:
+    the part's arguments, log file and extra environment) fork a process that runs the part in a new session with
+    its output in the log, and answer two JSON lines: ``{"pid": ...}`` at once, and ``{"rc": ..., "cpu_s": ...}``
+    when it has ended (``rc`` None when a signal killed it; ``cpu_s`` includes the children it waited for)."""
+    import torch  # noqa: F401  (imported once here: each forked part starts with it)
+
+    for line in sys.stdin:
+        req = json.loads(line)
+        pid = os.fork()
+        if pid == 0:  # the part's process
+            rc = 1
+            try:
+                os.setsid()
+                os.environ.update(req["env"])
+                null = os.open(os.devnull, os.O_RDONLY)
+                log = os.open(req["log"], os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+                os.dup2(null, 0)
+                os.dup2(log, 1)
+                os.dup2(log, 2)
+                rc = main(req["args"])
+            except BaseException:
+                traceback.print_exc()
+            finally:
+                sys.stdout.flush()
+                sys.stderr.flush()
+                os._exit(rc)
+        print(json.dumps({"pid": pid}), flush=True)
+        _, status, usage = os.wait4(pid, 0)
+        code = os.waitstatus_to_exitcode(status)
+        cpu = usage.ru_utime + usage.ru_stime
+        print(json.dumps({"rc": code if code >= 0 else None, "cpu_s": cpu}), flush=True)
+    return 0
+
+
+class _ForkServer:
+    """The parent's side of :func:`_fork_server`: runs parts like :func:`_spawn` (a new session per part, its whole
+    process group killed at the budget), without starting an interpreter and importing torch for each."""
+
+    def __init__(self, env: dict[str, str], log: Path) -> None:
+        self._env, self._log = env, log
+        self._proc: subprocess.Popen | None = None
+        self._buf = b""
+        self._part_pid: int | None = None
+
+    def start(self) -> subprocess.Popen:
+        """Start the server (again, if it ended); it imports torch meanwhile."""
+        if self._proc is None or self._proc.poll() is not None:
+            with open(self._log, "ab") as err:
+                self._proc = subprocess.Popen(
+                    [sys.executable, str(Path(__file__).resolve()), "--fork-server"],
+                    stdin=subprocess.PIPE,
+                    stdout=subprocess.PIPE,
+                    stderr=err,
+                    cwd=ROOT,
+                    env=self._env,
+                    start_new_session=True,
+                )
+            self._buf = b""
+        return self._proc
+
+    def _reply(self, timeout_s: float) -> dict[str, Any] | None:
+        """The next JSON line from the server; None when ``timeout_s`` passed or the server ended."""
+        import select
+
+        assert self._proc is not None and self._proc.stdout is not None
+        fd = self._proc.stdout.fileno()
+        end = time.monotonic() + timeout_s
+        while b"\n" not in self._buf:
+            left = end - time.monotonic()
+            if left <= 0 or not select.select([fd], [], [], left)[0]:
+                return None
+            chunk = os.read(fd, 4096)
+            if not chunk:
+                return None
+            self._buf += chunk
+        line, self._buf = self._buf.split(b"\n", 1)
+        return json.loads(line)
+
+    def run(
+        self, args: list[str], log: Path, timeout_s: float, extra_env: dict[str, str]
+    ) -> tuple[int | None, float, float]:
+        """Like :func:`_spawn`: (exit code or None when killed, wall seconds, CPU seconds)."""
+        t0 = time.monotonic()
+        proc = self.start()
+        assert proc.stdin is not None
+        try:
+            proc.stdin.write((json.dumps({"args": args, "log": str(log), "env": extra_env}) + "\n").encode())
+            proc.stdin.flush()
+            started = self._reply(60.0)
+            if started is None:
+                raise RuntimeError(f"the dry run's fork server did not start the part: {_tail(self._log, 600)}")
+            self._part_pid = started["pid"]
+            done = self._reply(timeout_s - (time.monotonic() - t0))
+            if done is None:  # the budget ran out (or the server ended): end the part's whole process group
+                server_ended = proc.poll() is not None
+                self._kill_part()
+                done = self._reply(30.0) or {"cpu_s": 0.0}
+                done["rc"] = 1 if server_ended else None
+            self._part_pid = None
+        except BaseException:
+            self.close()
+            raise
+        return done["rc"], time.monotonic() - t0, float(done.get("cpu_s") or 0.0)
+
+    def _kill_part(self) -> None:
+        if self._part_pid is not None:
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.killpg(self._part_pid, signal.SIGKILL)
+            self._part_pid = None
+
+    def close(self) -> None:
+        """End the running part (if any) and the server."""
+        self._kill_part()
+        if self._proc is not None:
+            _kill_group(self._proc)
+            self._proc = None
 
 
 def _kill_group(proc: subprocess.Popen) -> None:
@@ -765,10 +911,14 @@ def run_suite(args: argparse.Namespace) -> int:
     }
     log_path = out / "gpu_suite.log"
     log_path.write_text("")
-    with tempfile.TemporaryDirectory(prefix="gpu-suite-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="gpu-suite-") as tmp, contextlib.ExitStack() as stack:
         scratch = Path(tmp)
+        server = _ForkServer({**env, **dict(DRY_ENV)}, scratch / "fork-server.log") if dry else None
+        if server is not None:
+            stack.callback(server.close)
+            server.start()  # imports torch while the machine is described
         info_path = scratch / "machine.json"
-        rc, _ = _spawn(
+        rc, _, _ = _spawn(
             ["--machine-info", str(info_path)] + (["--cpu-dry-run"] if dry else []), scratch / "m.log", 60.0, env
         )
         if rc == 0 and info_path.is_file():
@@ -800,13 +950,17 @@ def run_suite(args: argparse.Namespace) -> int:
             else:
                 timeout = min(budget, left)
                 result_path = scratch / f"{name}.json"
-                part_env = {**env, **dict(part.dry_env)} if dry else env
-                if dry and part.dry_env:
-                    entry["env"] = dict(part.dry_env)
                 cmd = ["--part", name, "--result", str(result_path), "--budget", f"{timeout:.1f}"]
-                rc, wall = _spawn(cmd + (["--cpu-dry-run"] if dry else []), scratch / f"{name}.log", timeout, part_env)
+                if server is not None:
+                    entry["env"] = {**dict(DRY_ENV), **dict(part.dry_env)}
+                    run = server.run([*cmd, "--cpu-dry-run"], scratch / f"{name}.log", timeout, dict(part.dry_env))
+                else:
+                    run = _spawn(cmd, scratch / f"{name}.log", timeout, env)
+                rc, wall, cpu = run
                 result = json.loads(result_path.read_text()) if result_path.is_file() else {}
-                entry.update(result, timeout_s=round(timeout, 1), wall_s=round(wall, 2), exit_code=rc)
+                entry.update(
+                    result, timeout_s=round(timeout, 1), wall_s=round(wall, 2), cpu_s=round(cpu, 2), exit_code=rc
+                )
                 entry.pop("part", None)
                 if rc is None:
                     entry.update(timed_out=True, error=f"killed at its budget ({timeout:.0f} s)")
@@ -819,7 +973,8 @@ def run_suite(args: argparse.Namespace) -> int:
             _write_outputs(out, report)
             why = entry.get("skipped") or entry.get("error") or ""
             print(
-                f"[{i}/{len(names)}] {name}: {entry['status']} ({entry.get('wall_s', 0):.0f} s of {budget:.0f} s), "
+                f"[{i}/{len(names)}] {name}: {entry['status']} ({entry.get('wall_s', 0):.0f} s of {budget:.0f} s, "
+                f"CPU {entry.get('cpu_s', 0):.0f} s), "
                 f"{len(entry.get('figures', []))} figures{'; ' + why[:200] if why else ''}",
                 flush=True,
             )
@@ -940,6 +1095,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--result", help=argparse.SUPPRESS)
     ap.add_argument("--budget", type=float, help=argparse.SUPPRESS)
     ap.add_argument("--machine-info", help=argparse.SUPPRESS)
+    ap.add_argument("--fork-server", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.list:
         for p in PARTS:
@@ -949,6 +1105,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.machine_info:
         _write_json(Path(args.machine_info), machine_info(args.cpu_dry_run))
         return 0
+    if args.fork_server:
+        return _fork_server()
     if args.part:
         return run_part(args.part, Path(args.result), args.budget, args.cpu_dry_run)
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # a TERM ends the running part's group too

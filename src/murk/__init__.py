@@ -15,7 +15,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from murk._perf import tune_allocator
+from murk._perf import prefer_passive_openmp, tune_allocator
 from murk._version import __version__
 
 _LAZY = {
@@ -63,7 +63,7 @@ _LAZY = {
     "read_depth": "murk.io",
 }
 
-__all__ = ["__version__", "tune_allocator", *_LAZY]
+__all__ = ["__version__", "prefer_passive_openmp", "tune_allocator", *_LAZY]
 
 
 _RENAMED = {"create_restorer": "create", "restorer_options": "options_of"}

@@ -6,13 +6,26 @@ zero the same memory again: measured here, marine-snow compositing of one 640x48
 default and 4.5 ms with the thresholds below. :func:`tune_allocator` raises the mmap and trim thresholds to
 32 MiB (glibc's maximum mmap threshold on 64-bit), so freed buffers are reused. It is a no-op on non-glibc
 platforms. The cost: a long-running process keeps up to about 32 MiB of freed memory for reuse.
+
+:func:`prefer_passive_openmp` lets torch's idle OpenMP threads sleep instead of spinning (``OMP_WAIT_POLICY=PASSIVE``).
+By default GNU OpenMP keeps a thread that waits at the end of a parallel region spinning for about 3 ms, which is
+harmless on idle cores but ruinous when other processes share them: every one of the thousands of small parallel
+regions of a Joint-ID forward pass then waits for a thread the kernel has descheduled. Measured with the shipped
+``jointid`` on 20 real photos of mixed sizes (long side <= 256 px), 2 threads, on the 2-core development box with
+three other users (load average 4-5, 2026-12-03): 260-2,550 ms per image with the default against 50-92 ms with
+the passive policy, and 45-87 ms with one thread (``benchmarks/bench_mixed_sizes.py`` measures it through
+``murk enhance``). On idle cores it costs 1.27x for such small images (39 against 31 ms) and about 5 % at 640x480;
+a short spin (``GOMP_SPINCOUNT=2000``) keeps the idle speed but is twice as slow as passive next to another torch
+job (BENCHMARKS.md). Every ``murk`` command applies it before torch is imported, unless the user chose a policy.
 """
 
 from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import os
 import sys
+from collections.abc import MutableMapping
 
 _M_TRIM_THRESHOLD = -1
 _M_MMAP_THRESHOLD = -3
@@ -35,3 +48,19 @@ def tune_allocator() -> bool:
     ok = mallopt(_M_MMAP_THRESHOLD, _THRESHOLD) == 1 and mallopt(_M_TRIM_THRESHOLD, _THRESHOLD) == 1
     _done = ok
     return ok
+
+
+OPENMP_WAIT_VARIABLES = ("OMP_WAIT_POLICY", "GOMP_SPINCOUNT", "KMP_BLOCKTIME")
+"""Environment variables through which a user chooses how idle OpenMP threads wait (GNU and Intel OpenMP)."""
+
+
+def prefer_passive_openmp(environ: MutableMapping[str, str] | None = None) -> bool:
+    """Set ``OMP_WAIT_POLICY=PASSIVE`` in ``environ`` (default: this process's environment, so child processes
+    inherit it) unless the user set one of :data:`OPENMP_WAIT_VARIABLES`, or torch is already imported (the OpenMP
+    runtime reads its environment once, when torch loads it: setting it later would change only the children).
+    Returns True when set."""
+    env = os.environ if environ is None else environ
+    if any(k in env for k in OPENMP_WAIT_VARIABLES) or "torch" in sys.modules:
+        return False
+    env["OMP_WAIT_POLICY"] = "PASSIVE"
+    return True

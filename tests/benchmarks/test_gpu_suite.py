@@ -125,13 +125,37 @@ def test_watchdog_kills_a_hung_part_and_the_suite_goes_on(tmp_path: Path) -> Non
     assert ok["status"] == "ok" and ok["figures"][0]["value"] == 1.0
     # the part's whole process group was killed, its own child process too
     pid = int(re.search(r"grandchild pid (\d+)", " ".join(hang["notes"]))[1])
+    assert _wait_gone(pid), f"grandchild {pid} of the killed part is still running"
+
+
+def _wait_gone(pid: int) -> bool:
     for _ in range(50):
         state = Path(f"/proc/{pid}/stat")
         if not state.exists() or state.read_text().split(") ")[-1].startswith("Z"):
-            break
+            return True
         time.sleep(0.1)
-    else:
-        pytest.fail(f"grandchild {pid} of the killed part is still running")
+    return False
+
+
+def test_the_gpu_runs_launcher_runs_each_part_in_a_fresh_process_and_kills_its_group(tmp_path: Path) -> None:
+    # The dry run forks its parts from a server that imported torch once; the GPU run starts a fresh interpreter
+    # per part (_spawn). The dry run above no longer goes through that launcher, so it is checked here.
+    suite = _suite()
+    env = suite._child_env()
+    ok = tmp_path / "ok.json"
+    args = ["--part", "_selftest_ok", "--result", str(ok), "--budget", "60", "--cpu-dry-run"]
+    rc, wall, cpu = suite._spawn(args, tmp_path / "ok.log", 120.0, env)
+    result = json.loads(ok.read_text())
+    assert rc == 0 and result["finished"] and result["figures"][0]["value"] == 1.0
+    assert wall > 0 and cpu > 0  # its own interpreter: it costs CPU to start
+    hang = tmp_path / "hang.json"
+    args = ["--part", "_selftest_hang", "--result", str(hang), "--budget", "60", "--cpu-dry-run"]
+    rc, wall, _ = suite._spawn(args, tmp_path / "hang.log", 8.0, env)
+    assert rc is None and 8.0 <= wall < 60
+    result = json.loads(hang.read_text())
+    assert [f["key"] for f in result["figures"]] == ["before_hang"]
+    pid = int(re.search(r"grandchild pid (\d+)", " ".join(result["notes"]))[1])
+    assert _wait_gone(pid), f"grandchild {pid} of the killed part is still running"
 
 
 def test_import_check_flags_a_package_the_gpu_machine_lacks() -> None:

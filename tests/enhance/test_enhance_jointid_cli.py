@@ -60,3 +60,35 @@ def test_enhance_with_a_jointid_checkpoint_writes_images_and_depth(tmp_path: Pat
         ],
     )
     assert r.exit_code == 2 and "missing.pt" in r.output
+
+
+def test_the_murk_command_restores_mixed_odd_sizes_as_the_restorer_does(tmp_path: Path) -> None:
+    # The console command as users run it (a fresh process: murk's passive OpenMP wait policy, murk/_perf.py) on
+    # a folder of mixed odd sizes (issue 29): each output equals the in-process restorer's within 1/255.
+    import os
+    import subprocess
+    import sys
+
+    from murk.enhance.restorer import create
+    from murk.io.images import read_image, to_float
+
+    src = tmp_path / "in"
+    src.mkdir()
+    rng = np.random.default_rng(7)
+    sizes = ((45, 70), (97, 129), (31, 200), (45, 70))
+    for i, (h, w) in enumerate(sizes):
+        cv2.imwrite(str(src / f"f{i}.png"), rng.integers(0, 255, (h, w, 3), dtype=np.uint8))
+    out = tmp_path / "out"
+    env = {k: v for k, v in os.environ.items() if k not in ("OMP_WAIT_POLICY", "GOMP_SPINCOUNT", "KMP_BLOCKTIME")}
+    env["PYTHONPATH"] = os.pathsep.join(
+        filter(None, [str(Path(__file__).resolve().parents[2] / "src"), env.get("PYTHONPATH")])
+    )
+    cmd = [sys.executable, "-m", "murk", "enhance", str(src), "--out", str(out), "--method", "jointid", "-q"]
+    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    restorer = create("jointid")
+    for i, (h, w) in enumerate(sizes):
+        ref = restorer.restore(to_float(read_image(src / f"f{i}.png")[0])[None]).images[0]
+        got = cv2.imread(str(out / f"f{i}.png"))[:, :, ::-1].astype(np.float64) / 255
+        assert got.shape == (h, w, 3)
+        assert np.abs(got - ref).max() <= 1 / 255 + 1e-6, (i, np.abs(got - ref).max())

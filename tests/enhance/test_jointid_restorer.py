@@ -110,6 +110,19 @@ def test_tiled_inference_approximates_whole_frame_inference(tiny, underwater):
     assert off.tile is None and off.overlap == 64
 
 
+def test_mixed_sizes_in_one_run_give_each_size_its_own_output(tiny):
+    # A folder of mixed sizes goes through one restorer, shape after shape (issue 29): nothing kept from one
+    # shape (oneDNN primitives, allocations) may change another's output. Each odd size restored alone in a fresh
+    # restorer, and again after the others in a shared one, must be the same bit for bit.
+    rng = np.random.default_rng(3)
+    images = [rng.random((1, h, w, 3), dtype=np.float32) for h, w in ((37, 50), (64, 96), (101, 33), (37, 50))]
+    shared = JointIDRestorer(tiny)
+    for img in images:
+        alone = JointIDRestorer(tiny).restore(img)
+        mixed = shared.restore(img)
+        assert np.array_equal(mixed.images, alone.images) and np.array_equal(mixed.depth_m, alone.depth_m)
+
+
 def test_batch_option_and_determinism(tiny):
     rgb = np.random.default_rng(1).random((3, 40, 50, 3), dtype=np.float32)
     a = JointIDRestorer(tiny).restore(rgb)

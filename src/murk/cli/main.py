@@ -75,5 +75,8 @@ app.command("demo")(_demo.demo)
 
 
 def main() -> None:
-    """Console-script entry point."""
+    """Console-script entry point: idle OpenMP threads sleep (murk/_perf.py) unless the user chose otherwise."""
+    from murk._perf import prefer_passive_openmp
+
+    prefer_passive_openmp()
     app(prog_name="murk")
