@@ -10,7 +10,7 @@ Runs alternate (murk, plain, murk, plain, ...) and the best of ``--repeats`` is 
 
 Also: the time from the command's start until a 2-worker ``murk synth`` has written its first variant.
 
-Run: PYTHONPATH=src python benchmarks/bench_synth_e2e.py [--images 4 --variants 8 --repeats 3]
+Run: PYTHONPATH=src python benchmarks/bench_synth_e2e.py [--images 8 --variants 8 --repeats 3] [--src OTHER/src]
 """
 
 from __future__ import annotations
@@ -141,9 +141,10 @@ def main() -> None:
     ap.add_argument("--images", type=int, default=4)
     ap.add_argument("--variants", type=int, default=8)
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--src", default=str(Path(__file__).resolve().parents[1] / "src"), help="the murk tree to run")
     args = ap.parse_args()
     env = {**os.environ, **ONE_THREAD}
-    src_dir = str(Path(__file__).resolve().parents[1] / "src")
+    src_dir = args.src
     env["PYTHONPATH"] = src_dir + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
     n = args.images * args.variants
     print(f"# bench_synth_e2e  {time.strftime('%Y-%m-%d %H:%M')}  {os.cpu_count()} cpus  640x480, {n} variants")
