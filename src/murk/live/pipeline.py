@@ -188,6 +188,7 @@ class LivePipeline:
             method=method,
             frame_id=frame.frame_id,
         )
+        view.jpeg("pair")  # encoded here, beside restoration, so a waiting page gets it without delay
         now = time.perf_counter()
         with self._cond:
             self._view = view
