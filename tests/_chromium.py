@@ -66,6 +66,18 @@ class Page:
         self.ws.close()
 
 
+HEADLESS_FLAGS = (
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+)
+"""The flags of every headless Chromium the tests start (no sandbox: tests run as root in containers)."""
+
+
 @contextlib.contextmanager
 def chromium(profile: Path, *, width: int = 1400, height: int = 900) -> Iterator[Any]:
     """A headless Chromium; yields ``open_page(url) -> Page``."""
@@ -77,13 +89,7 @@ def chromium(profile: Path, *, width: int = 1400, height: int = 900) -> Iterator
     proc = subprocess.Popen(
         [
             CHROMIUM,
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            "--no-first-run",
+            *HEADLESS_FLAGS,
             "--disable-background-timer-throttling",
             "--disable-renderer-backgrounding",
             f"--window-size={width},{height}",

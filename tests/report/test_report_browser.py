@@ -16,6 +16,8 @@ from murk.data import sample_underwater_dir
 from murk.report.compare import run_compare
 from murk.report.methods import parse_method
 
+from .._chromium import HEADLESS_FLAGS
+
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
 
 
@@ -26,13 +28,7 @@ def test_report_renders_in_chromium(tmp_path: Path) -> None:
     run_compare(images, [parse_method("raw"), parse_method("post")], tmp_path)
     cmd = [
         CHROMIUM,
-        "--headless",
-        "--no-sandbox",
-        "--disable-gpu",
-        "--disable-background-networking",
-        "--disable-component-update",
-        "--disable-sync",
-        "--no-first-run",
+        *HEADLESS_FLAGS,
         f"--user-data-dir={tmp_path / 'profile'}",
         "--virtual-time-budget=5000",
         "--dump-dom",
