@@ -46,9 +46,9 @@ def _frame(path: Path, seed: int = 0, size: tuple[int, int] = (96, 128)) -> Path
     return path
 
 
-def _bad(folder: Path, kind: str) -> Path:
-    """Put one bad input of ``kind`` into ``folder``; return its path."""
-    path = folder / ("bad.jpg" if kind == "truncated" else "bad.png")
+def _bad(folder: Path, kind: str, stem: str = "bad") -> Path:
+    """Put one bad input of ``kind`` named ``stem`` into ``folder``; return its path."""
+    path = folder / f"{stem}{'.jpg' if kind == 'truncated' else '.png'}"
     if kind == "fifo":
         os.mkfifo(path)
     elif kind == "broken_link":
@@ -141,7 +141,7 @@ def test_one_bad_input_never_sinks_a_batch(tmp_path: Path, command: str, kind: s
 
 @pytest.mark.parametrize("kind", ["fifo", "broken_link", "permission", "not_an_image"])
 @pytest.mark.usefixtures("deny_reads")
-def test_synth_records_a_bad_rgb_or_depth_and_writes_the_rest(tmp_path: Path, kind: str) -> None:
+def test_synth_records_a_bad_depth_map_and_writes_the_rest(tmp_path: Path, kind: str) -> None:
     rgbd = tmp_path / "rgbd"
     rng = np.random.default_rng(0)
     for stem in ("a", "b"):
@@ -149,12 +149,7 @@ def test_synth_records_a_bad_rgb_or_depth_and_writes_the_rest(tmp_path: Path, ki
         (rgbd / "depth").mkdir(parents=True, exist_ok=True)
         assert cv2.imwrite(str(rgbd / "depth" / f"{stem}.png"), rng.integers(500, 5000, (48, 64)).astype(np.uint16))
     (rgbd / "depth" / "b.png").unlink()
-    bad = _bad(rgbd / "depth", kind)
-    bad.rename(rgbd / "depth" / "b.png") if kind not in ("fifo",) else None
-    if kind == "fifo":
-        bad.unlink()
-        os.mkfifo(rgbd / "depth" / "b.png")
-    bad = rgbd / "depth" / "b.png"
+    bad = _bad(rgbd / "depth", kind, stem="b")  # b's depth map is bad; a's pair is good
     out = tmp_path / "out"
     res = runner.invoke(app, ["synth", str(rgbd), str(out), "--variants", "1", "--water-types", "I"])
     _no_traceback(res)

@@ -54,14 +54,14 @@ class MurkGroup(TyperGroup):
 
 def error_text(exc: BaseException) -> str:
     """The one-line message of a library error. A bare ``OSError`` (``[Errno 13] Permission denied: 'x'``) is
-    written as ``x: permission denied`` so that the path leads, as in every other murk error."""
-    if type(exc) in (OSError, PermissionError, FileNotFoundError, IsADirectoryError, NotADirectoryError) and getattr(
-        exc, "filename", None
-    ):
-        err = exc  # type: ignore[assignment]
-        reason = (err.strerror or str(err)).lower()  # type: ignore[attr-defined]
-        other = f" -> {err.filename2}" if getattr(err, "filename2", None) else ""  # type: ignore[attr-defined]
-        return f"{err.filename}{other}: {reason} (murk could not access this path)"  # type: ignore[attr-defined]
+    written as ``x: permission denied`` so that the path leads, as in every other murk error (murk's own
+    ``OutputError`` already reads that way)."""
+    from murk.errors import OutputError
+
+    if isinstance(exc, OSError) and not isinstance(exc, OutputError) and exc.filename:
+        other = f" -> {exc.filename2}" if exc.filename2 else ""
+        reason = (exc.strerror or str(exc)).lower()
+        return f"{exc.filename}{other}: {reason} (murk could not access this path)"
     return str(exc)
 
 

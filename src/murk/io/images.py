@@ -7,7 +7,6 @@ converts grayscale or RGBA inputs to RGB, recording what it did in :class:`Image
 
 from __future__ import annotations
 
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,7 +21,7 @@ from murk._limits import max_pixels
 from murk._limits import set_max_pixels as set_max_pixels
 from murk.errors import InputFileError
 from murk.io.atomic import write_bytes_atomic
-from murk.io.listing import describe_unusable, walk_files
+from murk.io.listing import can_list, describe_unusable, walk_files
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".ppm", ".webp")
 """File suffixes treated as images when scanning folders."""
@@ -275,7 +274,7 @@ def list_images(folder: str | Path, *, recursive: bool = False, unusable: bool =
 
 def _unlisted(path: Path) -> bool:
     """A subfolder that a listing could not enter (kept so that it is reported, not silently skipped)."""
-    return path.is_dir() and not os.access(path, os.R_OK | os.X_OK)
+    return path.is_dir() and not can_list(path)
 
 
 def _reason(exc: OSError) -> str:

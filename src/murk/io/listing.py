@@ -66,6 +66,11 @@ def _special(path: Path) -> bool:
         return True
 
 
+def can_list(folder: str | Path) -> bool:
+    """Whether this process may list and enter ``folder`` (read and execute permission)."""
+    return os.access(folder, os.R_OK | os.X_OK)
+
+
 def describe_unusable(path: str | Path) -> str | None:
     """Why ``path`` cannot be read as an input file, or None when it is a readable-looking regular file.
 
@@ -84,7 +89,7 @@ def describe_unusable(path: str | Path) -> str | None:
     if stat.S_ISREG(st.st_mode):
         return None
     if stat.S_ISDIR(st.st_mode):
-        if not os.access(path, os.R_OK | os.X_OK):
+        if not can_list(path):
             return "a folder that cannot be listed (permission denied): the files in it were not processed"
         return "a folder, not a file"
     kind = (

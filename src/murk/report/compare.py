@@ -16,7 +16,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-import os
 import time
 import warnings
 from collections.abc import Callable, Sequence
@@ -149,7 +148,9 @@ def real_images(real_dir: Path, out: Path, *, recursive: bool = False) -> list[P
 
 def _listable(path: Path) -> bool:
     """A folder whose images are listed (a folder that cannot be entered stays one input its reader refuses)."""
-    return path.is_dir() and os.access(path, os.R_OK | os.X_OK)
+    from murk.io.listing import can_list
+
+    return path.is_dir() and can_list(path)
 
 
 def run_compare(
