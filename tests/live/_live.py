@@ -35,6 +35,15 @@ class DepthRestorer(Restorer):
         return Restored(images.copy(), np.full(images.shape[:3], 3.0, np.float32))
 
 
+class BuggyRestorer(Restorer):
+    """Raises an error that is not one of the restore errors a frame may fail with (a bug in a method)."""
+
+    name = "buggy"
+
+    def restore(self, images: np.ndarray) -> Restored:
+        raise KeyError("a bug")
+
+
 def clip(folder: Path, n: int = 30, fps: float = 30.0, h: int = 48, w: int = 64) -> Path:
     return make_video(folder / "clip.avi", n, fps=fps, h=h, w=w)
 
@@ -60,6 +69,8 @@ def underwater_clip(path: Path, n: int = 90, fps: float = 30.0, w: int = 640, h:
 def make_restorer(spec: str) -> Restorer:
     if spec == "depth":
         return DepthRestorer()
+    if spec == "buggy":
+        return BuggyRestorer()
     if spec.startswith("slow"):
         return SlowRestorer(float(spec.partition("?delay=")[2] or 0.05))
     return create(spec, shared={"device": "cpu", "batch": 1})

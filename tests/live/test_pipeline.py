@@ -132,3 +132,18 @@ def test_end_of_source_is_reported(tmp_path: Path) -> None:
     finally:
         p.stop()
     assert p.status()["ended"] == "end" and p.restored + p.dropped == 5
+
+
+def test_an_unexpected_error_in_restoration_ends_the_run_visibly(tmp_path: Path) -> None:
+    """Found in review: an error outside the per-frame restore errors killed the thread without a word; the
+    page froze and --exit-at-end never returned. Now the run ends with the reason."""
+    import time
+
+    p = pipeline(clip(tmp_path, n=10, fps=30.0), tmp_path / "out", "buggy").start()
+    try:
+        deadline = time.monotonic() + 10
+        while p.ended is None and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert p.ended is not None and "restoration failed (KeyError" in p.ended
+    finally:
+        p.stop()

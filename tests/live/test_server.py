@@ -160,6 +160,10 @@ def test_token_is_required_when_set(tmp_path: Path) -> None:
         assert request(server, "GET", "/?token=wrong")[0].status == 401
         assert request(server, "GET", "/?token=s3cret")[0].status == 200
         assert request(server, "GET", "/api/status", headers={"X-Murk-Token": "s3cret"})[0].status == 200
+        assert request(server, "GET", "/api/status")[0].status == 401
+        assert request(server, "GET", "/api/frame?after=-1")[0].status == 401
+        for name in ("/live.js", "/live.css"):  # the page loads its own files without the token (they hold no data)
+            assert request(server, "GET", name)[0].status == 200
     finally:
         server.stop()
         p.stop()
@@ -173,6 +177,13 @@ def test_page_options_exclude_files_and_code() -> None:
     assert spec_from_page({"method": " lite+post ", "options": {"temporal": 0.8}}) == "lite+post?temporal=0.8"
     with pytest.raises(RequestError, match="option x: expected a number or a word"):
         spec_from_page({"method": "post", "options": {"x": {"a": 1}}})
+    # a key that smuggles a second option past the check (found in review) is refused
+    with pytest.raises(RequestError, match="expected an option name"):
+        spec_from_page({"method": "lite", "options": {"temporal=0.5,checkpoint": "/tmp/evil.pt"}})
+    with pytest.raises(RequestError, match="cannot be set from the page"):
+        spec_from_page({"method": "lite?temporal=0.5,device=cuda", "options": {}})
+    with pytest.raises(RequestError, match="cannot be set from the page"):
+        spec_from_page({"method": "jointid", "options": {"onnx": "model"}})
 
 
 def test_the_page_never_parses_server_or_user_text_as_html() -> None:

@@ -144,6 +144,12 @@ class LivePipeline:
         return self._reader.dropped
 
     def _run(self) -> None:
+        try:
+            self._loop()
+        except Exception as exc:  # a bug or an unexpected library error: shown as the end, never a silent freeze
+            self._end(f"restoration failed ({type(exc).__name__}: {exc})")
+
+    def _loop(self) -> None:
         with contextlib.ExitStack() as sequence:
             active: Restorer | None = None
             while not self._stop.is_set():

@@ -39,7 +39,7 @@ from murk.live.pipeline import LivePipeline
 FRAME_WAIT_S = 2.0
 """How long ``/api/frame`` waits for a newer frame before answering 204."""
 MAX_BODY_BYTES = 64 * 1024
-PAGE_REFUSED_OPTIONS = ("checkpoint", "trust_checkpoint", "device", "batch", "compile")
+PAGE_REFUSED_OPTIONS = ("checkpoint", "onnx", "trust_checkpoint", "device", "batch", "compile")
 """Method options the page may not set: they name files or run code on the server, or set the command's
 settings (set them on the command line)."""
 SUGGESTED = ("lite+post", "lite", "post", "jointid", "jointid+post", "lite?temporal=0.8")
@@ -137,6 +137,8 @@ def spec_from_page(body: Any) -> str:
     spec_method, spec_options = method.partition("?")[0], method.partition("?")[2]
     items = [i for i in spec_options.split(",") if i.strip()]
     for key, value in options.items():
+        if not isinstance(key, str) or not key.isidentifier():  # "temporal=0.5,checkpoint" would smuggle a second
+            raise RequestError(HTTPStatus.BAD_REQUEST, f"option {key!r}: expected an option name")
         text = str(value).strip()
         if not isinstance(value, (str, int, float, bool)) or any(c in text for c in ",?=+") or not text:
             raise RequestError(HTTPStatus.BAD_REQUEST, f"option {key}: expected a number or a word, got {value!r}")
@@ -149,7 +151,17 @@ def spec_from_page(body: Any) -> str:
                 f"option {key} cannot be set from the page (it names files or settings of the server); "
                 "start murk live with it instead",
             )
-    return spec_method + (f"?{','.join(items)}" if items else "")
+    spec = spec_method + (f"?{','.join(items)}" if items else "")
+    from murk.enhance.options import parse_spec
+
+    try:  # the options as murk will read them: none may be one the page may not set
+        parsed = parse_spec(spec)[1]
+    except ValueError as exc:
+        raise RequestError(HTTPStatus.BAD_REQUEST, str(exc)) from None
+    refused = sorted(set(parsed) & set(PAGE_REFUSED_OPTIONS))
+    if refused:
+        raise RequestError(HTTPStatus.FORBIDDEN, f"option {refused[0]} cannot be set from the page")
+    return spec
 
 
 class LiveHandler(BaseHTTPRequestHandler):
@@ -158,6 +170,7 @@ class LiveHandler(BaseHTTPRequestHandler):
     # TCP_NODELAY: a frame's last partial segment must not wait for the page's delayed ACK (Nagle's algorithm
     # held it for about 40 ms on every keep-alive response, capping the page at about 21 frames/s)
     disable_nagle_algorithm = True
+    timeout = 30  # an idle or trickling connection frees its thread after 30 s (a frame request waits 2 s)
     server_version = "murk-live"
     error_content_type = "application/json"
     error_message_format = '{"error": "%(code)d %(message)s"}'
@@ -183,9 +196,11 @@ class LiveHandler(BaseHTTPRequestHandler):
         try:
             parts = urlsplit(self.path)
             query = parse_qs(parts.query)
-            self._check_access(query)
+            page = asset(parts.path) if verb == "GET" else None
+            # the page's own files hold no data: a page opened with ?token=... loads its script and style
+            self._check_access(query, token_needed=page is None or parts.path == "/")
             route = (verb, parts.path)
-            if verb == "GET" and (page := asset(parts.path)) is not None:
+            if page is not None:
                 self._send(HTTPStatus.OK, page[0], page[1])
             elif route == ("GET", "/api/frame"):
                 self._frame(query)
@@ -210,14 +225,14 @@ class LiveHandler(BaseHTTPRequestHandler):
         except Exception as exc:  # a bug: reported to the page, the server goes on
             self._json(HTTPStatus.INTERNAL_SERVER_ERROR, {"error": f"{type(exc).__name__}: {exc}"})
 
-    def _check_access(self, query: dict[str, list[str]]) -> None:
+    def _check_access(self, query: dict[str, list[str]], token_needed: bool = True) -> None:
         if self.server.loopback:
             host = (self.headers.get("Host") or "").strip()
             name = host.rsplit(":", 1)[0] if not host.startswith("[") else host[1:].split("]")[0]
             if name not in LOOPBACK_NAMES:
                 raise RequestError(HTTPStatus.FORBIDDEN, f"Host {host!r}: this server answers on 127.0.0.1 only")
         token = self.server.token
-        if token:
+        if token and token_needed:
             given = self.headers.get("X-Murk-Token") or (query.get("token") or [""])[0]
             if not hmac.compare_digest(given.encode(), token.encode()):
                 raise RequestError(HTTPStatus.UNAUTHORIZED, "missing or wrong access token (open the URL murk printed)")
