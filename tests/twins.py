@@ -126,7 +126,7 @@ def _table() -> dict[str, Twin]:
     from murk.metrics import reference
     from murk.metrics.uciqe import uciqe, uciqe_torch
     from murk.metrics.uiqm import uiqm, uiqm_torch
-    from murk.physics import camera, medium
+    from murk.physics import balance, camera, medium
     from murk.physics import forward_scatter as fs
     from murk.scenes.textures import TILE_PX, lookup_numpy, lookup_torch, noise_tile
     from murk.snow.composite import composite_snow, composite_snow_torch
@@ -154,6 +154,18 @@ def _table() -> dict[str, Twin]:
                     medium.apply_medium_torch(nchw(x["images"]), t(x["dist"])[:, None], t(x["beta"]), t(x["b_inf"]))[0]
                 )
             },
+            atol=1e-6,
+        ),
+        "physics.color_balance": Twin(
+            _murky,
+            per_image(lambda im: balance.color_balance(im, 1.0, 2.5), "images"),
+            lambda x: {"out": nhwc(balance.color_balance_torch(nchw(x["images"]), 1.0, 2.5))},
+            atol=1e-6,
+        ),
+        "physics.color_balance (a flat channel)": Twin(
+            _flat_in_batch,
+            per_image(balance.color_balance, "images"),
+            lambda x: {"out": nhwc(balance.color_balance_torch(nchw(x["images"])))},
             atol=1e-6,
         ),
         "physics.gaussian_blur": Twin(

@@ -1,4 +1,4 @@
-"""greyworld, clahe and udcp: the classical restorers, as registered methods and as chains."""
+"""greyworld, colorbalance, clahe and udcp: the classical restorers, as registered methods and as chains."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import pytest
 from murk.enhance import restorer as restorer_mod
 from murk.enhance.classical import clahe_lab, grey_world, guided_filter, udcp
 from murk.errors import ShapeError
+from murk.physics.balance import color_balance
 
 
 def _cast_scene(rng: np.random.Generator, h: int = 48, w: int = 64) -> np.ndarray:
@@ -63,11 +64,14 @@ def test_guided_filter_keeps_edges_of_the_guide() -> None:
 
 def test_registered_chains_and_options() -> None:
     names = restorer_mod.available()
-    assert {"greyworld", "clahe", "udcp"} <= set(names)
+    assert {"greyworld", "colorbalance", "clahe", "udcp"} <= set(names)
     img = _cast_scene(np.random.default_rng(4))[None]
     chain = restorer_mod.create("greyworld+clahe?clip=3.0,tiles=4")
     np.testing.assert_array_equal(chain(img).images[0], clahe_lab(grey_world(img[0]), 3.0, 4))
     assert restorer_mod.create("udcp?patch=9")(img).depth_m is None
+    balanced = restorer_mod.create("colorbalance?low=0.5,high=2")(img).images[0]
+    np.testing.assert_array_equal(balanced, color_balance(img[0], 0.5, 2.0))
+    assert np.ptp(balanced.reshape(-1, 3).mean(0)) < np.ptp(img[0].reshape(-1, 3).mean(0))  # the cast is smaller
 
 
 @pytest.mark.parametrize(
@@ -77,6 +81,8 @@ def test_registered_chains_and_options() -> None:
         ("greyworld?strength=2", "strength"),
         ("udcp?patch=0", "patch"),
         ("clahe?clip=0", "clip"),
+        ("colorbalance?low=60", "low"),
+        ("colorbalance?high=-1", "high"),
     ],
 )
 def test_bad_options_are_refused_by_name(spec: str, match: str) -> None:

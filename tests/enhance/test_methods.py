@@ -43,7 +43,8 @@ def test_names_and_options_are_checked_without_torch() -> None:
         """
         import sys
         from murk.enhance.restorer import available, create, options_of
-        assert available() == ["clahe", "greyworld", "jointid", "lite", "post", "udaformer", "udcp", "ursct"]
+        names = ["clahe", "colorbalance", "greyworld", "jointid", "lite", "post", "udaformer", "udcp", "ursct"]
+        assert available() == names
         assert options_of("jointid")["overlap"].default == 64
         for spec, text in [
             ("jointd", "unknown 'jointd' (did you mean 'jointid'?)"),

@@ -83,7 +83,7 @@ def test_study_scores_the_arms_on_each_set_and_averages_the_sets(tmp_path: Path,
     assert [c[0] for c in pair_calls] == ["set1", "set2"]
     assert all(c[3] == 256 and Path(c[2]).name == "reference" for c in pair_calls)
     labels = pair_calls[0][1]
-    assert labels[:3] == ["raw", "greyworld+clahe", "udcp"] and "proposed+post_murk" in labels
+    assert labels[:4] == ["raw", "greyworld+clahe", "colorbalance", "udcp"] and "proposed+post_murk" in labels
     assert "proposed+post" in labels  # Eq. (9) as the paper writes it, beside murk's default post
     means = report["real_pairs"]["mean_over_sets"]
     assert means["raw"]["psnr"] == pytest.approx(15.0)  # (20 + 10) / 2: each set counted once

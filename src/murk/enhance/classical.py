@@ -1,4 +1,4 @@
-"""Classical restorers that a practitioner tries first: ``greyworld``, ``clahe`` and ``udcp``.
+"""Classical restorers that a practitioner tries first: ``greyworld``, ``colorbalance``, ``clahe`` and ``udcp``.
 
 Every report should show the learned models beside them (``murk compare ... --method greyworld+clahe``).
 
@@ -6,6 +6,11 @@ Every report should show the learned models beside them (``murk compare ... --me
   perception", J. Franklin Inst. 310(1), 1980, doi:10.1016/0016-0032(80)90058-7): each channel is scaled so
   that its mean equals the mean of the three channel means, ``out_c = clip(I_c * mean(m) / m_c, 0, 1)``.
   ``strength`` in [0, 1] blends the gains towards 1 (``g_c ** strength``).
+- ``colorbalance``: the "simplest colour balance" of Limare, Lisani, Morel, Petro and Sbert (Image Processing
+  On Line 1, 2011, doi:10.5201/ipol.2011.llmps-scb): each channel is stretched affinely so that its ``low`` %
+  darkest pixels become 0 and its ``high`` % brightest become 1 (saturated), ``out_c = clip((I_c - q_c) /
+  (Q_c - q_c), 0, 1)`` with ``q_c``, ``Q_c`` the channel's ``low`` and ``100 - high`` percentiles
+  (:mod:`murk.physics.balance`, which says why it fits water).
 - ``clahe``: contrast-limited adaptive histogram equalisation (Zuiderveld, Graphics Gems IV, 1994) of the
   CIE L* channel of the 8-bit image (OpenCV's Lab conversion and CLAHE), a* and b* kept; ``clip`` (OpenCV's
   clip limit) and ``tiles`` (tiles per side) as options. The output is 8-bit.
@@ -17,7 +22,7 @@ Every report should show the learned models beside them (``murk compare ... --me
   ``patch`` x ``patch`` window, refined with the guided filter of He, Sun and Tang (IEEE TPAMI 35(6), 2013,
   doi:10.1109/TPAMI.2012.213) guided by the grey input, and ``J = (I - A) / max(t, t_min) + A``.
 
-All three work per image on float32 RGB in [0, 1] (numpy, OpenCV) and return no depth.
+All four work per image on float32 RGB in [0, 1] (numpy, OpenCV) and return no depth.
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ import numpy as np
 from murk._checks import check_positive, check_range
 from murk.enhance.restorer import Restored, Restorer, register
 from murk.errors import ShapeError
+from murk.physics.balance import color_balance
 
 
 def _check(images: np.ndarray) -> np.ndarray:
@@ -63,6 +69,29 @@ class GreyWorld(Restorer):
 def make_greyworld(*, strength: float = 1.0) -> GreyWorld:
     """Factory of ``greyworld`` (grey-world white balance; ``strength`` 0-1 blends the gains towards 1)."""
     return GreyWorld(strength)
+
+
+# ------------------------------------------------------------------------------------ simplest colour balance
+
+
+class ColorBalance(Restorer):
+    """:func:`color_balance` per image."""
+
+    name = "colorbalance"
+
+    def __init__(self, low: float = 1.0, high: float = 1.0) -> None:
+        self.low = check_range("low", low, 0.0, 49.0)
+        self.high = check_range("high", high, 0.0, 49.0)
+
+    def restore(self, images: np.ndarray) -> Restored:
+        return Restored(np.stack([color_balance(im, self.low, self.high) for im in _check(images)]))
+
+
+@register("colorbalance")
+def make_colorbalance(*, low: float = 1.0, high: float = 1.0) -> ColorBalance:
+    """Factory of ``colorbalance`` (simplest colour balance, Limare et al. 2011: per channel, ``low`` % of the
+    pixels saturate to 0 and ``high`` % to 1)."""
+    return ColorBalance(low, high)
 
 
 # ----------------------------------------------------------------------------------------------------- CLAHE

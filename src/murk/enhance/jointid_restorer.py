@@ -31,6 +31,7 @@ from murk.enhance.restorer import RestoredTensor, Restorer
 from murk.enhance.tiling import pad_to_multiple, tiled_apply
 from murk.errors import ShapeError
 from murk.models.jointid.network import INPUT_MEAN, INPUT_STD, SIZE_MULTIPLE
+from murk.physics.balance import color_balance_torch
 
 _DTYPES: dict[str, torch.dtype] = {"bf16": torch.bfloat16, "fp16": torch.float16}
 
@@ -132,6 +133,10 @@ class JointIDRestorer(Restorer):
         self.tile = tile
         self.overlap = int(overlap)
         self.batch = batch
+        self.input_balance_pct: float | None = getattr(
+            unwrap(model) if isinstance(model, nn.Module) else model, "input_balance_pct", None
+        )
+        """The simplest colour balance the network's input takes (from the checkpoint; None: none)."""
         if isinstance(model, OnnxJointID):
             if precision != "fp32":
                 raise ValueError(f"precision: ONNX models run in fp32, got {precision!r}")
@@ -197,6 +202,8 @@ class JointIDRestorer(Restorer):
             raise ShapeError(f"images: expected shape (B, 3, H, W), got {tuple(images.shape)}")
         with torch.inference_mode():
             x = images.to(self.device, torch.float32)
+            if self.input_balance_pct is not None:  # the input the network was trained on
+                x = color_balance_torch(x, self.input_balance_pct, self.input_balance_pct)
             if self.model is not None:  # an ONNX export normalises inside its graph
                 x = self._normalize(x)
             x, pad = pad_to_multiple(x, SIZE_MULTIPLE, "reflect")

@@ -38,6 +38,7 @@ from murk.models.lite.network import (
     work_size,
 )
 from murk.models.padding import pad_to_multiple
+from murk.physics.balance import color_balance_torch
 
 
 class LiteRestorer(Restorer):
@@ -76,6 +77,10 @@ class LiteRestorer(Restorer):
         """The weights file this restorer was loaded from (set by the ``lite`` factory)."""
         ema = FrameEMA(temporal)
         self.temporal_state = ema if ema.weight > 0 else None
+        self.input_balance_pct: float | None = getattr(
+            unwrap(model) if isinstance(model, nn.Module) else model, "input_balance_pct", None
+        )
+        """The simplest colour balance the network's input takes (from the checkpoint; None: none)."""
         if isinstance(model, OnnxLite):
             if self.temporal_state is not None:
                 raise ValueError("temporal: needs the torch network (an ONNX export computes its maps inside)")
@@ -114,6 +119,8 @@ class LiteRestorer(Restorer):
             raise ShapeError(f"images: expected shape (B, 3, H, W), got {tuple(images.shape)}")
         with torch.inference_mode():
             x = images.to(self.device, torch.float32)
+            if self.input_balance_pct is not None:  # the input the network was trained on
+                x = color_balance_torch(x, self.input_balance_pct, self.input_balance_pct)
             step = self.batch or x.shape[0]
             model = self.model
             if model is None:  # an ONNX export: working image, padding and clamping are in its graph

@@ -230,3 +230,32 @@ def write_checkpoint(path: str | Path, obj: dict[str, Any]) -> Path:
             f.flush()
             os.fsync(f.fileno())
     return path
+
+
+INPUT_BALANCE_KEY = "input_balance_pct"
+"""The checkpoint metadata key (and the network attribute) of the simplest colour balance a network's input takes
+(``model.input_balance_pct`` of ``murk train``; :mod:`murk.physics.balance`): the percentage saturated at each
+end of each channel, or None."""
+
+
+def input_balance_of(meta: Mapping[str, Any]) -> float | None:
+    """The input colour balance a checkpoint's network was trained with: ``meta["input_balance_pct"]``, else the
+    training configuration's ``model.input_balance_pct`` (checkpoints written by ``murk train``), else None."""
+    value = meta.get(INPUT_BALANCE_KEY)
+    if value is None:
+        config = meta.get("config")
+        model = config.get("model") if isinstance(config, Mapping) else None
+        value = model.get(INPUT_BALANCE_KEY) if isinstance(model, Mapping) else None
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 <= float(value) < 50.0:
+        raise ValueError(f"{INPUT_BALANCE_KEY}: expected a percentage in [0, 50) or None, got {value!r}")
+    return float(value)
+
+
+def with_input_balance(model: Any, meta: dict[str, Any]) -> dict[str, Any]:
+    """``meta`` with the network's ``input_balance_pct`` attribute recorded (when set and not already there)."""
+    value = getattr(model, INPUT_BALANCE_KEY, None)
+    if value is not None and INPUT_BALANCE_KEY not in meta:
+        meta = {**meta, INPUT_BALANCE_KEY: float(value)}
+    return meta

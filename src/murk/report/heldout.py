@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from murk.physics.balance import color_balance
 from murk.rng import derive_seed
 
 
@@ -32,8 +33,13 @@ class HeldoutSet:
     seed: int
 
 
-def make_heldout(n: int, *, seed: int, size_hw: tuple[int, int], synthesis: Any) -> HeldoutSet:
-    """Render and degrade ``n`` held-out scenes (deterministic in ``seed``)."""
+def make_heldout(
+    n: int, *, seed: int, size_hw: tuple[int, int], synthesis: Any, balance_pct: float | None = None
+) -> HeldoutSet:
+    """Render and degrade ``n`` held-out scenes (deterministic in ``seed``). ``balance_pct``: each clean scene
+    first goes through the simplest colour balance (:mod:`murk.physics.balance`), as the training scenes of
+    ``data.scene_balance_pct`` do (the "photographic" held-out set: targets that span the range in every channel,
+    as photographs and the references of real pairs do); None: the procedural scenes as rendered."""
     from murk.scenes import render_scene, sample_scene
     from murk.train.augment import centre_crop
     from murk.train.data import OnlineDegrader
@@ -46,6 +52,8 @@ def make_heldout(n: int, *, seed: int, size_hw: tuple[int, int], synthesis: Any)
     for i in range(n):
         scene = sample_scene(derive_seed(seed, "heldout", i))
         rgb, dist = centre_crop(list(render_scene(scene, render_size((h, w)))), (h, w), source=f"scene {i}")
+        if balance_pct is not None:
+            rgb = color_balance(rgb, balance_pct, balance_pct)
         cleans.append(rgb)
         dists.append(dist)
         fars.append(scene.far_m)

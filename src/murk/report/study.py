@@ -156,7 +156,14 @@ def evaluate_study(
         "errors": res.errors,
     }
     if ev.real_pairs:
-        pair_specs = ["raw", "greyworld+clahe", "udcp", *specs[2:], f"{last}+post_murk={method}+post:{ckpts[last]}"]
+        pair_specs = [
+            "raw",
+            "greyworld+clahe",
+            "colorbalance",
+            "udcp",
+            *specs[2:],
+            f"{last}+post_murk={method}+post:{ckpts[last]}",
+        ]
         report["real_pairs"] = evaluate_real_pairs(
             Path(resolve_builtin(ev.real_pairs)),
             [parse_method(s) for s in pair_specs],

@@ -58,6 +58,11 @@ class ModelConfig:
     (:func:`murk.models.jointid.depth_head_parameter_names`), the parameters that feed nothing but the depth
     output, so the enhanced image of ``init_checkpoint`` stays exactly as it was (jointid only; needs
     ``init_checkpoint``)."""
+    input_balance_pct: float | None = None
+    """Take the network's input through the simplest colour balance (:mod:`murk.physics.balance`) with this
+    percentage saturated at each end of each channel, in training and in every restorer of the checkpoint
+    (recorded in it as ``input_balance_pct``): the network restores what one global affine map per channel
+    cannot. None: the input as it is (the paper's recipe)."""
 
     def __post_init__(self) -> None:
         if self.kind == "lite":
@@ -69,6 +74,8 @@ class ModelConfig:
                 raise ValueError(
                     f"trainable: {self.trainable!r} applies to model.kind jointid only (lite has no depth)"
                 )
+        if self.input_balance_pct is not None:
+            check_range("input_balance_pct", self.input_balance_pct, 0.0, 49.0)
         if self.trainable == "depth_head" and not self.init_checkpoint:
             raise ValueError(
                 "trainable: depth_head trains the depth head of existing weights; set model.init_checkpoint"
@@ -122,6 +129,11 @@ class DataConfig:
     by its seed) around its mean luma, ``clip(m + c (rgb - m))``, before the water is added. The procedural
     scenes are flatter than photographs (luma std 0.11 against 0.18-0.21 for the shipped real RGB-D photos),
     so a restorer trained on them returns flat images. (1, 1): off."""
+    scene_balance_pct: float | None = None
+    """``source: scenes``: the clean scene goes through the simplest colour balance (:mod:`murk.physics.balance`)
+    with this percentage saturated at each end of each channel, after ``scene_contrast`` and
+    ``scene_saturation`` and before the water, so every target spans the range in each channel as photographs
+    (and the references of real pairs) do. None: off."""
     scene_water_background: float = 0.0
     """``source: scenes``: probability that a scene's open-water background is clear-water blue to cyan-green
     (:class:`murk.scenes.SceneConfig` ``water_background``) instead of near-grey, so that a restorer learns to
@@ -149,6 +161,8 @@ class DataConfig:
         check_interval("scene_saturation", self.scene_saturation, 0.0, 4.0)
         check_range("scene_water_background", self.scene_water_background, 0.0, 1.0)
         check_interval("scene_contrast", self.scene_contrast, 0.0, 4.0)
+        if self.scene_balance_pct is not None:
+            check_range("scene_balance_pct", self.scene_balance_pct, 0.0, 49.0)
 
 
 @dataclass(frozen=True)

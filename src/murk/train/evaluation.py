@@ -11,6 +11,7 @@ import torch.nn.functional as F
 from torch.utils.data import DataLoader
 
 from murk.io.jobs import ErrorLog
+from murk.physics.balance import color_balance_torch
 from murk.train.config import TrainConfig
 from murk.train.data import record_unreadable
 from murk.train.losses import jointid_loss
@@ -56,7 +57,7 @@ def evaluate(
                 targets = batch["clean"]
             else:
                 inputs, targets = batch["input"], batch["target"]
-            enhanced, depth_m = run_network(kind, model, inputs)
+            enhanced, depth_m = run_network(kind, model, inputs, config.model.input_balance_pct)
             enhanced = enhanced.float()
             depth_m = None if depth_m is None else depth_m.float()
             losses.append(float(jointid_loss(enhanced, targets, depth_m, batch["depth"], config.loss).total))
@@ -86,6 +87,9 @@ def evaluate(
             x = torch.from_numpy(img).permute(2, 0, 1)[None].to(device)
             if scale < 1.0:
                 x = F.interpolate(x, scale_factor=scale, mode="area")
+            if config.model.input_balance_pct is not None:  # balanced before padding, as the restorers do
+                pct = config.model.input_balance_pct
+                x = color_balance_torch(x, pct, pct)
             xp, padding = pad_to_multiple(x, size_multiple(kind))
             o = padding.crop(run_network(kind, model, xp)[0].float()).clamp(0, 1)
             uiqms.append(uiqm_torch(o, data_range=1.0).uiqm)

@@ -223,7 +223,7 @@ def train(
             group["lr"] = lr
         x = inputs.contiguous(memory_format=torch.channels_last) if config.channels_last else inputs
         with autocast:
-            enhanced, depth_m = run_network(kind, net, x)
+            enhanced, depth_m = run_network(kind, net, x, config.model.input_balance_pct)
         terms = jointid_loss(
             enhanced.float(), targets, None if depth_m is None else depth_m.float(), depth, config.loss
         )

@@ -52,6 +52,7 @@ def build_network(config: ModelConfig) -> nn.Module:
     if config.init_checkpoint:
         state, _ = read_network_checkpoint(config.kind, config.init_checkpoint, trust=config.trust_checkpoint)
         model.load_state_dict(state, strict=True)
+    model.input_balance_pct = config.input_balance_pct  # recorded in every checkpoint the run writes
     return model
 
 
@@ -73,8 +74,15 @@ def trainable_parameter_names(config: ModelConfig, model: nn.Module) -> set[str]
     return {n for n, _ in model.named_parameters()}
 
 
-def run_network(kind: str, net: nn.Module, images: Tensor) -> tuple[Tensor, Tensor | None]:
-    """``(enhanced, depth_m or None)`` of ``net`` for a batch (B, 3, H, W) of RGB in [0, 1]."""
+def run_network(
+    kind: str, net: nn.Module, images: Tensor, balance_pct: float | None = None
+) -> tuple[Tensor, Tensor | None]:
+    """``(enhanced, depth_m or None)`` of ``net`` for a batch (B, 3, H, W) of RGB in [0, 1], taken first through
+    the simplest colour balance when ``balance_pct`` is set (``model.input_balance_pct``)."""
+    if balance_pct is not None:
+        from murk.physics.balance import color_balance_torch
+
+        images = color_balance_torch(images, balance_pct, balance_pct).to(images.dtype)
     if kind == "lite":
         return net(images), None
     from murk.models.jointid import normalize_input

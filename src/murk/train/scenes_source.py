@@ -74,12 +74,14 @@ class SceneDataset(Dataset):
         scale: tuple[float, float] = (1.0, 1.0),
         saturation: tuple[float, float] = (1.0, 1.0),
         contrast: tuple[float, float] = (1.0, 1.0),
+        balance_pct: float | None = None,
     ) -> None:
         self.indices = list(indices)
         self.crop_hw = crop_hw
         self.scale = scale
         self.saturation = saturation
         self.contrast = contrast
+        self.balance_pct = balance_pct
         self.seed = seed
         self.config = config
         self._cache: dict[int, dict[str, Any]] | None = {} if cache else None
@@ -110,6 +112,10 @@ class SceneDataset(Dataset):
         if self.saturation != (1.0, 1.0):
             s = np.random.default_rng(derive_seed(self.seed, index, "saturation")).uniform(*self.saturation)
             rgb = scale_saturation(rgb, float(s))
+        if self.balance_pct is not None:
+            from murk.physics.balance import color_balance
+
+            rgb = color_balance(rgb, self.balance_pct, self.balance_pct)
         d = torch.from_numpy(np.ascontiguousarray(dist.transpose(2, 0, 1)))
         return {
             "clean": torch.from_numpy(np.ascontiguousarray(rgb.transpose(2, 0, 1))),

@@ -90,6 +90,7 @@ def build_data(config: TrainConfig) -> DataSetup:
                 scale=d.scene_scale,
                 saturation=d.scene_saturation,
                 contrast=d.scene_contrast,
+                balance_pct=d.scene_balance_pct,
             )
 
         scenes = scenes_of(range(n_val, count))

@@ -26,8 +26,8 @@ from torch import nn
 
 from murk._version import __version__
 from murk.errors import InputFileError
+from murk.models.checkpoint_io import input_balance_of, strip_prefixes, with_input_balance, write_checkpoint
 from murk.models.checkpoint_io import is_state_dict as _is_state_dict
-from murk.models.checkpoint_io import strip_prefixes, write_checkpoint
 from murk.models.checkpoint_io import torch_load as _torch_load_io
 from murk.models.jointid.network import VARIANTS, JointID, JointIDConfig, variant_name
 
@@ -90,7 +90,7 @@ def save_checkpoint(model: nn.Module, path: str | Path, **meta: Any) -> Path:
             "variant": variant_name(net.config),
             "config": net.config.to_dict(),
             "state_dict": {k: v.detach().cpu().contiguous() for k, v in net.state_dict().items()},
-            "meta": meta,
+            "meta": with_input_balance(net, meta),
         },
     )
 
@@ -192,6 +192,7 @@ def load_checkpoint(path: str | Path, *, trust: bool = False, device: str | torc
         model = JointID(info.config)
     state = {k: v.float() if v.is_floating_point() else v for k, v in state.items()}
     model.load_state_dict(state, strict=True, assign=True)
+    model.input_balance_pct = input_balance_of(info.meta)
     return model.to(device).eval()
 
 

@@ -127,6 +127,10 @@ class JointID(nn.Module):
     Loading a state dict accepts the official names (prefix ``structure.``) and murk's (no prefix).
     """
 
+    input_balance_pct: float | None = None
+    """Not part of the network: the simplest colour balance (:mod:`murk.physics.balance`) its input takes in
+    training and in the restorers, read from and written to checkpoints (``model.input_balance_pct``)."""
+
     def __init__(self, config: JointIDConfig | None = None) -> None:
         super().__init__()
         cfg = config or JointIDConfig()

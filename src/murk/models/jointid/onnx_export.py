@@ -23,9 +23,11 @@ from torch import Tensor, nn
 
 from murk.errors import InputFileError
 from murk.io.atomic import atomic_path
+from murk.models.balance_graph import color_balance_graph
 from murk.models.jointid.checkpoint import unwrap
 from murk.models.jointid.network import INPUT_MEAN, INPUT_STD, SIZE_MULTIPLE, normalize_input
 from murk.models.padding import pad_to_multiple, reflect_rows
+from murk.physics.balance import color_balance_torch
 
 INPUT_NAME = "image"
 OUTPUT_NAMES = ("depth_m", "enhanced")
@@ -55,6 +57,7 @@ class JointIDImageGraph(nn.Module):
     def __init__(self, model: nn.Module) -> None:
         super().__init__()
         self.model = model
+        self.balance_pct: float | None = getattr(model, "input_balance_pct", None)
         self.register_buffer("mean", torch.tensor(INPUT_MEAN).view(1, 3, 1, 1), persistent=False)
         self.register_buffer("std", torch.tensor(INPUT_STD).view(1, 3, 1, 1), persistent=False)
 
@@ -65,6 +68,8 @@ class JointIDImageGraph(nn.Module):
         w_pad = w + torch.remainder(-w, SIZE_MULTIPLE)
         top = torch.div(h_pad - h, 2, rounding_mode="floor")  # as murk.models.padding.padding_for
         left = torch.div(w_pad - w, 2, rounding_mode="floor")
+        if self.balance_pct is not None:  # the input the network was trained on (model.input_balance_pct)
+            image = color_balance_graph(image, self.balance_pct, self.balance_pct)
         x = (image - self.mean) / self.std
         x = x[:, :, reflect_rows(h, h_pad, top)][:, :, :, reflect_rows(w, w_pad, left)]
         out = self.model(x)
@@ -74,7 +79,11 @@ class JointIDImageGraph(nn.Module):
 
 def restore_reference(model: nn.Module, x: Tensor) -> tuple[Tensor, Tensor]:
     """What the ``jointid`` restorer computes for frames ``x`` (B, 3, H, W) in [0, 1] (whole frames, fp32),
-    written plainly: normalise, reflect-pad to multiples of 32, the network, crop, clamp ``enhanced``."""
+    written plainly: balance (when the network was trained so), normalise, reflect-pad to multiples of 32, the
+    network, crop, clamp ``enhanced``."""
+    balance = getattr(model, "input_balance_pct", None)
+    if balance is not None:
+        x = color_balance_torch(x, balance, balance)
     padded, pad = pad_to_multiple(normalize_input(x), SIZE_MULTIPLE, "reflect")
     out = model(padded)
     return pad.crop(out.depth_m), pad.crop(out.enhanced).clamp(0.0, 1.0)

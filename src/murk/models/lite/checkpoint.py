@@ -17,7 +17,15 @@ from torch import nn
 
 from murk._version import __version__
 from murk.errors import InputFileError
-from murk.models.checkpoint_io import check_state_dict, is_state_dict, strip_prefixes, torch_load, write_checkpoint
+from murk.models.checkpoint_io import (
+    check_state_dict,
+    input_balance_of,
+    is_state_dict,
+    strip_prefixes,
+    torch_load,
+    with_input_balance,
+    write_checkpoint,
+)
 from murk.models.lite.network import LiteConfig, LiteNet, reparameterize, unwrap, variant_name
 
 FORMAT = "murk.lite"
@@ -64,7 +72,7 @@ def save_lite_checkpoint(model: nn.Module, path: str | Path, **meta: Any) -> Pat
             "variant": variant_name(net.config),
             "config": net.config.to_dict(),
             "state_dict": {k: v.detach().cpu().contiguous() for k, v in net.state_dict().items()},
-            "meta": meta,
+            "meta": with_input_balance(net, meta),
         },
     )
 
@@ -129,6 +137,7 @@ def load_lite(
     model.eval()
     if fold:
         model = reparameterize(model)
+    model.input_balance_pct = input_balance_of(info.meta)
     return model.to(device)
 
 

@@ -32,8 +32,10 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
+from murk.models.balance_graph import color_balance_graph
 from murk.models.lite.network import LUMA, SIZE_MULTIPLE, LiteNet, work_image, work_size, work_size_tensor
 from murk.models.padding import pad_to_multiple, reflect_rows
+from murk.physics.balance import color_balance_torch
 
 LitePath = Literal["native", "downsample"]
 
@@ -46,7 +48,10 @@ def lite_path(height: int, width: int, work_area_px: int) -> LitePath:
 def restore_reference(net: LiteNet, x: Tensor) -> Tensor:
     """What the ``lite`` restorer computes for frames ``x`` (B, 3, H, W) in [0, 1] with the torch network ``net``
     (folded, eval mode), written plainly: reflect-pad a frame that is its own working image, the network's
-    ``forward`` with :func:`~murk.models.lite.network.work_image`, clamp, crop."""
+    ``forward`` with :func:`~murk.models.lite.network.work_image`, clamp, crop; the frames balanced first when
+    the network was trained so (``input_balance_pct``)."""
+    if net.input_balance_pct is not None:
+        x = color_balance_torch(x, net.input_balance_pct, net.input_balance_pct)
     native = lite_path(int(x.shape[2]), int(x.shape[3]), net.config.work_area_px) == "native"
     if native:
         x, pad = pad_to_multiple(x, SIZE_MULTIPLE, "reflect")
@@ -85,9 +90,12 @@ class LiteImageGraph(nn.Module):
         self.net = net
         self.path = path
         self.work_area_px = int(net.config.work_area_px)
+        self.balance_pct: float | None = net.input_balance_pct
         self.register_buffer("luma", torch.tensor(LUMA).view(1, 3, 1, 1), persistent=False)
 
     def forward(self, image: Tensor) -> Tensor:
+        if self.balance_pct is not None:  # the input the network was trained on (model.input_balance_pct)
+            image = color_balance_graph(image, self.balance_pct, self.balance_pct)
         shape = torch._shape_as_tensor(image)  # traced: the graph computes every size from the frame's
         h, w = shape[2], shape[3]
         path = self.path or lite_path(int(image.shape[2]), int(image.shape[3]), self.work_area_px)

@@ -55,6 +55,7 @@ def _inference_copy(model: nn.Module) -> LiteNet:
     """The folded network in fp32 on the CPU in eval mode (a new module; the caller's is not changed)."""
     net = unwrap(model)
     folded = copy.deepcopy(net) if net.folded else reparameterize(net)
+    folded.input_balance_pct = net.input_balance_pct  # not a weight: carried by hand
     return folded.float().cpu().eval()
 
 

@@ -1,0 +1,46 @@
+"""The simplest colour balance (Limare et al. 2011): what it saturates, and that it inverts Eq. (1) at one
+distance for a scene that spans the range in every channel (why murk uses it on water)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from murk.physics.balance import FLAT_RANGE, color_balance
+
+
+def _full_range_scene(rng: np.random.Generator, h: int = 60, w: int = 80) -> np.ndarray:
+    j = cv2.GaussianBlur(rng.random((h, w, 3)).astype(np.float32), (0, 0), 2.0)
+    lo, hi = j.reshape(-1, 3).min(0), j.reshape(-1, 3).max(0)
+    return ((j - lo) / (hi - lo)).astype(np.float32)
+
+
+@pytest.mark.parametrize(("low", "high"), [(1.0, 1.0), (0.5, 3.0), (0.0, 0.0)])
+def test_the_named_shares_of_each_channel_saturate(low: float, high: float) -> None:
+    img = (np.random.default_rng(0).random((100, 120, 3)) * 0.4 + 0.3).astype(np.float32)
+    out = color_balance(img, low, high)
+    flat = out.reshape(-1, 3)
+    for c in range(3):
+        assert abs(100.0 * np.mean(flat[:, c] <= 0.0) - low) < 0.05 + (0.01 if low == 0 else 0)
+        assert abs(100.0 * np.mean(flat[:, c] >= 1.0) - high) < 0.05 + (0.01 if high == 0 else 0)
+    assert flat.min() == 0.0 and flat.max() == 1.0
+
+
+def test_it_inverts_the_image_formation_model_at_one_distance() -> None:
+    """I = J t + B (1 - t) per channel is affine in J: the balance of I equals the balance of J."""
+    j = _full_range_scene(np.random.default_rng(1))
+    t = np.array([0.15, 0.55, 0.6], np.float32)  # red absorbed most, as in green water
+    b = np.array([0.05, 0.45, 0.4], np.float32)
+    img = j * t + b * (1 - t)
+    np.testing.assert_allclose(color_balance(img, 0.0, 0.0), j, atol=2e-5)
+    np.testing.assert_allclose(color_balance(img, 1.0, 1.0), color_balance(j, 1.0, 1.0), atol=2e-5)
+    assert np.abs(img - j).mean() > 0.15  # the water changed the image a lot
+
+
+def test_a_flat_channel_is_not_blown_up() -> None:
+    img = np.full((20, 30, 3), 0.5, np.float32)
+    img[..., 0] += np.float32(0.5 * FLAT_RANGE) * np.random.default_rng(2).random((20, 30)).astype(np.float32)
+    out = color_balance(img)
+    assert np.ptp(out[..., 0]) <= 0.5 + 1e-6  # stretched by at most 1 / FLAT_RANGE
+    assert np.all(np.isfinite(out)) and np.all(out[..., 1:] == 0.0)
