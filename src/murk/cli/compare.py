@@ -120,7 +120,9 @@ def compare(
     if ref is not None:
         tables.append((("PSNR dB", "psnr"), ("dPSNR vs raw", "d_psnr"), ("SSIM", "ssim"), ("CIEDE2000", "ciede2000")))
     if snow_clean is not None:
-        tables.append((("snow residue", "snow_residue"), ("sites left", "snow_sites_left")))
+        tables.append(
+            (("snow residue", "snow_residue"), ("sites left", "snow_sites_left"), ("GMS away", "snow_free_gms"))
+        )
     for columns in tables:
         head = " ".join(f"{name:>18}" for name, _ in columns)
         summary.print(f"{'method':<28} {head}  n", highlight=False, soft_wrap=True)

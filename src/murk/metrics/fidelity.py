@@ -337,7 +337,7 @@ def artefact_ratio(input: np.ndarray, output: np.ndarray) -> ArtefactEnergy:
 # (b) structure fidelity
 
 
-def structure_fidelity(input: np.ndarray, output: np.ndarray) -> StructureFidelity:
+def structure_fidelity(input: np.ndarray, output: np.ndarray, where: np.ndarray | None = None) -> StructureFidelity:
     """Gradient Magnitude Similarity (Xue et al. 2014) of the output's luminance structure to the input's.
 
     Each luminance is first normalised to zero local mean and unit local contrast (Mittal et al. 2012's MSCN
@@ -362,6 +362,8 @@ def structure_fidelity(input: np.ndarray, output: np.ndarray) -> StructureFideli
     Args:
         input: the raw degraded image, float RGB (H, W, 3) in [0, 1].
         output: a method's result of the same shape.
+        where: optional boolean mask (H, W): the map's mean and deviation over these pixels only (e.g. away
+            from marine-snow particles, :func:`murk.metrics.snow_pairs.snow_free_mask`); NaN if it is empty.
 
     Returns:
         :class:`StructureFidelity`; exactly (1.0, 0.0) for an identical pair.
@@ -370,14 +372,20 @@ def structure_fidelity(input: np.ndarray, output: np.ndarray) -> StructureFideli
         TypeError, ShapeError, ValueError: as :func:`artefact_energy`, per image; shapes differ.
     """
     x, y = _check_pair(input, output)
-    return _structure(_luma(x), _luma(y))
+    if where is not None and np.shape(where) != x.shape[:2]:
+        raise ShapeError(f"where: expected a mask of {x.shape[1]}x{x.shape[0]}, got shape {np.shape(where)}")
+    return _structure(_luma(x), _luma(y), where)
 
 
-def _structure(y_in: np.ndarray, y_out: np.ndarray) -> StructureFidelity:
+def _structure(y_in: np.ndarray, y_out: np.ndarray, where: np.ndarray | None = None) -> StructureFidelity:
     g_in = np.sqrt(_prewitt_magnitude2(_local_normalise(y_in)))
     g_out = np.sqrt(_prewitt_magnitude2(_local_normalise(y_out)))
     c = np.float32(GMS_C)
     gms = (np.float32(2.0) * g_in * g_out + c) / (g_in * g_in + g_out * g_out + c)  # Xue et al. 2014, Eq. (4)
+    if where is not None:
+        gms = gms[np.asarray(where, bool)]
+        if not gms.size:
+            return StructureFidelity(float("nan"), float("nan"))
     return StructureFidelity(float(gms.mean(dtype=np.float64)), float(gms.std(dtype=np.float64)))
 
 

@@ -17,6 +17,10 @@ Definitions (luma ``Y`` of Rec. 709, float in [0, 1]):
   contrast, 0 = removed, > 1 = amplified. ``sites_left`` is the share of sites whose peak ``D'`` is still at
   least half of its peak ``D``.
 
+- **snow-free structure**: "removing snow without blurring the rest" is read with the structure fidelity
+  (GMS, :func:`murk.metrics.fidelity.structure_fidelity`) of ``R(snowy)`` to ``snowy`` over the pixels at least
+  :data:`CLEAR_MARGIN_PX` away from every site (:func:`snow_free_mask`).
+
 The raw input (``R`` the identity) has residue 1 and sites_left 1 by construction.
 """
 
@@ -34,6 +38,8 @@ SITE_THRESHOLD = 0.04
 MIN_AREA_PX = 2
 MAX_AREA_PX = 400
 GAIN_FLOOR = 1e-3
+CLEAR_MARGIN_PX = 3
+"""Pixels this close to a particle site are left out of the snow-free structure measure."""
 
 
 @dataclass(frozen=True)
@@ -122,3 +128,12 @@ def snow_residue(sites: SnowSites, clean: np.ndarray, out_snowy: np.ndarray, out
     np.maximum.at(peak_out, idx, d_out[on])
     left = float(np.mean(peak_out[1:] >= 0.5 * peak_in[1:]))
     return SnowResidue(residue, left, sites.per_megapixel, gain)
+
+
+def snow_free_mask(sites: SnowSites, margin_px: int = CLEAR_MARGIN_PX) -> np.ndarray:
+    """Boolean (H, W): the pixels at least ``margin_px`` away from every particle site."""
+    near = (sites.labels > 0).astype(np.uint8)
+    if margin_px > 0:
+        kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin_px + 1, 2 * margin_px + 1))
+        near = cv2.dilate(near, kernel)
+    return near == 0

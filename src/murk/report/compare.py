@@ -48,10 +48,14 @@ REF_KEYS = ("psnr", "ssim", "ciede2000")
 PAIRED_KEYS = tuple(f"d_{k}" for k in REF_KEYS)
 """Paired differences to the raw input on the same image (``d_psnr = psnr(output) - psnr(input)``; for
 CIEDE2000 negative is better)."""
-SNOW_KEYS = ("snow_residue", "snow_sites_left")
+SNOW_KEYS = ("snow_residue", "snow_sites_left", "snow_free_gms")
 """Marine-snow removal on a pair of the same scene without and with snow (``snow_clean``;
 :mod:`murk.metrics.snow_pairs`): contrast-normalised particle excess left, share of particle sites left."""
-SNOW_HTML_COLUMNS = (("snow_residue", "snow residue (pairs)"), ("snow_sites_left", "snow sites left"))
+SNOW_HTML_COLUMNS = (
+    ("snow_residue", "snow residue (pairs)"),
+    ("snow_sites_left", "snow sites left"),
+    ("snow_free_gms", "structure away from snow (GMS)"),
+)
 REF_HTML_COLUMNS = (
     ("psnr", "PSNR dB"),
     ("d_psnr", "&Delta;PSNR vs raw"),
@@ -345,12 +349,16 @@ def _run_compare(
                 metrics = score(restored, uiqm_preset=uiqm_preset, uciqe_preset=uciqe_preset)
                 metrics.update(restoration_measures(resize_to(img, restored.shape[:2]), restored))
                 if snow_free is not None and sites is not None:
-                    from murk.metrics.snow_pairs import snow_residue
+                    from murk.metrics.fidelity import structure_fidelity
+                    from murk.metrics.snow_pairs import snow_free_mask, snow_residue
 
                     out_free = snow_free if rest is None else rest.restore(snow_free[None]).images[0]
                     out_free = to_float(to_uint(np.clip(out_free, 0.0, 1.0), info.bit_depth))
                     r = snow_residue(sites, snow_free, restored, out_free)
                     metrics.update({"snow_residue": r.residue, "snow_sites_left": r.sites_left})
+                    if restored.shape == img.shape:  # the structure away from the particles, "not blurred"
+                        clear = structure_fidelity(img, restored, where=snow_free_mask(sites))
+                        metrics["snow_free_gms"] = clear.gms_mean
                 if ref is not None:
                     full = _reference_scores(restored, ref)
                     metrics.update(full)
