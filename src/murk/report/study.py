@@ -124,12 +124,21 @@ def evaluate_study(
     if ev.synthetic_scenes > 0:
         say(f"held-out: rendering {ev.synthetic_scenes} scenes at {ev.synthetic_hw[1]}x{ev.synthetic_hw[0]}")
         synthesis = merge(base.data.synthesis, {"stages": ["basic", "forward_scatter", "marine_snow"]})
-        data = make_heldout(ev.synthetic_scenes, seed=ev.synthetic_seed, size_hw=ev.synthetic_hw, synthesis=synthesis)
+        data = make_heldout(
+            ev.synthetic_scenes,
+            seed=ev.synthetic_seed,
+            size_hw=ev.synthetic_hw,
+            synthesis=synthesis,
+            balance_pct=ev.synthetic_balance_pct,
+        )
         restorers = {name: create(method, checkpoint=str(p)) for name, p in ckpts.items()}
+        if ev.synthetic_balance_pct is not None:  # photographic targets: the classical balance is the bar
+            restorers = {"colorbalance": create("colorbalance"), **restorers}
         heldout = {
             "scenes": ev.synthetic_scenes,
             "seed": ev.synthetic_seed,
             "size_hw": list(ev.synthetic_hw),
+            "balance_pct": ev.synthetic_balance_pct,
             "stages": list(synthesis.stages),
             "scores": score_heldout(data, restorers, on_method=lambda m: say(f"held-out: scoring {m}")),
         }

@@ -63,6 +63,10 @@ class StudyEvalConfig:
     synthetic_seed: int = 20261201
     """Seed of the held-out scenes and their water (differs from any training seed used in configs/)."""
     synthetic_hw: tuple[int, int] = (240, 320)
+    synthetic_balance_pct: float | None = None
+    """Held-out scenes with photographic targets: each clean scene colour-balanced with this percentage (as
+    ``data.scene_balance_pct`` balances the training scenes; :func:`murk.report.heldout.make_heldout`), and the
+    classical ``colorbalance`` scored beside the arms. None: the procedural scenes as rendered."""
     post_lambda: float = 0.3
     """lambda of Eq. (9) for the '+post' methods."""
     baselines: tuple[str, ...] = ()
@@ -91,6 +95,10 @@ class StudyEvalConfig:
         h, w = self.synthetic_hw
         if h < 32 or w < 32:
             raise ValueError(f"synthetic_hw: expected a height and width of at least 32, got {list(self.synthetic_hw)}")
+        if self.synthetic_balance_pct is not None and not 0.0 <= self.synthetic_balance_pct < 50.0:
+            raise ValueError(
+                f"synthetic_balance_pct: expected a percentage in [0, 50), got {self.synthetic_balance_pct}"
+            )
         if self.post_lambda < 0:
             raise ValueError(f"post_lambda: expected >= 0, got {self.post_lambda}")
 
