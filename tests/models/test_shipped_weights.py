@@ -23,6 +23,8 @@ def test_shipped_file_is_small_safe_and_the_small_variant() -> None:
     assert all(v.dtype == torch.float16 for v in obj["state_dict"].values() if v.is_floating_point())
     assert obj["meta"]["command"].startswith("murk train --config configs/train-small-cpu.yaml")
     assert "murk train --config configs/train-small-depth-cpu.yaml" in obj["meta"]["command"]  # stage 2
+    assert "murk train --config configs/train-small-balance-cpu.yaml" in obj["meta"]["command"]  # stage 4
+    assert obj["meta"]["input_balance_pct"] == 1.0
 
 
 def test_shipped_model_restores_heldout_scenes_and_keeps_real_images_sane() -> None:
@@ -37,13 +39,19 @@ def test_shipped_model_restores_heldout_scenes_and_keeps_real_images_sane() -> N
         SynthConfig(medium=SynthConfig().medium, marine_snow=SnowConfig(reference_area_px=307200)),
         {"medium": {"vertical_depth_m": [2.0, 10.0]}},
     )
-    data = make_heldout(6, seed=4242, size_hw=(96, 128), synthesis=synthesis)
+    # photographic targets (colour-balanced scenes, as in stage 4's training: docs/train.md)
+    data = make_heldout(6, seed=4242, size_hw=(96, 128), synthesis=synthesis, balance_pct=0.5)
     scores = score_heldout(data, {"model": restorer})
     assert scores["model"]["psnr"] > scores["input"]["psnr"] + 1.0, scores
-    img = read_rgb(sample_underwater_images()[0])
-    out = restorer.restore(img[None]).images[0]
-    m = restoration_measures(img, np.clip(out, 0, 1))
+    # The 13 shipped real images, means (single images vary: the stage-4 weights darken funie_euvp/16.jpg to a
+    # luminance ratio of 0.86 and paint its upper half blue, with periodic artefacts 1.66x; docs/models.md).
+    rows = []
+    for path in sample_underwater_images():
+        img = read_rgb(path)
+        rows.append(restoration_measures(img, np.clip(restorer.restore(img[None]).images[0], 0, 1)))
+    m = {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
     assert m["contrast_ratio"] > 0.5 and m["luminance_ratio"] > 0.9, m  # no grey collapse, not darkened
+    assert m["artefact_periodic_ratio"] < 1.3 and m["artefact_isolated_ratio"] < 1.3, m
 
 
 def test_recorded_run_configs_equal_the_shipped_configs() -> None:
@@ -60,6 +68,8 @@ def test_recorded_run_configs_equal_the_shipped_configs() -> None:
         "configs/train-small-cpu.yaml": "docs/models/jointid-small-config.yaml",
         "configs/train-small-depth-cpu.yaml": "docs/models/jointid-small-depth-config.yaml",
         "configs/train-lite-cpu.yaml": "docs/models/lite-config.yaml",
+        "configs/train-lite-balance-cpu.yaml": "docs/models/lite-balance-config.yaml",
+        "configs/train-small-balance-cpu.yaml": "docs/models/jointid-small-balance-config.yaml",
     }
     for shipped, recorded in pairs.items():
         a, b = (load_yaml(TrainConfig, root / p) for p in (shipped, recorded))
