@@ -177,6 +177,7 @@ def test_lite_averages_its_maps_inside_a_sequence_only() -> None:
     import torch.nn.functional as F
 
     from murk.models.lite.network import apply_maps, work_image
+    from murk.physics.balance import apply_levels_torch, balance_levels_torch
 
     frames = _pan(8)  # 150x200: larger than the working area, so the maps come from a downsampled image
     plain = create("lite").restore(frames).images
@@ -186,8 +187,15 @@ def test_lite_averages_its_maps_inside_a_sequence_only() -> None:
         steady = np.concatenate([lite.restore(f[None]).images for f in frames])  # frame by frame, as a stream
     # The first frame has no history; batch of one vs batch of eight: the convolutions sum in another order.
     np.testing.assert_allclose(steady[0], plain[0], atol=1e-5)
-    # The same as LiteNet's own forward with the maps averaged by hand (the torch formula the CUDA path runs).
+    # The same as LiteNet's own forward with the maps averaged by hand (the torch formula the CUDA path runs), after
+    # the input balance of the shipped weights with its levels averaged likewise (issue 27, stage 4).
     x = torch.from_numpy(frames).permute(0, 3, 1, 2)
+    pct = lite.input_balance_pct
+    assert pct is not None
+    levels = balance_levels_torch(x, pct, pct)
+    for t in range(1, len(levels)):
+        levels[t] = 0.8 * levels[t - 1] + 0.2 * levels[t]
+    x = apply_levels_torch(x, levels)
     with torch.no_grad():
         maps = lite.model.maps(work_image(x, lite.work_area_px))
         for t in range(1, len(maps)):

@@ -135,3 +135,28 @@ def test_an_onnx_export_of_a_balanced_network_balances_inside_its_graph(kind: st
         imgs = _murky(1, h, w)
         got, want = onnx_restorer.restore(imgs).images, torch_restorer.restore(imgs).images
         np.testing.assert_allclose(got, want, atol=1e-4 if kind == "lite" else 1e-3)  # murk export --verify's bounds
+
+
+def test_in_a_video_the_balance_levels_are_averaged_with_the_temporal_weight(tmp_path: Path) -> None:
+    """A per-frame balance flickers when the scene's extremes move; --temporal averages its levels as it averages
+    lite's maps (frame 0 as on its own, later frames pulled towards the earlier levels)."""
+    from murk.physics.balance import apply_levels, balance_levels
+
+    torch.manual_seed(0)
+    net = build_lite("tiny")
+    net.input_balance_pct = 1.0
+    ckpt = save_lite_checkpoint(net, tmp_path / "net.pt")
+    frames = _murky(2)
+    frames[1] = np.clip(frames[1] * 1.3, 0, 1)  # the second frame's levels move
+    smooth = create("lite", checkpoint=str(ckpt), temporal=0.8)
+    plain = create("lite", checkpoint=str(ckpt))
+    with smooth.sequence():
+        video = [smooth.restore(f[None]).images[0] for f in frames]
+    alone = [plain.restore(f[None]).images[0] for f in frames]
+    np.testing.assert_allclose(video[0], alone[0], atol=1e-6)  # the first frame: nothing to average with
+    assert np.abs(video[1] - alone[1]).mean() > 1e-3
+    # the levels the second frame used: 0.8 of the first frame's + 0.2 of its own (the maps averaged likewise)
+    lv = [balance_levels(f, 1.0, 1.0) for f in frames]
+    mixed = np.float32(0.8) * lv[0] + np.float32(0.2) * lv[1]
+    assert np.abs(apply_levels(frames[1], mixed) - apply_levels(frames[1], lv[1])).mean() > 1e-3
+    assert np.array_equal(smooth.restore(frames[1][None]).images[0], alone[1])  # outside a video: per frame

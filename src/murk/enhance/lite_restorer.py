@@ -18,6 +18,8 @@ the previous frames in an average of the low-resolution maps over a video's fram
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -38,7 +40,7 @@ from murk.models.lite.network import (
     work_size,
 )
 from murk.models.padding import pad_to_multiple
-from murk.physics.balance import color_balance, color_balance_torch
+from murk.physics.balance import apply_levels, apply_levels_torch, balance_levels_torch
 
 
 class LiteRestorer(Restorer):
@@ -81,6 +83,10 @@ class LiteRestorer(Restorer):
             unwrap(model) if isinstance(model, nn.Module) else model, "input_balance_pct", None
         )
         """The simplest colour balance the network's input takes (from the checkpoint; None: none)."""
+        levels_ema = FrameEMA(temporal)
+        self.levels_state = levels_ema if levels_ema.weight > 0 and self.input_balance_pct is not None else None
+        """Inside :meth:`sequence` with a ``temporal`` weight the balance's levels are averaged over the frames as the
+        maps are (a per-frame balance alone flickers when the scene's extremes move)."""
         if isinstance(model, OnnxLite):
             if self.temporal_state is not None:
                 raise ValueError("temporal: needs the torch network (an ONNX export computes its maps inside)")
@@ -120,7 +126,10 @@ class LiteRestorer(Restorer):
         with torch.inference_mode():
             x = images.to(self.device, torch.float32)
             if self.input_balance_pct is not None:  # the input the network was trained on
-                x = _balance(x, self.input_balance_pct)
+                levels = balance_levels_torch(x, self.input_balance_pct, self.input_balance_pct)
+                if self.levels_state is not None and self.temporal_hook() is not None:
+                    levels = self.levels_state(levels)
+                x = _apply_levels(x, levels)
             step = self.batch or x.shape[0]
             model = self.model
             if model is None:  # an ONNX export: working image, padding and clamping are in its graph
@@ -147,6 +156,14 @@ class LiteRestorer(Restorer):
             out = out.clamp_(0.0, 1.0)
             enhanced = pad.crop(out) if native else out
         return RestoredTensor(enhanced, None)
+
+    @contextlib.contextmanager
+    def sequence(self) -> Iterator[None]:
+        """:meth:`Restorer.sequence`, the balance's levels averaged afresh too."""
+        if self.levels_state is not None:
+            self.levels_state.reset()
+        with super().sequence():
+            yield
 
     def __repr__(self) -> str:
         backend = self._backend if self.model is None else "LiteNet (folded)"
@@ -176,13 +193,16 @@ def _forward_cpu(model: nn.Module, x: Tensor, work: Tensor, ema: FrameEMA | None
     return out.permute(0, 3, 1, 2)  # (B, 3, H, W) in channels-last memory
 
 
-def _balance(x: Tensor, pct: float) -> Tensor:
-    """The simplest colour balance of a batch (B, 3, H, W): on the CPU with the numpy twin per frame (OpenCV's
-    threaded per-channel arithmetic on the channels-last frame, no transposition: several times faster than the
-    torch twin's element-wise passes at 640x480), elsewhere with the torch twin; equal within 1e-6 (tests/twins.py)."""
+def _apply_levels(x: Tensor, levels: Tensor) -> Tensor:
+    """The simplest colour balance of a batch (B, 3, H, W) with its levels (B, 2, 3): on the CPU with the numpy twin
+    per frame (OpenCV's threaded per-channel arithmetic on the channels-last frame, no transposition), elsewhere
+    with the torch twin; equal (tests/twins.py)."""
     if x.device.type != "cpu":
-        return color_balance_torch(x, pct, pct)
-    frames = [torch.from_numpy(color_balance(f.permute(1, 2, 0).numpy(), pct, pct)).permute(2, 0, 1) for f in x]
+        return apply_levels_torch(x, levels)
+    frames = [
+        torch.from_numpy(apply_levels(f.permute(1, 2, 0).numpy(), lv.numpy())).permute(2, 0, 1)
+        for f, lv in zip(x, levels, strict=True)
+    ]
     return frames[0][None] if len(frames) == 1 else torch.stack(frames).contiguous(memory_format=torch.channels_last)
 
 

@@ -135,5 +135,5 @@ def snow_free_mask(sites: SnowSites, margin_px: int = CLEAR_MARGIN_PX) -> np.nda
     near = (sites.labels > 0).astype(np.uint8)
     if margin_px > 0:
         kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin_px + 1, 2 * margin_px + 1))
-        near = cv2.dilate(near, kernel)
+        return np.asarray(cv2.dilate(near, kernel)) == 0
     return near == 0

@@ -29,11 +29,11 @@ def _percentile(ordered: Tensor, n: Tensor, pct: float) -> Tensor:
 def color_balance_graph(image: Tensor, low: float, high: float) -> Tensor:
     """Simplest colour balance of frames (B, 3, H, W) in [0, 1], traceable with dynamic sizes (module doc)."""
     shape = torch._shape_as_tensor(image)
-    b, h, w = shape[0], shape[2], shape[3]
+    h, w = shape[2], shape[3]
     stride = torch.ceil(torch.sqrt((h * w).to(torch.float64) / STATS_PX)).to(torch.int64).clamp(min=1)
     rows = torch.arange(0, h, stride)  # type: ignore[call-overload]  # 0-dim tensors: traced as ONNX Range
     cols = torch.arange(0, w, stride)  # type: ignore[call-overload]
-    sample = image[:, :, rows][:, :, :, cols].reshape(b, 3, -1)
+    sample = image[:, :, rows][:, :, :, cols].flatten(2)
     n = torch._shape_as_tensor(sample)[2]
     ordered = sample.sort(dim=2).values
     lo = _percentile(ordered, n, low)[..., None]

@@ -39,20 +39,32 @@ def stats_stride(height: int, width: int) -> int:
     return max(1, math.ceil(math.sqrt(height * width / STATS_PX)))
 
 
-def color_balance(image: np.ndarray, low: float = 1.0, high: float = 1.0) -> np.ndarray:
-    """Simplest colour balance of float RGB ``image`` (H, W, 3) in [0, 1]; float32 output (module doc)."""
+def balance_levels(image: np.ndarray, low: float = 1.0, high: float = 1.0) -> np.ndarray:
+    """The levels of the simplest colour balance of float RGB ``image`` (H, W, 3): float32 (2, 3), the ``low`` and
+    ``100 - high`` percentiles of each channel (sample, then :func:`apply_levels`)."""
     img = np.asarray(image, np.float32)
     s = stats_stride(img.shape[0], img.shape[1])
     sample = img[::s, ::s].reshape(-1, 3).astype(np.float64)
-    lo, hi = np.percentile(sample, [float(low), 100.0 - float(high)], axis=0).astype(np.float32)
+    return np.percentile(sample, [float(low), 100.0 - float(high)], axis=0).astype(np.float32)
+
+
+def apply_levels(image: np.ndarray, levels: np.ndarray) -> np.ndarray:
+    """``clip((image - lo) / max(hi - lo, FLAT_RANGE), 0, 1)`` per channel with ``levels = [lo, hi]`` (2, 3);
+    float32 (H, W, 3)."""
+    lo, hi = np.asarray(levels, np.float32)
     scale = np.float32(1.0) / np.maximum(hi - lo, np.float32(FLAT_RANGE))
     # OpenCV's per-channel scalar arithmetic: the same float32 subtract-then-multiply as numpy (bit-identical) in
     # one threaded pass each, 2.5x faster than numpy's ufuncs and clip at 640x480
-    out = cv2.subtract(np.ascontiguousarray(img), (*lo.tolist(), 0.0))
+    out = cv2.subtract(np.ascontiguousarray(image, dtype=np.float32), (*lo.tolist(), 0.0))  # type: ignore[call-overload]
     cv2.multiply(out, (*scale.tolist(), 0.0), dst=out)
     cv2.max(out, (0.0, 0.0, 0.0, 0.0), dst=out)
     cv2.min(out, (1.0, 1.0, 1.0, 1.0), dst=out)
     return out
+
+
+def color_balance(image: np.ndarray, low: float = 1.0, high: float = 1.0) -> np.ndarray:
+    """Simplest colour balance of float RGB ``image`` (H, W, 3) in [0, 1]; float32 output (module doc)."""
+    return apply_levels(image, balance_levels(image, low, high))
 
 
 def _order_stats_torch(sample: Tensor, pct: float) -> Tensor:
@@ -74,14 +86,24 @@ def _order_stats_torch(sample: Tensor, pct: float) -> Tensor:
     return (v0.double() + frac * (v1.double() - v0.double())).to(torch.float32)
 
 
-def color_balance_torch(images: Tensor, low: float = 1.0, high: float = 1.0) -> Tensor:
-    """Simplest colour balance of each image of a batch (B, 3, H, W) in [0, 1] (the twin of :func:`color_balance`,
-    pinned equal by the tests); float32 output."""
+def balance_levels_torch(images: Tensor, low: float = 1.0, high: float = 1.0) -> Tensor:
+    """The levels (B, 2, 3) of each image of a batch (B, 3, H, W): the twin of :func:`balance_levels`."""
+    import torch
 
     x = images.float()
     s = stats_stride(int(x.shape[-2]), int(x.shape[-1]))
     sample = x[:, :, ::s, ::s].flatten(2)  # (B, 3, n)
-    lo = _order_stats_torch(sample, float(low))[:, :, None, None]
-    hi = _order_stats_torch(sample, 100.0 - float(high))[:, :, None, None]
-    scale = 1.0 / (hi - lo).clamp(min=FLAT_RANGE)
-    return (x - lo).mul_(scale).clamp_(0.0, 1.0)
+    return torch.stack([_order_stats_torch(sample, float(low)), _order_stats_torch(sample, 100.0 - float(high))], 1)
+
+
+def apply_levels_torch(images: Tensor, levels: Tensor) -> Tensor:
+    """The twin of :func:`apply_levels` for a batch (B, 3, H, W) and its levels (B, 2, 3)."""
+    lo = levels[:, 0, :, None, None]
+    scale = 1.0 / (levels[:, 1, :, None, None] - lo).clamp(min=FLAT_RANGE)
+    return (images.float() - lo).mul_(scale).clamp_(0.0, 1.0)
+
+
+def color_balance_torch(images: Tensor, low: float = 1.0, high: float = 1.0) -> Tensor:
+    """Simplest colour balance of each image of a batch (B, 3, H, W) in [0, 1] (the twin of :func:`color_balance`,
+    pinned equal by the tests); float32 output."""
+    return apply_levels_torch(images, balance_levels_torch(images, low, high))

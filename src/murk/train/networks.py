@@ -52,7 +52,7 @@ def build_network(config: ModelConfig) -> nn.Module:
     if config.init_checkpoint:
         state, _ = read_network_checkpoint(config.kind, config.init_checkpoint, trust=config.trust_checkpoint)
         model.load_state_dict(state, strict=True)
-    model.input_balance_pct = config.input_balance_pct  # recorded in every checkpoint the run writes
+    model.input_balance_pct = config.input_balance_pct  # type: ignore[assignment]  # recorded in its checkpoints
     return model
 
 
