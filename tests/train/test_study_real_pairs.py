@@ -12,7 +12,7 @@ import yaml
 from murk.report import compare as compare_module
 from murk.report.compare import CompareResult, summarise
 from murk.report.study import evaluate_study, pair_sets, run_study
-from murk.train.study import arm_config, load_study
+from tests.train._study import study_with_one_arm
 
 
 def _pairs(root: Path, name: str, n: int) -> None:
@@ -20,27 +20,6 @@ def _pairs(root: Path, name: str, n: int) -> None:
         (root / name / sub).mkdir(parents=True)
         for i in range(n):
             cv2.imwrite(str(root / name / sub / f"p{i}.png"), np.full((12, 12, 3), 60 + 10 * i, np.uint8))
-
-
-def _study_with_one_arm(tmp_path: Path, **eval_extra: str) -> tuple:
-    """A study of one (fake, empty) trained arm whose eval has ``eval_extra``: (config, base, out)."""
-    train = {"model": {"variant": "tiny"}, "data": {"source": "scenes"}, "eval": {"real": None}, "steps": 1}
-    (tmp_path / "train.yaml").write_text(yaml.safe_dump(train))
-    real = tmp_path / "real"
-    real.mkdir()
-    cv2.imwrite(str(real / "a.png"), np.full((16, 16, 3), 90, np.uint8))
-    study = {
-        "train": "train.yaml",
-        "arms": [{"name": "proposed", "stages": ["basic"]}],
-        "eval": {"real": str(real), "synthetic_scenes": 0, **eval_extra},
-    }
-    (tmp_path / "study.yaml").write_text(yaml.safe_dump(study))
-    cfg, base = load_study(tmp_path / "study.yaml")
-    out = tmp_path / "study"
-    ckpt = Path(arm_config(base, cfg.arms[0], out).out) / "latest.pt"
-    ckpt.parent.mkdir(parents=True)
-    ckpt.write_bytes(b"")
-    return cfg, base, out
 
 
 def test_pair_sets_finds_one_set_or_a_folder_of_sets(tmp_path: Path) -> None:
@@ -55,7 +34,7 @@ def test_pair_sets_finds_one_set_or_a_folder_of_sets(tmp_path: Path) -> None:
 def test_study_scores_the_arms_on_each_set_and_averages_the_sets(tmp_path: Path, monkeypatch) -> None:
     _pairs(tmp_path / "pairs", "set1", 2)
     _pairs(tmp_path / "pairs", "set2", 1)
-    cfg, base, out = _study_with_one_arm(tmp_path, real_pairs=str(tmp_path / "pairs"))
+    cfg, base, out = study_with_one_arm(tmp_path, real_pairs=str(tmp_path / "pairs"))
     calls: list = []
 
     def fake_run_compare(images, methods, out_dir, **kwargs):
@@ -113,7 +92,7 @@ def test_study_scores_the_arms_on_snow_pairs(tmp_path: Path, monkeypatch) -> Non
     for sub in ("snowy", "clean"):
         (tmp_path / "snow" / sub).mkdir(parents=True)
         cv2.imwrite(str(tmp_path / "snow" / sub / "s.png"), np.full((16, 16, 3), 90, np.uint8))
-    cfg, base, out = _study_with_one_arm(tmp_path, snow_pairs=str(tmp_path / "snow"))
+    cfg, base, out = study_with_one_arm(tmp_path, snow_pairs=str(tmp_path / "snow"))
     seen = {}
 
     def fake_run_compare(images, methods, out_dir, **kwargs):
