@@ -1,7 +1,7 @@
 """The shipped murk-trained Joint-ID (or any checkpoint): quality on held-out data and CPU speed.
 
 Run: PYTHONPATH=src python benchmarks/bench_model.py [--method jointid|lite] [--checkpoint FILE] [--scenes 64]
-     [--json OUT.json]
+     [--heldout-balance-pct 0.5] [--json OUT.json]
 
 1. Held-out procedural scenes (never seen in training: their own seed): 64 scenes, 320x240, degraded with all
    three stages and the synthesis settings of configs/train-small-cpu.yaml. PSNR/SSIM of the degraded input and
@@ -14,6 +14,8 @@ Run: PYTHONPATH=src python benchmarks/bench_model.py [--method jointid|lite] [--
    ``lite`` runs in fp32; its speed is benchmarks/bench_lite.py's).
 
 ``--method lite`` measures the shipped ``lite`` network (or ``--checkpoint``) on the same data.
+``--heldout-balance-pct P``: the held-out scenes with photographic targets (each clean scene colour-balanced, as
+the training scenes of stage 4 are; docs/train.md), with the classical ``colorbalance`` scored beside.
 """
 
 from __future__ import annotations
@@ -84,6 +86,7 @@ def main() -> None:
     ap.add_argument("--checkpoint", default=None, help="default: the shipped weights of --method")
     ap.add_argument("--scenes", type=int, default=64)
     ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument("--heldout-balance-pct", type=float, default=None, help="photographic held-out targets")
     ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
     args = ap.parse_args()
     if args.checkpoint is None:
@@ -93,9 +96,14 @@ def main() -> None:
 
     train_cfg = load_yaml(TrainConfig, ROOT / "configs" / "train-small-cpu.yaml")
     synthesis = merge(train_cfg.data.synthesis, {"stages": ["basic", "forward_scatter", "marine_snow"]})
-    data = make_heldout(args.scenes, seed=HELDOUT_SEED, size_hw=(240, 320), synthesis=synthesis)
+    data = make_heldout(
+        args.scenes, seed=HELDOUT_SEED, size_hw=(240, 320), synthesis=synthesis, balance_pct=args.heldout_balance_pct
+    )
     restorer = create(args.method, checkpoint=args.checkpoint)
-    scores = score_heldout(data, {"model": restorer})
+    restorers = {"model": restorer}
+    if args.heldout_balance_pct is not None:
+        restorers["colorbalance"] = create("colorbalance")
+    scores = score_heldout(data, restorers)
     figures["heldout"] = scores
     print(f"== held-out: {args.scenes} procedural scenes, 320x240, three stages, seed {HELDOUT_SEED}")
     print(heldout_table(scores))
