@@ -1,6 +1,8 @@
 """The ``jointid`` restorer: Joint-ID enhancement + metric depth for images of any size, on CPU or GPU.
 
-Pipeline per batch: normalise (training recipe's mean/std) -> reflect-pad to multiples of 32 -> the network
+Pipeline per batch: the simplest colour balance when the checkpoint's network was trained on a balanced input
+(``input_balance_pct``, :mod:`murk.physics.balance`; the shipped weights since 2026-12-03) -> normalise
+(training recipe's mean/std) -> reflect-pad to multiples of 32 -> the network
 (whole frame, or overlapping tiles blended at the seams when ``tile`` is set) -> crop back. Frames are never
 resized. Backends: a torch :class:`~murk.models.jointid.JointID` (fp32, or bf16/fp16 autocast; channels-last
 memory; optional ``torch.compile`` and CUDA-graph replay) or an exported ONNX file run by ONNX Runtime (its graph
