@@ -4,10 +4,10 @@ Pipeline per batch: the simplest colour balance when the checkpoint's network wa
 (``input_balance_pct``, :mod:`murk.physics.balance`; the shipped weights since 2026-12-03; with ``temporal`` its
 levels are averaged over a video's frames like the maps) -> the working image (a frame larger than the network's
 ``work_area_px``, 128x160 for the shipped weights, is area-downsampled to about that many pixels; a smaller frame
-is reflect-padded to multiples of 16 and used itself) -> the folded (re-parameterised) network computes gain and offset maps from it -> upsampled to
-the frame -> ``gain * frame + offset`` -> clamp to [0, 1]. The frame itself is never resampled. No depth. An ONNX
-export (:mod:`murk.models.lite.onnx_export`) does all of it inside its graph: the runner gets the frames as they
-are.
+is reflect-padded to multiples of 16 and used itself) -> the folded (re-parameterised) network computes gain and
+offset maps from it -> upsampled to the frame -> ``gain * frame + offset`` -> clamp to [0, 1]. The frame itself
+is never resampled. No depth. An ONNX export (:mod:`murk.models.lite.onnx_export`) does all of it inside its
+graph: the runner gets the frames as they are.
 
 Registry options (``murk.enhance.create("lite", **options)``; any other option is an error):
 ``checkpoint`` (a ``murk train`` checkpoint with ``model.kind: lite``, or an ``.onnx`` export; default: the
