@@ -114,11 +114,24 @@ def test_load_bank_errors(tmp_path: Path) -> None:
         load_bank(tmp_path / "empty.npz")
 
 
-def test_shipped_default_bank() -> None:
-    bank = load_bank(default_snow_bank())
-    assert len(bank) >= 50
+def test_shipped_small_bank() -> None:
+    from murk.data import small_snow_bank
+
+    bank = load_bank("builtin:snow-small")
+    assert bank.bank_id == load_bank(small_snow_bank()).bank_id
+    assert len(bank) == 85
     assert {Path(s["path"]).name for s in bank.meta["sources"]} == {"EASI.png", "Lake.jpg"}
     assert bank.meta["extract"]["method"] == "tophat"
+
+
+def test_shipped_default_bank_is_the_real_footage_bank_relit() -> None:
+    bank, real = load_bank(default_snow_bank()), load_bank("builtin:snow-real")
+    assert load_bank("builtin:snow").bank_id == bank.bank_id != real.bank_id
+    assert len(bank) >= 1000  # the real-snow issue's floor, from the same 20 frames (test below)
+    np.testing.assert_array_equal(bank.offsets, real.offsets)  # the same particles, shapes and sizes
+    np.testing.assert_array_equal(bank.pixel_yx, real.pixel_yx)
+    assert bank.meta["sources"] == real.meta["sources"]
+    assert bank.meta["relight"] == {"luma": [120.0, 230.0], "seed": 0, "from_bank_id": real.bank_id}
 
 
 def test_shipped_real_footage_bank() -> None:

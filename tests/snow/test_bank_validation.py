@@ -23,7 +23,7 @@ import pytest
 from typer.testing import CliRunner
 
 from murk.cli.main import app
-from murk.data import default_snow_bank, sample_rgbd_dir
+from murk.data import default_snow_bank, sample_rgbd_dir, small_snow_bank
 from murk.errors import InputFileError
 from murk.io import read_jsonl
 from murk.snow.bank import bank_to_bytes, load_bank, save_bank
@@ -229,8 +229,8 @@ def test_snow_info_on_a_bad_bank_is_a_one_line_usage_error(tmp_path: Path, case:
 
 
 def test_the_checks_pass_real_banks_and_normalise_dtypes(tmp_path: Path) -> None:
-    shipped = load_bank(default_snow_bank())
-    assert len(shipped) == 85
+    assert len(load_bank(default_snow_bank())) == 17888
+    assert len(load_bank(small_snow_bank())) == 85
     # a bank with wider (still valid) dtypes loads and comes back in the canonical dtypes, equal in value
     _edited(offsets=_OFF.astype(">u8"), pixel_yx=_YX.astype(np.float64), bbox_hw=_GOOD["bbox_hw"].astype(np.int64))(
         tmp_path / "wide.npz"

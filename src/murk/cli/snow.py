@@ -104,6 +104,31 @@ def extract(
     raise typer.Exit(print_summary(res, "frame", detail=detail))
 
 
+@app.command("relight")
+def relight(
+    bank: Annotated[str, typer.Argument(help="A particle bank (.npz) or builtin:snow-real.")],
+    out: Annotated[Path, typer.Option("--out", help="The relit bank to write (.npz).")],
+    luma: Annotated[str, typer.Option("--luma", help="a,b: each particle's mean luma is drawn in [a, b] (0-255).")] = (
+        "120,230"
+    ),
+    seed: Annotated[int, typer.Option("--seed", help="Seed of the per-particle draws.")] = 0,
+) -> None:
+    """Relight a bank cut from dark footage: each particle grey with its own luma pattern, mean luma in [a, b].
+
+    Particles cut from dark water are too dim for Eq. (7), which composites them with their own colours; real
+    marine snow is bright. Shapes and sizes are kept; the new bank records the range, the seed and the bank it
+    came from (docs/snow.md).
+    """
+    from murk.snow.relight import relight_bank_file
+
+    try:
+        lo, hi = (float(v) for v in luma.split(","))
+    except ValueError:
+        raise ValueError(f"--luma: expected a,b (e.g. 120,230), got {luma!r}") from None
+    b = relight_bank_file(bank, out, (lo, hi), seed=seed)
+    typer.echo(f"{len(b)} particles relit to luma {lo:g}-{hi:g}, bank {b.bank_id} -> {out}")
+
+
 @app.command("info")
 def info(bank: Annotated[Path, typer.Argument(help="A particle bank (.npz).")]) -> None:
     """Print a bank's id, particle count, size distribution and sources."""
@@ -125,6 +150,7 @@ def info(bank: Annotated[Path, typer.Argument(help="A particle bank (.npz).")]) 
                 "size_px": {"median": float(np.median(sizes)), "p90": float(np.percentile(sizes, 90))},
                 "sources": b.meta.get("sources", []),
                 "extract": b.meta.get("extract", {}),
+                "relight": b.meta.get("relight"),
                 "subpixel_at_0.3-0.6": msg,
             },
             indent=2,

@@ -4,8 +4,10 @@
   and metric checks.
 - ``rgbd/``: 3 clean RGB-D pairs (``rgb/``, ``depth/`` as uint16 millimetre PNGs), the ``murk synth`` input
   layout.
-- ``snow/default_bank.npz``: the default marine-snow particle bank, cut from the two shipped frames with real
-  suspended particles (``underwater/ufen_gan``); how it was made is in ``DATA_LICENSES.md``.
+- ``snow/``: marine-snow particle banks: ``real_footage_bank.npz`` (``builtin:snow-real``, cut from 20 frames of
+  real ROV and reef footage), ``default_bank.npz`` (``builtin:snow``, the same particles relit) and
+  ``small_bank.npz`` (``builtin:snow-small``, the default before 2026-12-03, cut from two shipped frames); sources
+  and commands in ``DATA_LICENSES.md`` and docs/snow.md.
 - ``models/jointid-small.pt``: the Joint-ID weights murk trained itself (variant ``small``, fp16 storage; model
   card: ``docs/models.md``), used by ``jointid`` when no checkpoint is given.
 - ``models/lite.pt``: the ``lite`` real-time restorer's weights (model card: ``docs/models.md``), used by ``lite``
@@ -57,8 +59,15 @@ def shipped_lite_weights() -> Path:
 
 
 def default_snow_bank() -> Path:
-    """Path of the default marine-snow particle bank shipped with murk."""
+    """Path of the default marine-snow particle bank shipped with murk (``builtin:snow``): the particles of
+    :func:`real_footage_snow_bank` relit to a mean luma of 120-230 (``murk snow relight``; docs/snow.md)."""
     return _HERE / "snow" / "default_bank.npz"
+
+
+def small_snow_bank() -> Path:
+    """Path of the default bank before 2026-12-03 (``builtin:snow-small``): 85 small particles cut from two
+    shipped frames (docs/snow.md); the configs of the models trained with it name it."""
+    return _HERE / "snow" / "small_bank.npz"
 
 
 def real_footage_snow_bank() -> Path:
@@ -72,7 +81,8 @@ BUILTIN_PREFIX = "builtin:"
 
 
 def resolve_builtin(path: str) -> str:
-    """Map ``builtin:underwater`` / ``builtin:rgbd`` / ``builtin:snow`` to the shipped data; other paths unchanged."""
+    """Map ``builtin:underwater`` / ``builtin:rgbd`` / ``builtin:snow`` (``-real``, ``-small``) to the shipped data;
+    other paths unchanged."""
     if not path.startswith(BUILTIN_PREFIX):
         return path
     name = path[len(BUILTIN_PREFIX) :].strip("/")
@@ -81,6 +91,7 @@ def resolve_builtin(path: str) -> str:
         "rgbd": sample_rgbd_dir(),
         "snow": default_snow_bank(),
         "snow-real": real_footage_snow_bank(),
+        "snow-small": small_snow_bank(),
     }
     if name not in targets:
         raise ValueError(

@@ -75,7 +75,7 @@ class ParticleBank:
         return self.bbox_hw.max(axis=1)
 
 
-def _content_id(arrays: Sequence[np.ndarray]) -> str:
+def content_id(arrays: Sequence[np.ndarray]) -> str:
     h = hashlib.sha256()
     for a in arrays:
         h.update(np.ascontiguousarray(a).tobytes())
@@ -116,7 +116,7 @@ def build_bank(
     meta = {
         "format": BANK_FORMAT,
         "version": BANK_VERSION,
-        "bank_id": _content_id([arrays["offsets"], arrays["pixel_yx"], arrays["pixel_rgb"]]),
+        "bank_id": content_id([arrays["offsets"], arrays["pixel_yx"], arrays["pixel_rgb"]]),
         "sources": sources,
         "extract": extract or {},
         "murk_version": __version__,
@@ -373,8 +373,9 @@ def load_bank(path: str | Path) -> ParticleBank:
     positions and source indices are in range. Arrays come back in the canonical dtypes of the module
     docstring.
 
-    ``builtin:snow`` (the default bank) and ``builtin:snow-real`` (the bank cut from real ROV and reef footage)
-    name the banks shipped with murk.
+    ``builtin:snow`` (the default bank: ``builtin:snow-real`` relit), ``builtin:snow-real`` (the bank cut from
+    real ROV and reef footage) and ``builtin:snow-small`` (the default before 2026-12-03) name the banks shipped
+    with murk.
 
     Raises:
         InputFileError: the message is one line, ``"PATH: problem"``.

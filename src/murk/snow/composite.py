@@ -131,8 +131,14 @@ def _colours(layout: SnowLayout, bank: ParticleBank, pix: np.ndarray, owner: np.
     if layout.target_luma is None or len(pix) == 0:
         return rgb
     gain = layout.target_luma / np.maximum(particle_lumas(bank)[layout.index], 1.0)
+    return relit_grey(rgb, gain[owner])
+
+
+def relit_grey(rgb: np.ndarray, gain: np.ndarray) -> np.ndarray:
+    """Pixels (N, 3) 0-255 relit: neutral grey with their own Rec. 709 luma times ``gain`` (N,), clipped at 255;
+    float32 (N, 3)."""
     lum = rgb.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
-    grey = np.minimum(lum * gain[owner], 255.0).astype(np.float32)
+    grey = np.minimum(lum * gain, 255.0).astype(np.float32)
     return np.repeat(grey[:, None], 3, axis=1)
 
 
