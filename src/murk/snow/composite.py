@@ -21,7 +21,7 @@ One ``bincount`` gives the coverage ``C`` and one per channel the colour mass ``
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -56,6 +56,24 @@ class SnowParams:
     so that the particle's mean Rec. 709 luma is ``U[a, b]`` (0-255), clipped at 255: particles lit by the
     vehicle's lamp or the sun, whatever the brightness of the frame they were cut from (the hue of dark footage
     is sensor noise that scaling would turn into coloured specks). None: the original pixels (the paper)."""
+    volume_m: tuple[float, float] | None = None
+    """If set, the particles fill the water between these distances from the camera (metres, uniform in volume)
+    instead of the paper's one flat layer: each is scaled by ``focus_m / z`` (near particles large), blurred by
+    its defocus (near and far ones soft), hidden behind the scene where the scene is nearer than it, and seen
+    through the water between it and the camera (Eq. 1 at its distance, when the variant has the ``basic``
+    stage). None: the paper's Eqs. (7)-(8)."""
+    focus_m: float = 1.0
+    """Volume snow: the distance in focus, where a particle has the paper's scale ``s``."""
+    defocus_px: float = 2.0
+    """Volume snow: Gaussian blur (pixels) per dioptre of defocus, ``|1/z - 1/focus_m|``, added in quadrature to
+    ``rho`` (multiplied by width / ``reference_width_px`` as the sizes are)."""
+    layers: int = 4
+    """Volume snow: the particles are binned into this many layers, evenly spaced in inverse distance, each
+    blurred with its own defocus and composited far to near."""
+    lamp: float = 0.0
+    """Volume snow: light of a lamp beside the camera scattered back by each particle, added to its colour:
+    ``lamp * exp(-2 beta z) / z^2`` (0-1 of full scale; ``lamp`` is the light a particle at 1 m gets in clear
+    water), so near particles glow white and far ones fade into the water. 0: no lamp."""
 
 
 def particle_count(params: SnowParams, width: int, height: int) -> int:
@@ -74,6 +92,18 @@ class SnowLayout:
     centre_xy: np.ndarray
     target_luma: np.ndarray | None = None
     """Per drawn particle: the mean luma (0-255) its colour is rescaled to (``particle_luma``; None: original)."""
+    distance_m: np.ndarray | None = None
+    """Per drawn particle: its distance from the camera (``volume_m``; None: the paper's flat layer)."""
+
+    def subset(self, keep: np.ndarray) -> SnowLayout:
+        """The particles selected by ``keep`` (a boolean mask or indices)."""
+        return SnowLayout(
+            self.index[keep],
+            self.scale[keep],
+            self.centre_xy[keep],
+            None if self.target_luma is None else self.target_luma[keep],
+            None if self.distance_m is None else self.distance_m[keep],
+        )
 
 
 def sample_snow(
@@ -86,8 +116,13 @@ def sample_snow(
     reference_width_px: int = 0,
     reference_area_px: int = 0,
     particle_luma: tuple[float, float] | None = None,
+    volume_m: tuple[float, float] | None = None,
+    focus_m: float = 1.0,
+    defocus_px: float = 2.0,
+    layers: int = 4,
+    lamp: float = 0.0,
 ) -> SnowParams:
-    """Draw N_p ~ U{a..b}, rho ~ U[a, b] and the layout seed of one image."""
+    """Draw N_p ~ U{a..b}, rho ~ U[a, b] and the layout seed of one image (volume options: :class:`SnowParams`)."""
     g = as_generator(rng)
     return SnowParams(
         n_particles=int(g.integers(n_particles[0], n_particles[1] + 1)),
@@ -98,11 +133,20 @@ def sample_snow(
         reference_width_px=int(reference_width_px),
         reference_area_px=int(reference_area_px),
         particle_luma=None if particle_luma is None else (float(particle_luma[0]), float(particle_luma[1])),
+        volume_m=None if volume_m is None else (float(volume_m[0]), float(volume_m[1])),
+        focus_m=float(focus_m),
+        defocus_px=float(defocus_px),
+        layers=int(layers),
+        lamp=float(lamp),
     )
 
 
-def snow_layout(params: SnowParams, bank_size: int, width: int, height: int) -> SnowLayout:
-    """The deterministic particle layout of ``params`` for an image of ``width`` x ``height``."""
+def snow_layout(
+    params: SnowParams, bank_size: int, width: int, height: int, scene_far_m: float | None = None
+) -> SnowLayout:
+    """The deterministic particle layout of ``params`` for an image of ``width`` x ``height``. Volume snow: the
+    particles' distances stop at ``scene_far_m`` (the scene's farthest point) when it is nearer than
+    ``volume_m[1]``, so the water in front of a near scene gets the whole count."""
     if bank_size < 1:
         raise ValueError("bank: expected at least one particle, got an empty bank")
     g = np.random.default_rng(params.layout_seed)
@@ -113,9 +157,16 @@ def snow_layout(params: SnowParams, bank_size: int, width: int, height: int) -> 
         scale = scale * (width / params.reference_width_px)
     centre = g.uniform(0.0, 1.0, size=(n, 2)) * np.array([width, height], np.float64) - 0.5
     target = None
-    if params.particle_luma is not None:  # drawn last: the other draws stay as they were
+    if params.particle_luma is not None:  # drawn after the paper's draws: those stay as they were
         target = g.uniform(params.particle_luma[0], params.particle_luma[1], size=n)
-    return SnowLayout(index, scale, centre, target)
+    dist = None
+    if params.volume_m is not None:  # drawn last: uniform in the volume of the view's frustum (density ~ z^2)
+        a, b = params.volume_m
+        if scene_far_m is not None:
+            b = max(a, min(b, float(scene_far_m)))
+        dist = np.cbrt(a**3 + g.uniform(0.0, 1.0, size=n) * (b**3 - a**3))
+        scale = scale * (params.focus_m / dist)
+    return SnowLayout(index, scale, centre, target, dist)
 
 
 def particle_lumas(bank: ParticleBank) -> np.ndarray:
@@ -142,8 +193,29 @@ def relit_grey(rgb: np.ndarray, gain: np.ndarray) -> np.ndarray:
     return np.repeat(grey[:, None], 3, axis=1)
 
 
+Water = tuple[np.ndarray, np.ndarray]
+"""The water a volume particle is seen through: ``beta`` (3,) per metre and ``B_inf`` (3,) in [0, 1] of Eq. (1)."""
+
+
+def _attenuated(rgb: np.ndarray, distance_m: np.ndarray, water: Water | None, lamp: float) -> np.ndarray:
+    """Particle colours (N, 3) 0-255 at ``distance_m`` (N,): seen through the water (Eq. 1, ``M t + 255 B (1 - t)``,
+    when ``water`` is given) plus the light of a lamp at the camera scattered back (``255 lamp t^2 / z^2``),
+    clipped at 255."""
+    z = distance_m[:, None]
+    if water is None:
+        t = np.ones((len(z), 3))
+        out = rgb.astype(np.float64)
+    else:
+        beta, b_inf = (np.asarray(v, np.float64).reshape(1, 3) for v in water)
+        t = np.exp(-beta * z)
+        out = rgb * t + 255.0 * b_inf * (1.0 - t)
+    if lamp > 0:
+        out = out + 255.0 * lamp * t * t / (z * z)
+    return np.minimum(out, 255.0).astype(np.float32)
+
+
 def _splat_points(
-    layout: SnowLayout, bank: ParticleBank
+    layout: SnowLayout, bank: ParticleBank, water: Water | None = None, lamp: float = 0.0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Sub-points of all drawn particles: (y, x) float64, mass, the colour of each (0-255, (N, 3))."""
     idx = layout.index
@@ -169,7 +241,10 @@ def _splat_points(
         mass = np.repeat(mass / (m * m), m * m)
         pix = np.repeat(pix, m * m)
         owner = np.repeat(owner, m * m)
-    return ys, xs, mass, _colours(layout, bank, pix, owner), pix
+    rgb = _colours(layout, bank, pix, owner)
+    if layout.distance_m is not None and (water is not None or lamp > 0):
+        rgb = _attenuated(rgb, layout.distance_m[owner], water, lamp)
+    return ys, xs, mass, rgb, pix
 
 
 def _canvas_pad(layout: SnowLayout, bank: ParticleBank, rho_px: float) -> int:
@@ -227,20 +302,74 @@ def _accumulate_np(idx: np.ndarray, wts: np.ndarray, rgb: np.ndarray, n: int) ->
 def snow_layers(params: SnowParams, bank: ParticleBank, height: int, width: int) -> tuple[np.ndarray, np.ndarray, int]:
     """The unsmoothed mask ``B`` and ``B M`` of one image on a canvas padded by ``pad`` pixels on each side:
     float32 (H + 2 pad, W + 2 pad) and (..., 3), and ``pad``."""
-    layout = snow_layout(params, len(bank), width, height)
-    pad = _canvas_pad(layout, bank, params.rho_px)
+    return _canvases_np(snow_layout(params, len(bank), width, height), bank, height, width, params.rho_px)
+
+
+def _canvases_np(
+    layout: SnowLayout,
+    bank: ParticleBank,
+    height: int,
+    width: int,
+    rho_px: float,
+    water: Water | None = None,
+    lamp: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray, int]:
+    pad = _canvas_pad(layout, bank, rho_px)
     hp, wp = height + 2 * pad, width + 2 * pad
-    ys, xs, mass, rgb, _ = _splat_points(layout, bank)
+    ys, xs, mass, rgb, _ = _splat_points(layout, bank, water, lamp)
     idx, wts = _taps(ys, xs, pad, wp)
     b, q = _accumulate_np(idx, wts * np.tile(mass, 4), np.tile(rgb, (4, 1)), hp * wp)
     return b.reshape(hp, wp), q.reshape(hp, wp, 3), pad
 
 
-def composite_snow(image: np.ndarray, params: SnowParams, bank: ParticleBank) -> tuple[np.ndarray, np.ndarray]:
-    """Implements Eqs. (7)-(8) on one float32 RGB image (H, W, 3) in [0, 1]. Returns ``(I_ms, a_ms)``."""
+DistanceAt = Callable[[np.ndarray, np.ndarray], np.ndarray]
+"""The scene's distance (metres) at integer pixel rows and columns (occlusion of volume snow)."""
+
+
+def volume_plan(
+    params: SnowParams, layout: SnowLayout, width: int, height: int, distance_at: DistanceAt | None = None
+) -> list[tuple[SnowLayout, float]]:
+    """Volume snow (``params.volume_m``): the particles in front of the scene (``distance_at`` of the pixel under
+    each particle's centre; None: all), binned into ``params.layers`` layers evenly spaced in inverse distance,
+    far to near, each with its blur ``hypot(rho, defocus_px * |1/z_layer - 1/focus_m|)`` (pixels)."""
+    if params.volume_m is None or layout.distance_m is None:
+        raise ValueError("params.volume_m: volume snow needs a distance range, got None")
+    if distance_at is not None and len(layout.index):
+        xi = np.clip(np.rint(layout.centre_xy[:, 0]), 0, width - 1).astype(np.int64)
+        yi = np.clip(np.rint(layout.centre_xy[:, 1]), 0, height - 1).astype(np.int64)
+        layout = layout.subset(layout.distance_m < np.asarray(distance_at(yi, xi), np.float64))
+    assert layout.distance_m is not None
+    near, far = params.volume_m
+    edges = np.linspace(1.0 / far, 1.0 / near, params.layers + 1)
+    k = np.clip(np.searchsorted(edges, 1.0 / layout.distance_m, side="right") - 1, 0, params.layers - 1)
+    factor = width / params.reference_width_px if params.reference_width_px > 0 else 1.0
+    plan = []
+    for j in range(params.layers):  # j = 0: the farthest layer
+        sel = k == j
+        if sel.any():
+            defocus = params.defocus_px * factor * abs(0.5 * (edges[j] + edges[j + 1]) - 1.0 / params.focus_m)
+            plan.append((layout.subset(sel), math.hypot(params.rho_px, defocus)))
+    return plan
+
+
+def composite_snow(
+    image: np.ndarray,
+    params: SnowParams,
+    bank: ParticleBank,
+    *,
+    dist_m: np.ndarray | None = None,
+    water: Water | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Implements Eqs. (7)-(8) on one float32 RGB image (H, W, 3) in [0, 1]. Returns ``(I_ms, a_ms)``.
+
+    With ``params.volume_m`` (volume snow), ``dist_m`` (H, W) hides the particles behind the scene and ``water``
+    (the variant's Eq. (1) coefficients) tints each particle by the water in front of it; both are ignored
+    otherwise."""
     h, w, _ = image.shape
     if params.bank_id and bank.bank_id and params.bank_id != bank.bank_id:
         raise ValueError(f"bank: the parameters were drawn from bank {params.bank_id}, got bank {bank.bank_id}")
+    if params.volume_m is not None:
+        return _composite_volume(image, params, bank, dist_m, water)
     b, bm, pad = snow_layers(params, bank, h, w)
     alpha_c = gaussian_blur(b, params.rho_px)  # Eq. (8): a_ms = G_rho * B (padded canvas)
     spread_c = gaussian_blur(bm, params.rho_px)  # a_ms M' = G_rho * (B M)
@@ -253,13 +382,37 @@ def composite_snow(image: np.ndarray, params: SnowParams, bank: ParticleBank) ->
     return out, alpha
 
 
+def _composite_volume(
+    image: np.ndarray, params: SnowParams, bank: ParticleBank, dist_m: np.ndarray | None, water: Water | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Volume snow: Eqs. (7)-(8) once per layer of :func:`volume_plan`, far to near; ``a_ms = 1 - prod(1 - a_k)``."""
+    h, w, _ = image.shape
+    layout = snow_layout(params, len(bank), w, h, None if dist_m is None else float(dist_m.max()))
+    at = None if dist_m is None else (lambda y, x: dist_m[y, x])
+    out = np.array(image, dtype=np.float32)
+    clear = np.ones((h, w), np.float32)
+    for lay, rho in volume_plan(params, layout, w, h, at):
+        b, bm, pad = _canvases_np(lay, bank, h, w, rho, water, params.lamp)
+        alpha = np.minimum(gaussian_blur(b, rho)[pad : pad + h, pad : pad + w], np.float32(1.0))
+        spread = gaussian_blur(bm, rho)[pad : pad + h, pad : pad + w]
+        out = out * (1.0 - alpha)[..., None] + spread
+        clear *= 1.0 - alpha
+    return out.astype(np.float32), (1.0 - clear).astype(np.float32)
+
+
 def composite_snow_torch(
-    images: torch.Tensor, params: Sequence[SnowParams], bank: ParticleBank
+    images: torch.Tensor,
+    params: Sequence[SnowParams],
+    bank: ParticleBank,
+    *,
+    dist_m: torch.Tensor | None = None,
+    water: Sequence[Water] | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Torch twin of :func:`composite_snow` for a batch (B, 3, H, W) on any device.
 
     Layouts are drawn on the CPU (they are tiny); each image is splatted with ``index_add_`` on the device
-    onto the same padded canvas as the numpy path, and smoothed by a grouped convolution.
+    onto the same padded canvas as the numpy path, and smoothed by a grouped convolution. Volume snow:
+    ``dist_m`` (B, 1, H, W) and one ``water`` per image, as :func:`composite_snow`.
     Returns ``(I_ms (B, 3, H, W), a_ms (B, 1, H, W))``.
     """
     import torch
@@ -267,6 +420,8 @@ def composite_snow_torch(
     bsz, _, h, w = images.shape
     if len(params) != bsz:
         raise ValueError(f"params: expected {bsz} snow parameter sets (one per image), got {len(params)}")
+    if any(p.volume_m is not None for p in params):
+        return _composite_volume_torch(images, params, bank, dist_m, water)
     dev = images.device
     alphas, spreads = [], []
     for p in params:
@@ -283,3 +438,45 @@ def composite_snow_torch(
     alpha = torch.stack(alphas)
     out = images.to(torch.float32) * (1.0 - alpha) + torch.stack(spreads)  # Eq. (7)
     return out.to(images.dtype), alpha.to(images.dtype)
+
+
+def _composite_volume_torch(
+    images: torch.Tensor,
+    params: Sequence[SnowParams],
+    bank: ParticleBank,
+    dist_m: torch.Tensor | None,
+    water: Sequence[Water] | None,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """The twin of :func:`_composite_volume` for a batch (every image must have volume snow)."""
+    import torch
+
+    _, _, h, w = images.shape
+    if any(p.volume_m is None for p in params):
+        raise ValueError("params: all images of a batch must have volume snow (volume_m) or none")
+    dev = images.device
+    outs, alphas = [], []
+    for i, p in enumerate(params):
+        layout = snow_layout(p, len(bank), w, h, None if dist_m is None else float(dist_m[i].max()))
+        at = None
+        if dist_m is not None:
+            d = dist_m[i, 0]
+
+            def at(y: np.ndarray, x: np.ndarray, d: torch.Tensor = d) -> np.ndarray:
+                return d[torch.from_numpy(y).to(d.device), torch.from_numpy(x).to(d.device)].cpu().numpy()
+
+        out = images[i].to(torch.float32)
+        clear = torch.ones((1, h, w), dtype=torch.float32, device=dev)
+        for lay, rho in volume_plan(p, layout, w, h, at):
+            pad = _canvas_pad(lay, bank, rho)
+            hp, wp = h + 2 * pad, w + 2 * pad
+            ys, xs, mass, rgb, _ = _splat_points(lay, bank, None if water is None else water[i], p.lamp)
+            idx, wts = _taps(ys, xs, pad, wp)
+            b, q = _accumulate(idx, wts * np.tile(mass, 4), np.tile(rgb, (4, 1)), hp * wp, dev)
+            canv = torch.cat([b.view(1, hp, wp), q.view(hp, wp, 3).permute(2, 0, 1)], dim=0)[None]
+            blurred = gaussian_blur_torch(canv, torch.tensor([rho], dtype=torch.float64))[0]
+            alpha = blurred[0:1, pad : pad + h, pad : pad + w].clamp(max=1.0)
+            out = out * (1.0 - alpha) + blurred[1:4, pad : pad + h, pad : pad + w]
+            clear = clear * (1.0 - alpha)
+        outs.append(out)
+        alphas.append(1.0 - clear)
+    return torch.stack(outs).to(images.dtype), torch.stack(alphas).to(images.dtype)

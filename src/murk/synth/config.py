@@ -124,10 +124,32 @@ class SnowConfig:
     """If set, each particle is relit: neutral grey with its own luma pattern, rescaled to a mean luma ~ U[a, b]
     (0-255): particles lit by a lamp or the sun, whatever the brightness of the footage they were cut from.
     None: the original pixels, the paper's Eq. (7)."""
+    volume_m: tuple[float, float] | None = None
+    """Volume snow: if set, the particles fill the water between these distances from the camera (metres, uniform
+    in volume) instead of the paper's one flat layer: scaled by ``focus_m / z`` (near ones large), blurred by their
+    defocus, hidden behind nearer scene surfaces and tinted by the water in front of them (docs/snow.md).
+    None: the paper's Eqs. (7)-(8)."""
+    focus_m: float = 1.0
+    """Volume snow: the distance in focus, where a particle has the paper's size (``scale``)."""
+    defocus_px: float = 2.0
+    """Volume snow: blur (Gaussian sigma, pixels) per dioptre of defocus ``|1/z - 1/focus_m|``, added in
+    quadrature to ``rho_px``."""
+    layers: int = 4
+    """Volume snow: depth layers (even in inverse distance), each blurred with its own defocus."""
+    lamp: float = 0.0
+    """Volume snow: a lamp beside the camera lights the particles, ``lamp * exp(-2 beta z) / z^2`` added to each
+    particle's colour (0-1 of full scale at 1 m in clear water): near particles glow, far ones fade. 0: off."""
 
     def __post_init__(self) -> None:
         if self.particle_luma is not None:
             check_interval("particle_luma", self.particle_luma, 1.0, 255.0)
+        if self.volume_m is not None:
+            check_interval("volume_m", self.volume_m, 0.01, 1000.0)
+        check_range("focus_m", self.focus_m, 0.01, 1000.0)
+        check_range("defocus_px", self.defocus_px, 0.0, 100.0)
+        check_range("lamp", self.lamp, 0.0, 100.0)
+        if isinstance(self.layers, bool) or not (1 <= self.layers <= 64):
+            raise ValueError(f"layers: expected an integer in [1, 64], got {self.layers!r}")
         lo, hi = self.n_particles
         if isinstance(lo, bool) or isinstance(hi, bool) or not (0 <= lo <= hi <= 1_000_000):
             raise ValueError(f"n_particles: expected 0 <= min <= max <= 1e6, got {self.n_particles}")

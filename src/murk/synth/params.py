@@ -174,6 +174,11 @@ def snow_sampler_for(config: SynthConfig, bank: Any) -> Any:
             reference_width_px=sc.reference_width_px,
             reference_area_px=sc.reference_area_px,
             particle_luma=sc.particle_luma,
+            volume_m=sc.volume_m,
+            focus_m=sc.focus_m,
+            defocus_px=sc.defocus_px,
+            layers=sc.layers,
+            lamp=sc.lamp,
         )
 
     return sampler

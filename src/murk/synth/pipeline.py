@@ -139,7 +139,8 @@ def render(
         if bank is None:
             raise ValueError("bank: marine snow parameters given but no particle bank")
         np.clip(image, 0.0, 1.0, out=image)
-        image, alpha = composite_snow(image, params.snow, bank)
+        water = (np.asarray(m.beta_per_m), np.asarray(m.b_inf)) if "basic" in params.stages else None
+        image, alpha = composite_snow(image, params.snow, bank, dist_m=dist, water=water)
     np.clip(image, 0.0, 1.0, out=image)
     if params.camera is not None:
         from murk.physics.camera import apply_camera
@@ -230,7 +231,11 @@ def render_batch_torch(
 
         if bank is None:
             raise ValueError("bank: marine snow parameters given but no particle bank")
-        image, alpha = composite_snow_torch(image.clamp(0.0, 1.0), [p.snow for p in params], bank)
+        waters = None
+        if "basic" in params[0].stages:
+            waters = [(np.asarray(m.beta_per_m), np.asarray(m.b_inf)) for m in meds]  # type: ignore[union-attr]
+        snows = [p.snow for p in params]
+        image, alpha = composite_snow_torch(image.clamp(0.0, 1.0), snows, bank, dist_m=dist, water=waters)  # type: ignore[arg-type]
     image = image.clamp(0.0, 1.0)
     if params[0].camera is not None:
         from murk.physics.camera import apply_camera_torch
