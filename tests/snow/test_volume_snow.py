@@ -15,9 +15,10 @@ from murk.snow.composite import (
     SnowParams,
     composite_snow,
     composite_snow_torch,
+    layer_plan,
     sample_snow,
     snow_layout,
-    volume_plan,
+    streak_kernel,
 )
 from murk.synth.config import SnowConfig, SynthConfig
 from murk.synth.params import sample_variant, snow_sampler_for
@@ -55,22 +56,22 @@ def test_particles_behind_the_scene_are_hidden() -> None:
     lay = snow_layout(p, 50, 64, 48)
     dist = np.full((48, 64), 4.0, np.float32)
     dist[:, :32] = 0.6  # a wall 0.6 m away on the left
-    plan = volume_plan(p, lay, 64, 48, lambda y, x: dist[y, x])
-    kept = np.concatenate([layer.centre_xy for layer, _ in plan])
-    z = np.concatenate([layer.distance_m for layer, _ in plan])
+    plan = layer_plan(p, lay, 64, 48, lambda y, x: dist[y, x])
+    kept = np.concatenate([layer.layout.centre_xy for layer in plan])
+    z = np.concatenate([layer.layout.distance_m for layer in plan])
     left = np.rint(kept[:, 0]) < 32
     assert left.any() and z[left].max() < 0.6
     assert z[~left].max() > 2.0
-    assert sum(len(layer.index) for layer, _ in plan) < len(lay.index)
+    assert sum(len(layer.layout.index) for layer in plan) < len(lay.index)
 
 
 def test_layers_are_far_to_near_and_blurred_by_their_defocus() -> None:
     p = _vol(n=5000, focus_m=4.0, defocus_px=2.0, layers=4)
-    plan = volume_plan(p, snow_layout(p, 50, 64, 48), 64, 48)
+    plan = layer_plan(p, snow_layout(p, 50, 64, 48), 64, 48)
     assert len(plan) == 4
-    means = [float(np.mean(layer.distance_m)) for layer, _ in plan]
+    means = [float(np.mean(layer.layout.distance_m)) for layer in plan]
     assert means == sorted(means, reverse=True)
-    rhos = [rho for _, rho in plan]
+    rhos = [layer.rho_px for layer in plan]
     assert rhos == sorted(rhos)  # focused far: the nearer, the softer
     inv = np.linspace(1 / 4.0, 1 / 0.3, 5)
     expected = [float(np.hypot(0.5, 2.0 * abs((inv[j] + inv[j + 1]) / 2 - 1 / 4.0))) for j in range(4)]
@@ -115,9 +116,45 @@ def test_numpy_and_torch_volume_snow_agree() -> None:
         assert alpha.max() > 0.3
         np.testing.assert_allclose(out_t[i].permute(1, 2, 0).numpy(), out, atol=2e-5)
         np.testing.assert_allclose(alpha_t[i, 0].numpy(), alpha, atol=2e-5)
-    mixed = [params[0], dataclasses.replace(params[1], volume_m=None)]
-    with pytest.raises(ValueError, match="volume snow"):
-        composite_snow_torch(torch.from_numpy(imgs).permute(0, 3, 1, 2), mixed, bank)
+    mixed = [params[0], dataclasses.replace(params[1], volume_m=None)]  # a plain image in a layered batch
+    out_t, _ = composite_snow_torch(torch.from_numpy(imgs).permute(0, 3, 1, 2), mixed, bank)
+    out, _ = composite_snow(imgs[1], mixed[1], bank)
+    np.testing.assert_allclose(out_t[1].permute(1, 2, 0).numpy(), out, atol=2e-5)
+
+
+def test_streak_kernel_is_a_normalised_line() -> None:
+    assert streak_kernel(0.5, 0.0) is None
+    k = streak_kernel(6.0, 0.0)
+    assert k is not None and abs(float(k.sum()) - 1.0) < 1e-6
+    r = k.shape[0] // 2
+    assert float(k[r].sum()) > 0.99  # horizontal: all on the centre row
+    cols = np.nonzero(k[r] > 1e-3)[0]
+    assert cols.max() - cols.min() in (6, 7)
+    v = streak_kernel(6.0, np.pi / 2)
+    assert v is not None and float(v[:, r].sum()) > 0.99  # vertical
+
+
+def test_motion_streaks_smear_particles_along_their_direction() -> None:
+    bank = make_bank(colour=(255, 255, 255), sizes=(2,))
+    img = np.zeros((60, 80, 3), np.float32)
+    still = SnowParams(n_particles=3, rho_px=0.3, scale_range=(1.0, 1.0), layout_seed=5, bank_id="")
+    moving = dataclasses.replace(still, motion_px=12.0, motion_angle_rad=0.0)
+    _, a0 = composite_snow(img, still, bank)
+    _, a1 = composite_snow(img, moving, bank)
+    rows0, cols0 = np.nonzero(a0 > 0.02)
+    rows1, cols1 = np.nonzero(a1 > 0.02)
+    assert np.ptp(cols1) >= np.ptp(cols0) and len(cols1) > 2 * len(cols0)  # longer along x
+    assert set(rows1) <= set(range(rows0.min() - 1, rows0.max() + 2))  # not across
+    assert 0.8 * float(a0.sum()) < float(a1.sum()) <= float(a0.sum()) + 1e-3  # spread, not added (some leaves)
+    _, ta = composite_snow_torch(torch.from_numpy(img).permute(2, 0, 1)[None], [moving], bank)
+    np.testing.assert_allclose(ta[0, 0].numpy(), a1, atol=2e-5)
+
+
+def test_volume_streaks_are_longer_near_the_camera() -> None:
+    p = _vol(n=4000, motion_px=10.0, focus_m=1.0)
+    plan = layer_plan(p, snow_layout(p, 50, 64, 48), 64, 48)
+    streaks = [layer.streak_px for layer in plan]
+    assert streaks == sorted(streaks) and streaks[-1] > 10.0 > streaks[0]
 
 
 def test_synthesis_config_reaches_the_renderer() -> None:
@@ -147,6 +184,7 @@ def test_synthesis_config_reaches_the_renderer() -> None:
         ("defocus_px", -1.0, "defocus_px"),
         ("layers", 0, "layers"),
         ("lamp", -0.1, "lamp"),
+        ("motion_px", (5.0, 1.0), "motion_px"),
     ],
 )
 def test_bad_volume_options_are_refused(field: str, value: object, message: str) -> None:

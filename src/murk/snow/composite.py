@@ -70,6 +70,11 @@ class SnowParams:
     layers: int = 4
     """Volume snow: the particles are binned into this many layers, evenly spaced in inverse distance, each
     blurred with its own defocus and composited far to near."""
+    motion_px: float = 0.0
+    """Motion streaks (video): each particle smeared along a line this many pixels long (volume snow: a particle at
+    ``focus_m``; at ``z`` the streak is ``motion_px * focus_m / z``, near particles sweep farther), at
+    ``motion_angle_rad`` from the image's x axis; below 1 px nothing is smeared. 0: off."""
+    motion_angle_rad: float = 0.0
     lamp: float = 0.0
     """Volume snow: light of a lamp beside the camera scattered back by each particle, added to its colour:
     ``lamp * exp(-2 beta z) / z^2`` (0-1 of full scale; ``lamp`` is the light a particle at 1 m gets in clear
@@ -121,14 +126,23 @@ def sample_snow(
     defocus_px: float = 2.0,
     layers: int = 4,
     lamp: float = 0.0,
+    motion_px: tuple[float, float] | None = None,
 ) -> SnowParams:
-    """Draw N_p ~ U{a..b}, rho ~ U[a, b] and the layout seed of one image (volume options: :class:`SnowParams`)."""
+    """Draw N_p ~ U{a..b}, rho ~ U[a, b] and the layout seed of one image (volume options: :class:`SnowParams`);
+    with ``motion_px`` also a streak length ~ U[a, b] and a direction ~ U[0, pi) (drawn after the others, so
+    the paper's draws stay as they were)."""
     g = as_generator(rng)
+    n_p = int(g.integers(n_particles[0], n_particles[1] + 1))
+    rho = float(g.uniform(*rho_px))
+    seed = int(g.integers(0, 2**63 - 1))
+    motion, angle = 0.0, 0.0
+    if motion_px is not None and motion_px[1] > 0:
+        motion, angle = float(g.uniform(*motion_px)), float(g.uniform(0.0, math.pi))
     return SnowParams(
-        n_particles=int(g.integers(n_particles[0], n_particles[1] + 1)),
-        rho_px=float(g.uniform(*rho_px)),
+        n_particles=n_p,
+        rho_px=rho,
         scale_range=(float(scale[0]), float(scale[1])),
-        layout_seed=int(g.integers(0, 2**63 - 1)),
+        layout_seed=seed,
         bank_id=bank.bank_id,
         reference_width_px=int(reference_width_px),
         reference_area_px=int(reference_area_px),
@@ -138,6 +152,8 @@ def sample_snow(
         defocus_px=float(defocus_px),
         layers=int(layers),
         lamp=float(lamp),
+        motion_px=motion,
+        motion_angle_rad=angle,
     )
 
 
@@ -247,12 +263,39 @@ def _splat_points(
     return ys, xs, mass, rgb, pix
 
 
-def _canvas_pad(layout: SnowLayout, bank: ParticleBank, rho_px: float) -> int:
-    """Margin around the image so every tap of every drawn particle, and the blur around it, lands inside."""
+def _canvas_pad(layout: SnowLayout, bank: ParticleBank, rho_px: float, extra_px: int = 0) -> int:
+    """Margin around the image so every tap of every drawn particle, and the blur around it (plus ``extra_px``, a
+    streak's reach), lands inside."""
     if len(layout.index) == 0:
         return 1
     reach = float(np.abs(bank.pixel_yx).max()) if len(bank.pixel_yx) else 0.0
-    return math.ceil(reach * float(layout.scale.max())) + 2 + kernel_radius(rho_px)
+    return math.ceil(reach * float(layout.scale.max())) + 2 + kernel_radius(rho_px) + extra_px
+
+
+def streak_kernel(length_px: float, angle_rad: float) -> np.ndarray | None:
+    """A motion streak: a line ``length_px`` long through the centre at ``angle_rad`` (from +x, rows down),
+    antialiased (points every 1/8 px, bilinear) and normalised to sum 1; float32 (2r+1, 2r+1). None below 1 px."""
+    if length_px < 1.0:
+        return None
+    r = math.ceil(length_px / 2) + 1
+    t = np.linspace(-length_px / 2, length_px / 2, max(2, math.ceil(length_px * 8) + 1))
+    xs, ys = r + t * math.cos(angle_rad), r + t * math.sin(angle_rad)
+    x0, y0 = np.floor(xs).astype(np.int64), np.floor(ys).astype(np.int64)
+    fx, fy = xs - x0, ys - y0
+    k = np.zeros((2 * r + 1, 2 * r + 1), np.float64)
+    for dy, dx, wt in ((0, 0, (1 - fy) * (1 - fx)), (0, 1, (1 - fy) * fx), (1, 0, fy * (1 - fx)), (1, 1, fy * fx)):
+        np.add.at(k, (y0 + dy, x0 + dx), wt)
+    return (k / k.sum()).astype(np.float32)
+
+
+@dataclass(frozen=True)
+class SnowLayer:
+    """One layer of the layered compositing (volume snow, motion streaks): its particles, Gaussian blur and
+    streak length (pixels)."""
+
+    layout: SnowLayout
+    rho_px: float
+    streak_px: float = 0.0
 
 
 def _taps(ys: np.ndarray, xs: np.ndarray, pad: int, wp: int) -> tuple[np.ndarray, np.ndarray]:
@@ -313,8 +356,9 @@ def _canvases_np(
     rho_px: float,
     water: Water | None = None,
     lamp: float = 0.0,
+    extra_px: int = 0,
 ) -> tuple[np.ndarray, np.ndarray, int]:
-    pad = _canvas_pad(layout, bank, rho_px)
+    pad = _canvas_pad(layout, bank, rho_px, extra_px)
     hp, wp = height + 2 * pad, width + 2 * pad
     ys, xs, mass, rgb, _ = _splat_points(layout, bank, water, lamp)
     idx, wts = _taps(ys, xs, pad, wp)
@@ -326,14 +370,18 @@ DistanceAt = Callable[[np.ndarray, np.ndarray], np.ndarray]
 """The scene's distance (metres) at integer pixel rows and columns (occlusion of volume snow)."""
 
 
-def volume_plan(
+def layer_plan(
     params: SnowParams, layout: SnowLayout, width: int, height: int, distance_at: DistanceAt | None = None
-) -> list[tuple[SnowLayout, float]]:
-    """Volume snow (``params.volume_m``): the particles in front of the scene (``distance_at`` of the pixel under
-    each particle's centre; None: all), binned into ``params.layers`` layers evenly spaced in inverse distance,
-    far to near, each with its blur ``hypot(rho, defocus_px * |1/z_layer - 1/focus_m|)`` (pixels)."""
-    if params.volume_m is None or layout.distance_m is None:
-        raise ValueError("params.volume_m: volume snow needs a distance range, got None")
+) -> list[SnowLayer]:
+    """The layers of the layered compositing, far to near. Without volume snow: one layer, all particles, blur
+    ``rho`` and the streak ``motion_px``. Volume snow (``params.volume_m``): the particles in front of the scene
+    (``distance_at`` of the pixel under each particle's centre; None: all), binned into ``params.layers`` layers
+    evenly spaced in inverse distance, each with its blur ``hypot(rho, defocus_px * |1/z_layer - 1/focus_m|)``
+    and streak ``motion_px * focus_m / z_layer`` (pixels; ``z_layer`` at the middle of the layer in 1/z)."""
+    if params.volume_m is None:
+        return [SnowLayer(layout, params.rho_px, params.motion_px)]
+    if layout.distance_m is None:
+        raise ValueError("layout: volume snow needs the particles' distances, got None")
     if distance_at is not None and len(layout.index):
         xi = np.clip(np.rint(layout.centre_xy[:, 0]), 0, width - 1).astype(np.int64)
         yi = np.clip(np.rint(layout.centre_xy[:, 1]), 0, height - 1).astype(np.int64)
@@ -347,8 +395,10 @@ def volume_plan(
     for j in range(params.layers):  # j = 0: the farthest layer
         sel = k == j
         if sel.any():
-            defocus = params.defocus_px * factor * abs(0.5 * (edges[j] + edges[j + 1]) - 1.0 / params.focus_m)
-            plan.append((layout.subset(sel), math.hypot(params.rho_px, defocus)))
+            inv = 0.5 * (edges[j] + edges[j + 1])
+            defocus = params.defocus_px * factor * abs(inv - 1.0 / params.focus_m)
+            rho = math.hypot(params.rho_px, defocus)
+            plan.append(SnowLayer(layout.subset(sel), rho, params.motion_px * params.focus_m * inv))
     return plan
 
 
@@ -368,8 +418,8 @@ def composite_snow(
     h, w, _ = image.shape
     if params.bank_id and bank.bank_id and params.bank_id != bank.bank_id:
         raise ValueError(f"bank: the parameters were drawn from bank {params.bank_id}, got bank {bank.bank_id}")
-    if params.volume_m is not None:
-        return _composite_volume(image, params, bank, dist_m, water)
+    if params.volume_m is not None or params.motion_px >= 1.0:
+        return _composite_layered(image, params, bank, dist_m, water)
     b, bm, pad = snow_layers(params, bank, h, w)
     alpha_c = gaussian_blur(b, params.rho_px)  # Eq. (8): a_ms = G_rho * B (padded canvas)
     spread_c = gaussian_blur(bm, params.rho_px)  # a_ms M' = G_rho * (B M)
@@ -382,20 +432,27 @@ def composite_snow(
     return out, alpha
 
 
-def _composite_volume(
+def _composite_layered(
     image: np.ndarray, params: SnowParams, bank: ParticleBank, dist_m: np.ndarray | None, water: Water | None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Volume snow: Eqs. (7)-(8) once per layer of :func:`volume_plan`, far to near; ``a_ms = 1 - prod(1 - a_k)``."""
+    """Volume snow or motion streaks: Eqs. (7)-(8) once per layer of :func:`layer_plan`, far to near, each layer's
+    canvases blurred by its Gaussian, then smeared by its streak; ``a_ms = 1 - prod(1 - a_k)``."""
     h, w, _ = image.shape
-    layout = snow_layout(params, len(bank), w, h, None if dist_m is None else float(dist_m.max()))
+    far = None if dist_m is None or params.volume_m is None else float(dist_m.max())
+    layout = snow_layout(params, len(bank), w, h, far)
     at = None if dist_m is None else (lambda y, x: dist_m[y, x])
     out = np.array(image, dtype=np.float32)
     clear = np.ones((h, w), np.float32)
-    for lay, rho in volume_plan(params, layout, w, h, at):
-        b, bm, pad = _canvases_np(lay, bank, h, w, rho, water, params.lamp)
-        alpha = np.minimum(gaussian_blur(b, rho)[pad : pad + h, pad : pad + w], np.float32(1.0))
-        spread = gaussian_blur(bm, rho)[pad : pad + h, pad : pad + w]
-        out = out * (1.0 - alpha)[..., None] + spread
+    for layer in layer_plan(params, layout, w, h, at):
+        kernel = streak_kernel(layer.streak_px, params.motion_angle_rad)
+        extra = 0 if kernel is None else kernel.shape[0] // 2
+        b, bm, pad = _canvases_np(layer.layout, bank, h, w, layer.rho_px, water, params.lamp, extra)
+        b, bm = gaussian_blur(b, layer.rho_px), gaussian_blur(bm, layer.rho_px)
+        if kernel is not None:  # correlation with zeros outside the padded canvas, as torch's conv2d
+            b = cv2.filter2D(b, -1, kernel, borderType=cv2.BORDER_CONSTANT)
+            bm = cv2.filter2D(bm, -1, kernel, borderType=cv2.BORDER_CONSTANT)
+        alpha = np.minimum(b[pad : pad + h, pad : pad + w], np.float32(1.0))
+        out = out * (1.0 - alpha)[..., None] + bm[pad : pad + h, pad : pad + w]
         clear *= 1.0 - alpha
     return out.astype(np.float32), (1.0 - clear).astype(np.float32)
 
@@ -420,8 +477,8 @@ def composite_snow_torch(
     bsz, _, h, w = images.shape
     if len(params) != bsz:
         raise ValueError(f"params: expected {bsz} snow parameter sets (one per image), got {len(params)}")
-    if any(p.volume_m is not None for p in params):
-        return _composite_volume_torch(images, params, bank, dist_m, water)
+    if any(p.volume_m is not None or p.motion_px >= 1.0 for p in params):
+        return _composite_layered_torch(images, params, bank, dist_m, water)
     dev = images.device
     alphas, spreads = [], []
     for p in params:
@@ -440,23 +497,24 @@ def composite_snow_torch(
     return out.to(images.dtype), alpha.to(images.dtype)
 
 
-def _composite_volume_torch(
+def _composite_layered_torch(
     images: torch.Tensor,
     params: Sequence[SnowParams],
     bank: ParticleBank,
     dist_m: torch.Tensor | None,
     water: Sequence[Water] | None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """The twin of :func:`_composite_volume` for a batch (every image must have volume snow)."""
+    """The twin of :func:`_composite_layered` for a batch (images without volume snow or streaks get one plain
+    layer, the same result as the paper's path)."""
     import torch
+    import torch.nn.functional as F
 
     _, _, h, w = images.shape
-    if any(p.volume_m is None for p in params):
-        raise ValueError("params: all images of a batch must have volume snow (volume_m) or none")
     dev = images.device
     outs, alphas = [], []
     for i, p in enumerate(params):
-        layout = snow_layout(p, len(bank), w, h, None if dist_m is None else float(dist_m[i].max()))
+        far = None if dist_m is None or p.volume_m is None else float(dist_m[i].max())
+        layout = snow_layout(p, len(bank), w, h, far)
         at = None
         if dist_m is not None:
             d = dist_m[i, 0]
@@ -466,16 +524,21 @@ def _composite_volume_torch(
 
         out = images[i].to(torch.float32)
         clear = torch.ones((1, h, w), dtype=torch.float32, device=dev)
-        for lay, rho in volume_plan(p, layout, w, h, at):
-            pad = _canvas_pad(lay, bank, rho)
+        for layer in layer_plan(p, layout, w, h, at):
+            kernel = streak_kernel(layer.streak_px, p.motion_angle_rad)
+            extra = 0 if kernel is None else kernel.shape[0] // 2
+            pad = _canvas_pad(layer.layout, bank, layer.rho_px, extra)
             hp, wp = h + 2 * pad, w + 2 * pad
-            ys, xs, mass, rgb, _ = _splat_points(lay, bank, None if water is None else water[i], p.lamp)
+            ys, xs, mass, rgb, _ = _splat_points(layer.layout, bank, None if water is None else water[i], p.lamp)
             idx, wts = _taps(ys, xs, pad, wp)
             b, q = _accumulate(idx, wts * np.tile(mass, 4), np.tile(rgb, (4, 1)), hp * wp, dev)
             canv = torch.cat([b.view(1, hp, wp), q.view(hp, wp, 3).permute(2, 0, 1)], dim=0)[None]
-            blurred = gaussian_blur_torch(canv, torch.tensor([rho], dtype=torch.float64))[0]
-            alpha = blurred[0:1, pad : pad + h, pad : pad + w].clamp(max=1.0)
-            out = out * (1.0 - alpha) + blurred[1:4, pad : pad + h, pad : pad + w]
+            blurred = gaussian_blur_torch(canv, torch.tensor([layer.rho_px], dtype=torch.float64))
+            if kernel is not None:
+                k = torch.from_numpy(kernel).to(dev)[None, None].expand(4, 1, -1, -1)
+                blurred = F.conv2d(blurred, k, padding=extra, groups=4)
+            alpha = blurred[0, 0:1, pad : pad + h, pad : pad + w].clamp(max=1.0)
+            out = out * (1.0 - alpha) + blurred[0, 1:4, pad : pad + h, pad : pad + w]
             clear = clear * (1.0 - alpha)
         outs.append(out)
         alphas.append(1.0 - clear)

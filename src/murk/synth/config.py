@@ -136,6 +136,10 @@ class SnowConfig:
     quadrature to ``rho_px``."""
     layers: int = 4
     """Volume snow: depth layers (even in inverse distance), each blurred with its own defocus."""
+    motion_px: tuple[float, float] | None = None
+    """Motion streaks (video): each image's particles are smeared along a line ~ U[a, b] pixels long in a direction
+    ~ U[0, pi) (volume snow: for a particle at ``focus_m``; nearer ones sweep farther, ``* focus_m / z``).
+    None: still particles, the paper."""
     lamp: float = 0.0
     """Volume snow: a lamp beside the camera lights the particles, ``lamp * exp(-2 beta z) / z^2`` added to each
     particle's colour (0-1 of full scale at 1 m in clear water): near particles glow, far ones fade. 0: off."""
@@ -148,6 +152,8 @@ class SnowConfig:
         check_range("focus_m", self.focus_m, 0.01, 1000.0)
         check_range("defocus_px", self.defocus_px, 0.0, 100.0)
         check_range("lamp", self.lamp, 0.0, 100.0)
+        if self.motion_px is not None:
+            check_interval("motion_px", self.motion_px, 0.0, 1000.0)
         if isinstance(self.layers, bool) or not (1 <= self.layers <= 64):
             raise ValueError(f"layers: expected an integer in [1, 64], got {self.layers!r}")
         lo, hi = self.n_particles

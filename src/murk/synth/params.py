@@ -179,6 +179,7 @@ def snow_sampler_for(config: SynthConfig, bank: Any) -> Any:
             defocus_px=sc.defocus_px,
             layers=sc.layers,
             lamp=sc.lamp,
+            motion_px=sc.motion_px,
         )
 
     return sampler
