@@ -110,7 +110,8 @@ def main() -> None:
     image = g.random((H, W, 3)).astype(np.float32)
     print(f"# bench_snow  {time.strftime('%Y-%m-%d')}  {machine()}  {W}x{H}, {N} particles, 1 thread")
     for label, bank in (
-        ("shipped default bank", load_bank(default_snow_bank())),
+        ("shipped default bank (builtin:snow)", load_bank(default_snow_bank())),
+        ("the default before 2026-12-03 (builtin:snow-small)", load_bank("builtin:snow-small")),
         ("larger particles", larger_particle_bank()),
     ):
         areas = bank.areas_px

@@ -39,23 +39,45 @@ def stats_stride(height: int, width: int) -> int:
     return max(1, math.ceil(math.sqrt(height * width / STATS_PX)))
 
 
+def _order_positions(n: int, pct: float) -> tuple[int, int, float]:
+    """The two order statistics (ascending ranks) and the weight of the second that give the ``pct`` percentile of
+    ``n`` values by linear interpolation (numpy's and torch's default)."""
+    pos = float(pct) / 100.0 * (n - 1)
+    i0 = min(math.floor(pos), n - 1)
+    return i0, min(i0 + 1, n - 1), pos - i0
+
+
 def balance_levels(image: np.ndarray, low: float = 1.0, high: float = 1.0) -> np.ndarray:
     """The levels of the simplest colour balance of float RGB ``image`` (H, W, 3): float32 (2, 3), the ``low`` and
-    ``100 - high`` percentiles of each channel (sample, then :func:`apply_levels`)."""
+    ``100 - high`` percentiles of each channel (sample, then :func:`apply_levels`). The order statistics come from
+    one partial sort (``numpy.partition``, about 2x faster than ``numpy.percentile`` on a 640x480 frame's sample),
+    interpolated in float64 as the torch twin does."""
     img = np.asarray(image, np.float32)
     s = stats_stride(img.shape[0], img.shape[1])
-    sample = img[::s, ::s].reshape(-1, 3).astype(np.float64)
-    return np.percentile(sample, [float(low), 100.0 - float(high)], axis=0).astype(np.float32)
+    sample = np.ascontiguousarray(img[::s, ::s].reshape(-1, 3).T)  # (3, n)
+    n = sample.shape[1]
+    ranks = [_order_positions(n, float(low)), _order_positions(n, 100.0 - float(high))]
+    part = np.partition(sample, sorted({k for i0, i1, _ in ranks for k in (i0, i1)}), axis=1)
+    out = np.empty((2, 3), np.float32)
+    for j, (i0, i1, frac) in enumerate(ranks):
+        v0, v1 = part[:, i0].astype(np.float64), part[:, i1].astype(np.float64)
+        out[j] = v0 + frac * (v1 - v0)
+    return out
 
 
-def apply_levels(image: np.ndarray, levels: np.ndarray) -> np.ndarray:
+def apply_levels(image: np.ndarray, levels: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """``clip((image - lo) / max(hi - lo, FLAT_RANGE), 0, 1)`` per channel with ``levels = [lo, hi]`` (2, 3);
-    float32 (H, W, 3)."""
+    float32 (H, W, 3), written into ``out`` (float32, the image's shape) when given (a restorer reuses one
+    buffer per frame size instead of allocating a frame's worth of memory each time)."""
     lo, hi = np.asarray(levels, np.float32)
     scale = np.float32(1.0) / np.maximum(hi - lo, np.float32(FLAT_RANGE))
     # OpenCV's per-channel scalar arithmetic: the same float32 subtract-then-multiply as numpy (bit-identical) in
     # one threaded pass each, 2.5x faster than numpy's ufuncs and clip at 640x480
-    out = cv2.subtract(np.ascontiguousarray(image, dtype=np.float32), (*lo.tolist(), 0.0))  # type: ignore[call-overload]
+    src = np.ascontiguousarray(image, dtype=np.float32)
+    if out is None:
+        out = cv2.subtract(src, (*lo.tolist(), 0.0))  # type: ignore[call-overload]
+    else:
+        cv2.subtract(src, (*lo.tolist(), 0.0), dst=out)  # type: ignore[call-overload]
     cv2.multiply(out, (*scale.tolist(), 0.0), dst=out)
     cv2.max(out, (0.0, 0.0, 0.0, 0.0), dst=out)
     cv2.min(out, (1.0, 1.0, 1.0, 1.0), dst=out)
@@ -73,16 +95,13 @@ def _order_stats_torch(sample: Tensor, pct: float) -> Tensor:
     import torch
 
     n = int(sample.shape[-1])
-    pos = float(pct) / 100.0 * (n - 1)
-    i0 = min(math.floor(pos), n - 1)
-    i1 = min(i0 + 1, n - 1)
+    i0, i1, frac = _order_positions(n, pct)
     if i1 < n // 2:  # the smallest i1 + 1 values, ascending
         low_end = sample.topk(i1 + 1, dim=-1, largest=False, sorted=True).values
         v0, v1 = low_end[..., i0], low_end[..., i1]
     else:  # the largest n - i0 values, descending: order statistic i sits at n - 1 - i
         high_end = sample.topk(n - i0, dim=-1, largest=True, sorted=True).values
         v0, v1 = high_end[..., n - 1 - i0], high_end[..., n - 1 - i1]
-    frac = pos - i0
     return (v0.double() + frac * (v1.double() - v0.double())).to(torch.float32)
 
 
