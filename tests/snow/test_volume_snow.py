@@ -108,11 +108,17 @@ def test_numpy_and_torch_volume_snow_agree() -> None:
     params = [
         sample_snow(s, bank, n_particles=(400, 500), volume_m=(0.3, 3.0), lamp=0.2, defocus_px=1.5) for s in range(2)
     ]
+    scatters = [(0.5, 0.15, 0.2), (0.8, 1.0, 0.5)]
     out_t, alpha_t = composite_snow_torch(
-        torch.from_numpy(imgs).permute(0, 3, 1, 2), params, bank, dist_m=torch.from_numpy(dist)[:, None], water=waters
+        torch.from_numpy(imgs).permute(0, 3, 1, 2),
+        params,
+        bank,
+        dist_m=torch.from_numpy(dist)[:, None],
+        water=waters,
+        scatter=scatters,
     )
     for i in range(2):
-        out, alpha = composite_snow(imgs[i], params[i], bank, dist_m=dist[i], water=waters[i])
+        out, alpha = composite_snow(imgs[i], params[i], bank, dist_m=dist[i], water=waters[i], scatter=scatters[i])
         assert alpha.max() > 0.3
         np.testing.assert_allclose(out_t[i].permute(1, 2, 0).numpy(), out, atol=2e-5)
         np.testing.assert_allclose(alpha_t[i, 0].numpy(), alpha, atol=2e-5)
@@ -190,3 +196,23 @@ def test_synthesis_config_reaches_the_renderer() -> None:
 def test_bad_volume_options_are_refused(field: str, value: object, message: str) -> None:
     with pytest.raises(ValueError, match=message):
         SnowConfig(**{field: value})  # type: ignore[arg-type]
+
+
+def test_forward_scattering_blurs_far_layers_more() -> None:
+    p = _vol(n=4000, focus_m=1.0)
+    lay = snow_layout(p, 50, 64, 48)
+    plain = layer_plan(p, lay, 64, 48)
+    fs = layer_plan(p, lay, 64, 48, scatter=(0.5, 1.0, 0.3))
+    assert all(layer.scatter_weight == 0 for layer in plain)
+    z = [1 / np.mean(1 / layer.layout.distance_m) for layer in fs]
+    weights = [layer.scatter_weight for layer in fs]
+    sigmas = [layer.scatter_px for layer in fs]
+    assert weights == sorted(weights, reverse=True) and sigmas == sorted(sigmas, reverse=True)  # far first
+    assert all(0 < w < 1 for w in weights) and z == sorted(z, reverse=True)
+    bank = make_bank(colour=(255, 255, 255), sizes=(2,))
+    img = np.zeros((48, 64, 3), np.float32)
+    far = dataclasses.replace(_vol(n=30), volume_m=(3.0, 3.5), defocus_px=0.0)
+    _, sharp = composite_snow(img, far, bank)
+    _, soft = composite_snow(img, far, bank, scatter=(0.5, 0.3, 0.5))
+    assert soft.max() < 0.8 * sharp.max()  # the same particles, spread wider
+    assert 0.8 * sharp.sum() < soft.sum() <= 1.01 * sharp.sum()

@@ -272,6 +272,11 @@ def _canvas_pad(layout: SnowLayout, bank: ParticleBank, rho_px: float, extra_px:
     return math.ceil(reach * float(layout.scale.max())) + 2 + kernel_radius(rho_px) + extra_px
 
 
+def _scatter_reach(layer: SnowLayer) -> int:
+    """Extra canvas margin for a layer's forward-scattering blur."""
+    return kernel_radius(layer.scatter_px) if layer.scatter_weight > 0 else 0
+
+
 def streak_kernel(length_px: float, angle_rad: float) -> np.ndarray | None:
     """A motion streak: a line ``length_px`` long through the centre at ``angle_rad`` (from +x, rows down),
     antialiased (points every 1/8 px, bilinear) and normalised to sum 1; float32 (2r+1, 2r+1). None below 1 px."""
@@ -296,6 +301,14 @@ class SnowLayer:
     layout: SnowLayout
     rho_px: float
     streak_px: float = 0.0
+    scatter_px: float = 0.0
+    """Forward scattering of the water in front of the layer (Eqs. 3, 5-6 at its distance): the blurred share
+    ``scatter_weight`` is blurred by a further ``scatter_px`` (0: none)."""
+    scatter_weight: float = 0.0
+
+
+Scatter = tuple[float, float, float]
+"""The variant's forward scattering, ``(sigma0_px, k_px_per_m, gamma_per_m)`` of Eqs. (3) and (6)."""
 
 
 def _taps(ys: np.ndarray, xs: np.ndarray, pad: int, wp: int) -> tuple[np.ndarray, np.ndarray]:
@@ -371,13 +384,20 @@ DistanceAt = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 def layer_plan(
-    params: SnowParams, layout: SnowLayout, width: int, height: int, distance_at: DistanceAt | None = None
+    params: SnowParams,
+    layout: SnowLayout,
+    width: int,
+    height: int,
+    distance_at: DistanceAt | None = None,
+    scatter: Scatter | None = None,
 ) -> list[SnowLayer]:
     """The layers of the layered compositing, far to near. Without volume snow: one layer, all particles, blur
     ``rho`` and the streak ``motion_px``. Volume snow (``params.volume_m``): the particles in front of the scene
     (``distance_at`` of the pixel under each particle's centre; None: all), binned into ``params.layers`` layers
     evenly spaced in inverse distance, each with its blur ``hypot(rho, defocus_px * |1/z_layer - 1/focus_m|)``
-    and streak ``motion_px * focus_m / z_layer`` (pixels; ``z_layer`` at the middle of the layer in 1/z)."""
+    and streak ``motion_px * focus_m / z_layer`` (pixels; ``z_layer`` at the middle of the layer in 1/z), and with
+    ``scatter`` the forward scattering of the water in front of it, as Eqs. (3), (5)-(6) treat the scene:
+    a share ``1 - exp(-gamma z_layer)`` blurred by ``sigma0 + k z_layer`` more."""
     if params.volume_m is None:
         return [SnowLayer(layout, params.rho_px, params.motion_px)]
     if layout.distance_m is None:
@@ -398,7 +418,12 @@ def layer_plan(
             inv = 0.5 * (edges[j] + edges[j + 1])
             defocus = params.defocus_px * factor * abs(inv - 1.0 / params.focus_m)
             rho = math.hypot(params.rho_px, defocus)
-            plan.append(SnowLayer(layout.subset(sel), rho, params.motion_px * params.focus_m * inv))
+            fs_px, fs_w = 0.0, 0.0
+            if scatter is not None:
+                sigma0, k_px, gamma = scatter
+                fs_px, fs_w = sigma0 + k_px / inv, 1.0 - math.exp(-gamma / inv)  # Eqs. (3), (6) at z = 1 / inv
+            streak = params.motion_px * params.focus_m * inv
+            plan.append(SnowLayer(layout.subset(sel), rho, streak, fs_px, fs_w))
     return plan
 
 
@@ -409,17 +434,19 @@ def composite_snow(
     *,
     dist_m: np.ndarray | None = None,
     water: Water | None = None,
+    scatter: Scatter | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Implements Eqs. (7)-(8) on one float32 RGB image (H, W, 3) in [0, 1]. Returns ``(I_ms, a_ms)``.
 
-    With ``params.volume_m`` (volume snow), ``dist_m`` (H, W) hides the particles behind the scene and ``water``
-    (the variant's Eq. (1) coefficients) tints each particle by the water in front of it; both are ignored
-    otherwise."""
+    With ``params.volume_m`` (volume snow), ``dist_m`` (H, W) hides the particles behind the scene, ``water``
+    (the variant's Eq. (1) coefficients) tints each particle by the water in front of it and ``scatter`` (its
+    forward scattering) blurs each layer as Eqs. (3), (5)-(6) blur the scene at that distance; all three are
+    ignored otherwise."""
     h, w, _ = image.shape
     if params.bank_id and bank.bank_id and params.bank_id != bank.bank_id:
         raise ValueError(f"bank: the parameters were drawn from bank {params.bank_id}, got bank {bank.bank_id}")
     if params.volume_m is not None or params.motion_px >= 1.0:
-        return _composite_layered(image, params, bank, dist_m, water)
+        return _composite_layered(image, params, bank, dist_m, water, scatter)
     b, bm, pad = snow_layers(params, bank, h, w)
     alpha_c = gaussian_blur(b, params.rho_px)  # Eq. (8): a_ms = G_rho * B (padded canvas)
     spread_c = gaussian_blur(bm, params.rho_px)  # a_ms M' = G_rho * (B M)
@@ -433,7 +460,12 @@ def composite_snow(
 
 
 def _composite_layered(
-    image: np.ndarray, params: SnowParams, bank: ParticleBank, dist_m: np.ndarray | None, water: Water | None
+    image: np.ndarray,
+    params: SnowParams,
+    bank: ParticleBank,
+    dist_m: np.ndarray | None,
+    water: Water | None,
+    scatter: Scatter | None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Volume snow or motion streaks: Eqs. (7)-(8) once per layer of :func:`layer_plan`, far to near, each layer's
     canvases blurred by its Gaussian, then smeared by its streak; ``a_ms = 1 - prod(1 - a_k)``."""
@@ -443,11 +475,15 @@ def _composite_layered(
     at = None if dist_m is None else (lambda y, x: dist_m[y, x])
     out = np.array(image, dtype=np.float32)
     clear = np.ones((h, w), np.float32)
-    for layer in layer_plan(params, layout, w, h, at):
+    for layer in layer_plan(params, layout, w, h, at, scatter):
         kernel = streak_kernel(layer.streak_px, params.motion_angle_rad)
-        extra = 0 if kernel is None else kernel.shape[0] // 2
+        extra = (0 if kernel is None else kernel.shape[0] // 2) + _scatter_reach(layer)
         b, bm, pad = _canvases_np(layer.layout, bank, h, w, layer.rho_px, water, params.lamp, extra)
         b, bm = gaussian_blur(b, layer.rho_px), gaussian_blur(bm, layer.rho_px)
+        if layer.scatter_weight > 0:  # Eq. (5) on the layer: (1 - a) C + a G_sigma * C
+            wt = np.float32(layer.scatter_weight)
+            b = (1 - wt) * b + wt * gaussian_blur(b, layer.scatter_px)
+            bm = (1 - wt) * bm + wt * gaussian_blur(bm, layer.scatter_px)
         if kernel is not None:  # correlation with zeros outside the padded canvas, as torch's conv2d
             b = cv2.filter2D(b, -1, kernel, borderType=cv2.BORDER_CONSTANT)
             bm = cv2.filter2D(bm, -1, kernel, borderType=cv2.BORDER_CONSTANT)
@@ -464,12 +500,13 @@ def composite_snow_torch(
     *,
     dist_m: torch.Tensor | None = None,
     water: Sequence[Water] | None = None,
+    scatter: Sequence[Scatter] | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Torch twin of :func:`composite_snow` for a batch (B, 3, H, W) on any device.
 
     Layouts are drawn on the CPU (they are tiny); each image is splatted with ``index_add_`` on the device
     onto the same padded canvas as the numpy path, and smoothed by a grouped convolution. Volume snow:
-    ``dist_m`` (B, 1, H, W) and one ``water`` per image, as :func:`composite_snow`.
+    ``dist_m`` (B, 1, H, W) and one ``water`` and ``scatter`` per image, as :func:`composite_snow`.
     Returns ``(I_ms (B, 3, H, W), a_ms (B, 1, H, W))``.
     """
     import torch
@@ -478,7 +515,7 @@ def composite_snow_torch(
     if len(params) != bsz:
         raise ValueError(f"params: expected {bsz} snow parameter sets (one per image), got {len(params)}")
     if any(p.volume_m is not None or p.motion_px >= 1.0 for p in params):
-        return _composite_layered_torch(images, params, bank, dist_m, water)
+        return _composite_layered_torch(images, params, bank, dist_m, water, scatter)
     dev = images.device
     alphas, spreads = [], []
     for p in params:
@@ -503,6 +540,7 @@ def _composite_layered_torch(
     bank: ParticleBank,
     dist_m: torch.Tensor | None,
     water: Sequence[Water] | None,
+    scatter: Sequence[Scatter] | None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """The twin of :func:`_composite_layered` for a batch (images without volume snow or streaks get one plain
     layer, the same result as the paper's path)."""
@@ -524,16 +562,19 @@ def _composite_layered_torch(
 
         out = images[i].to(torch.float32)
         clear = torch.ones((1, h, w), dtype=torch.float32, device=dev)
-        for layer in layer_plan(p, layout, w, h, at):
+        for layer in layer_plan(p, layout, w, h, at, None if scatter is None else scatter[i]):
             kernel = streak_kernel(layer.streak_px, p.motion_angle_rad)
             extra = 0 if kernel is None else kernel.shape[0] // 2
-            pad = _canvas_pad(layer.layout, bank, layer.rho_px, extra)
+            pad = _canvas_pad(layer.layout, bank, layer.rho_px, extra + _scatter_reach(layer))
             hp, wp = h + 2 * pad, w + 2 * pad
             ys, xs, mass, rgb, _ = _splat_points(layer.layout, bank, None if water is None else water[i], p.lamp)
             idx, wts = _taps(ys, xs, pad, wp)
             b, q = _accumulate(idx, wts * np.tile(mass, 4), np.tile(rgb, (4, 1)), hp * wp, dev)
             canv = torch.cat([b.view(1, hp, wp), q.view(hp, wp, 3).permute(2, 0, 1)], dim=0)[None]
             blurred = gaussian_blur_torch(canv, torch.tensor([layer.rho_px], dtype=torch.float64))
+            if layer.scatter_weight > 0:
+                more = gaussian_blur_torch(blurred, torch.tensor([layer.scatter_px], dtype=torch.float64))
+                blurred = (1 - layer.scatter_weight) * blurred + layer.scatter_weight * more
             if kernel is not None:
                 k = torch.from_numpy(kernel).to(dev)[None, None].expand(4, 1, -1, -1)
                 blurred = F.conv2d(blurred, k, padding=extra, groups=4)

@@ -140,7 +140,8 @@ def render(
             raise ValueError("bank: marine snow parameters given but no particle bank")
         np.clip(image, 0.0, 1.0, out=image)
         water = (np.asarray(m.beta_per_m), np.asarray(m.b_inf)) if "basic" in params.stages else None
-        image, alpha = composite_snow(image, params.snow, bank, dist_m=dist, water=water)
+        scatter = None if fs is None else (fs.sigma0_px, fs.k_px_per_m, fs.gamma_per_m)
+        image, alpha = composite_snow(image, params.snow, bank, dist_m=dist, water=water, scatter=scatter)
     np.clip(image, 0.0, 1.0, out=image)
     if params.camera is not None:
         from murk.physics.camera import apply_camera
@@ -234,8 +235,13 @@ def render_batch_torch(
         waters = None
         if "basic" in params[0].stages:
             waters = [(np.asarray(m.beta_per_m), np.asarray(m.b_inf)) for m in meds]  # type: ignore[union-attr]
-        snows = [p.snow for p in params]
-        image, alpha = composite_snow_torch(image.clamp(0.0, 1.0), snows, bank, dist_m=dist, water=waters)  # type: ignore[arg-type]
+        scatters = None
+        if params[0].forward_scatter is not None:
+            scatters = [(f.sigma0_px, f.k_px_per_m, f.gamma_per_m) for f in (p.forward_scatter for p in params)]  # type: ignore[union-attr]
+        snows = [p.snow for p in params if p.snow is not None]  # (all of them: the stages agree)
+        image, alpha = composite_snow_torch(
+            image.clamp(0.0, 1.0), snows, bank, dist_m=dist, water=waters, scatter=scatters
+        )
     image = image.clamp(0.0, 1.0)
     if params[0].camera is not None:
         from murk.physics.camera import apply_camera_torch
