@@ -25,7 +25,6 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
@@ -43,7 +42,7 @@ from murk.models.lite.network import (
     work_size,
 )
 from murk.models.padding import pad_to_multiple
-from murk.physics.balance import apply_levels, apply_levels_torch, balance_levels, balance_levels_torch
+from murk.physics.balance import apply_levels, apply_levels_torch, balance_levels_torch
 
 
 class LiteRestorer(Restorer):
@@ -87,7 +86,6 @@ class LiteRestorer(Restorer):
         )
         """The simplest colour balance the network's input takes (from the checkpoint; None: none)."""
         levels_ema = FrameEMA(temporal)
-        self._balanced: np.ndarray | None = None
         self.levels_state = levels_ema if levels_ema.weight > 0 and self.input_balance_pct is not None else None
         """Inside :meth:`sequence` with a ``temporal`` weight the balance's levels are averaged over the frames as the
         maps are (a per-frame balance alone flickers when the scene's extremes move)."""
@@ -130,10 +128,10 @@ class LiteRestorer(Restorer):
         with torch.inference_mode():
             x = images.to(self.device, torch.float32)
             if self.input_balance_pct is not None:  # the input the network was trained on
-                levels = _balance_levels(x, self.input_balance_pct)
+                levels = balance_levels_torch(x, self.input_balance_pct, self.input_balance_pct)
                 if self.levels_state is not None and self.temporal_hook() is not None:
                     levels = self.levels_state(levels)
-                x = _apply_levels(x, levels, self._balance_buffer(x))
+                x = _apply_levels(x, levels)
             step = self.batch or x.shape[0]
             model = self.model
             if model is None:  # an ONNX export: working image, padding and clamping are in its graph
@@ -160,17 +158,6 @@ class LiteRestorer(Restorer):
             out = out.clamp_(0.0, 1.0)
             enhanced = pad.crop(out) if native else out
         return RestoredTensor(enhanced, None)
-
-    def _balance_buffer(self, x: Tensor) -> np.ndarray | None:
-        """A reused (B, H, W, 3) float32 buffer for the balanced batch on the CPU (None elsewhere): one frame's worth
-        of memory is not allocated and faulted in again for every frame of a video. A restorer is used by one
-        thread at a time (it already keeps per-video state)."""
-        if x.device.type != "cpu":
-            return None
-        shape = (int(x.shape[0]), int(x.shape[2]), int(x.shape[3]), 3)
-        if self._balanced is None or self._balanced.shape != shape:
-            self._balanced = np.empty(shape, np.float32)
-        return self._balanced
 
     @contextlib.contextmanager
     def sequence(self) -> Iterator[None]:
@@ -208,26 +195,17 @@ def _forward_cpu(model: nn.Module, x: Tensor, work: Tensor, ema: FrameEMA | None
     return out.permute(0, 3, 1, 2)  # (B, 3, H, W) in channels-last memory
 
 
-def _balance_levels(x: Tensor, pct: float) -> Tensor:
-    """The balance's levels (B, 2, 3) of a batch (B, 3, H, W): on the CPU with the numpy twin per frame (one
-    partial sort, about 2x faster than torch's ``topk`` on a 640x480 frame's sample), elsewhere with the torch
-    twin; equal (tests/twins.py)."""
-    if x.device.type != "cpu":
-        return balance_levels_torch(x, pct, pct)
-    return torch.from_numpy(np.stack([balance_levels(f.permute(1, 2, 0).numpy(), pct, pct) for f in x]))
-
-
-def _apply_levels(x: Tensor, levels: Tensor, out: np.ndarray | None = None) -> Tensor:
+def _apply_levels(x: Tensor, levels: Tensor) -> Tensor:
     """The simplest colour balance of a batch (B, 3, H, W) with its levels (B, 2, 3): on the CPU with the numpy twin
-    per frame (OpenCV's threaded per-channel arithmetic on the channels-last frame, no transposition) into
-    ``out`` (B, H, W, 3) when given, elsewhere with the torch twin; equal (tests/twins.py)."""
+    per frame (OpenCV's threaded per-channel arithmetic on the channels-last frame, no transposition), elsewhere
+    with the torch twin; equal (tests/twins.py)."""
     if x.device.type != "cpu":
         return apply_levels_torch(x, levels)
-    if out is None:
-        out = np.empty((x.shape[0], x.shape[2], x.shape[3], 3), np.float32)
-    for i, (f, lv) in enumerate(zip(x, levels, strict=True)):
-        apply_levels(f.permute(1, 2, 0).numpy(), lv.numpy(), out=out[i])
-    return torch.from_numpy(out).permute(0, 3, 1, 2)  # channels-last memory
+    frames = [
+        torch.from_numpy(apply_levels(f.permute(1, 2, 0).numpy(), lv.numpy())).permute(2, 0, 1)
+        for f, lv in zip(x, levels, strict=True)
+    ]
+    return frames[0][None] if len(frames) == 1 else torch.stack(frames).contiguous(memory_format=torch.channels_last)
 
 
 STRIP_ROWS = 128

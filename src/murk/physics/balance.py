@@ -50,8 +50,8 @@ def _order_positions(n: int, pct: float) -> tuple[int, int, float]:
 def balance_levels(image: np.ndarray, low: float = 1.0, high: float = 1.0) -> np.ndarray:
     """The levels of the simplest colour balance of float RGB ``image`` (H, W, 3): float32 (2, 3), the ``low`` and
     ``100 - high`` percentiles of each channel (sample, then :func:`apply_levels`). The order statistics come from
-    one partial sort (``numpy.partition``, about 2x faster than ``numpy.percentile`` on a 640x480 frame's sample),
-    interpolated in float64 as the torch twin does."""
+    one partial sort (``numpy.partition``: 1.05 ms against ``numpy.percentile``'s 1.45 ms on a 640x480 frame's
+    sample, side by side; torch's ``topk`` in the twin takes 0.75 ms), interpolated in float64 as the twin does."""
     img = np.asarray(image, np.float32)
     s = stats_stride(img.shape[0], img.shape[1])
     sample = np.ascontiguousarray(img[::s, ::s].reshape(-1, 3).T)  # (3, n)
@@ -65,19 +65,14 @@ def balance_levels(image: np.ndarray, low: float = 1.0, high: float = 1.0) -> np
     return out
 
 
-def apply_levels(image: np.ndarray, levels: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+def apply_levels(image: np.ndarray, levels: np.ndarray) -> np.ndarray:
     """``clip((image - lo) / max(hi - lo, FLAT_RANGE), 0, 1)`` per channel with ``levels = [lo, hi]`` (2, 3);
-    float32 (H, W, 3), written into ``out`` (float32, the image's shape) when given (a restorer reuses one
-    buffer per frame size instead of allocating a frame's worth of memory each time)."""
+    float32 (H, W, 3)."""
     lo, hi = np.asarray(levels, np.float32)
     scale = np.float32(1.0) / np.maximum(hi - lo, np.float32(FLAT_RANGE))
     # OpenCV's per-channel scalar arithmetic: the same float32 subtract-then-multiply as numpy (bit-identical) in
     # one threaded pass each, 2.5x faster than numpy's ufuncs and clip at 640x480
-    src = np.ascontiguousarray(image, dtype=np.float32)
-    if out is None:
-        out = cv2.subtract(src, (*lo.tolist(), 0.0))  # type: ignore[call-overload]
-    else:
-        cv2.subtract(src, (*lo.tolist(), 0.0), dst=out)  # type: ignore[call-overload]
+    out = cv2.subtract(np.ascontiguousarray(image, dtype=np.float32), (*lo.tolist(), 0.0))  # type: ignore[call-overload]
     cv2.multiply(out, (*scale.tolist(), 0.0), dst=out)
     cv2.max(out, (0.0, 0.0, 0.0, 0.0), dst=out)
     cv2.min(out, (1.0, 1.0, 1.0, 1.0), dst=out)
