@@ -198,6 +198,12 @@ def test_bad_volume_options_are_refused(field: str, value: object, message: str)
         SnowConfig(**{field: value})  # type: ignore[arg-type]
 
 
+def test_a_lamp_needs_volume_snow() -> None:
+    with pytest.raises(ValueError, match="lamp: .*set volume_m"):
+        SnowConfig(lamp=0.2)
+    assert SnowConfig(lamp=0.2, volume_m=(0.3, 3.0)).lamp == 0.2
+
+
 def test_forward_scattering_blurs_far_layers_more() -> None:
     p = _vol(n=4000, focus_m=1.0)
     lay = snow_layout(p, 50, 64, 48)

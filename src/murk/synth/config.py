@@ -152,6 +152,8 @@ class SnowConfig:
         check_range("focus_m", self.focus_m, 0.01, 1000.0)
         check_range("defocus_px", self.defocus_px, 0.0, 100.0)
         check_range("lamp", self.lamp, 0.0, 100.0)
+        if self.lamp > 0 and self.volume_m is None:
+            raise ValueError("lamp: a lamp lights particles by their distance; set volume_m (volume snow) too")
         if self.motion_px is not None:
             check_interval("motion_px", self.motion_px, 0.0, 1000.0)
         if isinstance(self.layers, bool) or not (1 <= self.layers <= 64):
