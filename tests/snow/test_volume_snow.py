@@ -199,7 +199,7 @@ def test_bad_volume_options_are_refused(field: str, value: object, message: str)
 
 
 def test_a_lamp_needs_volume_snow() -> None:
-    with pytest.raises(ValueError, match="lamp: .*set volume_m"):
+    with pytest.raises(ValueError, match=r"lamp: .*set volume_m"):
         SnowConfig(lamp=0.2)
     assert SnowConfig(lamp=0.2, volume_m=(0.3, 3.0)).lamp == 0.2
 
