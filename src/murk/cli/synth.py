@@ -81,7 +81,11 @@ def synth(
     ] = None,
     snow_bank: Annotated[
         Path | None,
-        typer.Option("--snow-bank", help="Particle bank from 'murk snow extract' (default: the shipped one)."),
+        typer.Option(
+            "--snow-bank",
+            help="Particle bank from 'murk snow extract' or 'murk snow relight', or builtin:snow-real / "
+            "builtin:snow-small (default builtin:snow: 17,888 real-footage particles, relit).",
+        ),
     ] = None,
     data_format: Annotated[
         str,
