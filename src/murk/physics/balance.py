@@ -50,17 +50,17 @@ def _order_positions(n: int, pct: float) -> tuple[int, int, float]:
 def balance_levels(image: np.ndarray, low: float = 1.0, high: float = 1.0) -> np.ndarray:
     """The levels of the simplest colour balance of float RGB ``image`` (H, W, 3): float32 (2, 3), the ``low`` and
     ``100 - high`` percentiles of each channel (sample, then :func:`apply_levels`). The order statistics come from
-    one partial sort (``numpy.partition``: 1.05 ms against ``numpy.percentile``'s 1.45 ms on a 640x480 frame's
-    sample, side by side; torch's ``topk`` in the twin takes 0.75 ms), interpolated in float64 as the twin does."""
+    a full sort of each channel's sample: numpy's vectorised float32 sort is the fastest way measured (0.27 ms for
+    a 640x480 frame's 3 x 19,200 values against 0.78 ms for ``numpy.partition``, 1.3 ms for torch's ``topk`` and
+    8.4 ms for ``torch.sort``, side by side, 2 threads); interpolated in float64 as the twin does."""
     img = np.asarray(image, np.float32)
     s = stats_stride(img.shape[0], img.shape[1])
-    sample = np.ascontiguousarray(img[::s, ::s].reshape(-1, 3).T)  # (3, n)
-    n = sample.shape[1]
-    ranks = [_order_positions(n, float(low)), _order_positions(n, 100.0 - float(high))]
-    part = np.partition(sample, sorted({k for i0, i1, _ in ranks for k in (i0, i1)}), axis=1)
+    ordered = np.sort(img[::s, ::s].reshape(-1, 3).T, axis=1)  # (3, n), ascending
+    n = ordered.shape[1]
     out = np.empty((2, 3), np.float32)
-    for j, (i0, i1, frac) in enumerate(ranks):
-        v0, v1 = part[:, i0].astype(np.float64), part[:, i1].astype(np.float64)
+    for j, pct in enumerate((float(low), 100.0 - float(high))):
+        i0, i1, frac = _order_positions(n, pct)
+        v0, v1 = ordered[:, i0].astype(np.float64), ordered[:, i1].astype(np.float64)
         out[j] = v0 + frac * (v1 - v0)
     return out
 
