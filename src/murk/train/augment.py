@@ -83,6 +83,16 @@ def apply_augment(
     return inputs, targets, depth_m
 
 
+def augment_map(values: Tensor, params: AugmentParams, config: AugmentConfig) -> Tensor:
+    """The geometric part of :func:`apply_augment` (rotation, bilinear; flip) for a per-pixel map (B, 1, H, W) that
+    must stay aligned with the inputs and targets, e.g. the marine-snow alpha that weights ``loss.snow``."""
+    if not config.enabled:
+        return values
+    values = _rotate(values, params.angle_deg, "bilinear")
+    flip = params.flip.to(values.device).view(-1, 1, 1, 1)
+    return torch.where(flip, values.flip(-1), values)
+
+
 def centre_crop(arrays: list[np.ndarray], size_hw: tuple[int, int], *, source: str = "sample") -> list[np.ndarray]:
     """Centre-crop (H, W, ...) arrays to ``size_hw``. Raises ValueError naming ``source`` if one is smaller."""
     th, tw = size_hw

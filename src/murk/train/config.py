@@ -32,6 +32,11 @@ class LossWeights:
     laplacian: float = 0.1
     depth: float = 1.8
     ssim: float = 0.0
+    snow: float = 0.0
+    """Extra weight of the restoration error on the pixels covered by marine snow (Eq. 8's alpha of each training
+    input), inside the enhancement term: ``enhance * (L2 + laplacian * Lap + snow * L2_snow)``
+    (:func:`murk.train.losses.snow_l2`). Needs online synthesis with the ``marine_snow`` stage. 0: the original
+    loss."""
     silog_lambda: float = 0.85
     depth_min_m: float = 0.001
 
@@ -231,6 +236,12 @@ class TrainConfig:
     def __post_init__(self) -> None:
         if self.batch < 1:
             raise ValueError(f"batch: expected >= 1, got {self.batch}")
+        check_range("loss.snow", self.loss.snow, 0.0, 1000.0)
+        if self.loss.snow > 0 and "marine_snow" not in self.data.synthesis.stages:
+            raise ValueError(
+                "loss.snow: weights the pixels of the training input's marine snow; add marine_snow to "
+                "data.synthesis.stages (online synthesis) or set loss.snow to 0"
+            )
         if self.steps is not None and self.steps < 1:
             raise ValueError(f"steps: expected >= 1, got {self.steps}")
         check_positive("epochs", self.epochs)

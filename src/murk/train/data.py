@@ -249,7 +249,11 @@ class OnlineDegrader:
     def __call__(
         self, clean: torch.Tensor, depth_filled: torch.Tensor, epoch: int, indices: Sequence[int]
     ) -> torch.Tensor:
+        return self.render(clean, depth_filled, epoch, indices).degraded
+
+    def render(self, clean: torch.Tensor, depth_filled: torch.Tensor, epoch: int, indices: Sequence[int]) -> Any:
+        """The whole rendered batch (:class:`murk.synth.pipeline.BatchResult`: the degraded inputs and, with marine
+        snow, each input's particle alpha, which ``loss.snow`` weights)."""
         from murk.synth.pipeline import render_batch_torch
 
-        out = render_batch_torch(clean, depth_filled, self.params(epoch, indices), bank=self.bank)
-        return out.degraded
+        return render_batch_torch(clean, depth_filled, self.params(epoch, indices), bank=self.bank)

@@ -38,7 +38,7 @@ from murk.io.atomic import make_output_folder, write_text_atomic
 from murk.io.jobs import ErrorLog, JobSummary
 from murk.io.jsonl import append_jsonl, json_safe
 from murk.rng import derive_seed
-from murk.train.augment import apply_augment, sample_augment
+from murk.train.augment import apply_augment, augment_map, sample_augment
 from murk.train.config import TrainConfig
 from murk.train.data import record_unreadable
 from murk.train.evaluation import evaluate, to_device
@@ -143,6 +143,11 @@ def train(
     out = Path(config.out)
     check_run_folder(out, config, resume=resume)
     data = build_data(config)  # a bad source or snow bank stops here, before anything is written
+    if config.loss.snow > 0 and data.online is None:
+        raise ValueError(
+            f"loss.snow: needs the training inputs' marine snow, rendered online; data.source {config.data.source} "
+            f"is {data.kind} data (prerendered): use clean RGB-D or scenes, or set loss.snow to 0"
+        )
     if main_rank:
         make_output_folder(out, "run folder")
         write_text_atomic(out / "config.yaml", dump_yaml(config, murk_version=__version__, world_size=world))
@@ -209,15 +214,20 @@ def train(
         epoch, batch = next(it)
         record_unreadable(batch, errors)
         batch = to_device(batch, device)
+        snow_alpha = None
         if data.online is not None:
             with torch.no_grad():
-                inputs = data.online(batch["clean"], batch["depth_filled"], epoch, batch["index"].tolist())
-            targets = batch["clean"]
+                rendered = data.online.render(batch["clean"], batch["depth_filled"], epoch, batch["index"].tolist())
+            inputs, targets = rendered.degraded, batch["clean"]
+            if config.loss.snow > 0:
+                snow_alpha = rendered.snow_alpha
         else:
             inputs, targets = batch["input"], batch["target"]
         gen = torch.Generator().manual_seed(derive_seed(config.seed, "augment", step, rank))
         aug = sample_augment(inputs.shape[0], config.augment, gen)
         inputs, targets, depth = apply_augment(inputs, targets, batch["depth"], aug, config.augment)
+        if snow_alpha is not None:
+            snow_alpha = augment_map(snow_alpha, aug, config.augment)
         lr = schedule.lr(step)
         for group in optim.param_groups:
             group["lr"] = lr
@@ -225,7 +235,7 @@ def train(
         with autocast:
             enhanced, depth_m = run_network(kind, net, x, config.model.input_balance_pct)
         terms = jointid_loss(
-            enhanced.float(), targets, None if depth_m is None else depth_m.float(), depth, config.loss
+            enhanced.float(), targets, None if depth_m is None else depth_m.float(), depth, config.loss, snow_alpha
         )
         optim.zero_grad(set_to_none=True)
         terms.total.backward()
@@ -255,6 +265,8 @@ def train(
             }
             if not has_depth(kind):
                 del record["silog"]
+            if terms.snow is not None:
+                record["snow"] = float(terms.snow)
             emit(record)
         if step % config.eval.every == 0 or step == end:
             metrics = evaluate(model, data, config, device, step, errors) if main_rank else {}

@@ -9,6 +9,9 @@
 - ``SILog``: on pixels with gt > 0.001, ``d = log(pred) - log(gt)``, ``10 sqrt(mean(d^2) - 0.85 mean(d)^2)``.
 - An SSIM loss (window 11, sigma 1.5, weight 2.5) exists in the original but is disabled; it is available here
   with ``ssim_weight`` > 0.
+- murk's addition, off by default: ``L2_snow`` (:func:`snow_l2`), the error on the pixels the training input's
+  marine snow covers, weighted by ``loss.snow`` inside the enhancement term, so that particles left in the
+  output cost more than their share of the pixels (the real-snow issue).
 
 Reference: Yang, Kang, Lee, Cho, "Transformer-Based Joint Image Enhancement and Depth Estimation for Underwater
 Environments", IEEE Sensors Journal 2023, doi:10.1109/JSEN.2023.3338730 (facts from docs/spec/jointid.md).
@@ -30,6 +33,15 @@ _LAPLACE = torch.tensor([[0.0, -1.0, 0.0], [-1.0, 4.0, -1.0], [0.0, -1.0, 0.0]])
 def row_l2(pred: Tensor, target: Tensor) -> Tensor:
     """Row-wise Euclidean distance averaged over all (b, c, h) rows (Joint-ID's "L2")."""
     return torch.sqrt(((pred - target + 1e-6) ** 2).sum(dim=-1)).mean()
+
+
+def snow_l2(pred: Tensor, target: Tensor, alpha: Tensor) -> Tensor:
+    """The restoration error on the marine snow of the input, on the scale of :func:`row_l2`: with ``m`` the
+    alpha-weighted mean squared error per channel over the particles (alpha (B, 1, H, W), Eq. 8), ``sqrt(W m)``,
+    which is what :func:`row_l2` gives when every pixel of a row has that error. 0 when no particle is present."""
+    w = alpha.to(pred.dtype)
+    m = (w * (pred - target) ** 2).sum() / (w.sum() * pred.shape[1]).clamp(min=1e-8)
+    return torch.sqrt(pred.shape[-1] * m + 1e-12)
 
 
 def laplacian(x: Tensor) -> Tensor:
@@ -83,6 +95,8 @@ class LossTerms:
     lap: Tensor
     silog: Tensor
     ssim: Tensor
+    snow: Tensor | None = None
+    """``L2_snow`` when ``loss.snow`` > 0 and the inputs' snow alpha was given, else None."""
 
 
 def jointid_loss(
@@ -91,13 +105,21 @@ def jointid_loss(
     depth_m: Tensor | None,
     gt_depth_m: Tensor,
     weights: LossWeights = LossWeights(),
+    snow_alpha: Tensor | None = None,
 ) -> LossTerms:
-    """The full training loss: ``2.0 * (L2 + 0.1 Lap) + 1.8 SILog`` (+ ``ssim * (1 - SSIM)`` when enabled).
+    """The full training loss: ``2.0 * (L2 + 0.1 Lap) + 1.8 SILog`` (+ ``ssim * (1 - SSIM)`` when enabled; +
+    ``enhance * snow * L2_snow`` when ``weights.snow`` > 0 and the inputs' marine-snow alpha ``snow_alpha``
+    (B, 1, H, W) is given).
 
     ``depth_m`` None (a network without a depth head, e.g. ``lite``): the SILog term is left out (0)."""
     l2 = row_l2(enhanced, clean)
     lap = laplacian_l2(enhanced, clean)
-    total = weights.enhance * (l2 + weights.laplacian * lap)
+    enhance = l2 + weights.laplacian * lap
+    snow = None
+    if weights.snow > 0 and snow_alpha is not None:
+        snow = snow_l2(enhanced, clean, snow_alpha)
+        enhance = enhance + weights.snow * snow
+    total = weights.enhance * enhance
     if depth_m is None:
         si = torch.zeros((), device=enhanced.device)
     else:
@@ -107,4 +129,6 @@ def jointid_loss(
     if weights.ssim > 0:
         ssim_term = 1.0 - ssim_index(enhanced, clean)
         total = total + weights.ssim * ssim_term
-    return LossTerms(total, l2.detach(), lap.detach(), si.detach(), ssim_term.detach())
+    return LossTerms(
+        total, l2.detach(), lap.detach(), si.detach(), ssim_term.detach(), None if snow is None else snow.detach()
+    )
