@@ -186,3 +186,50 @@ def test_slim_checkpoint_halves_and_reloads(tmp_path: Path) -> None:
     x = normalize_input(torch.rand(1, 3, 64, 64, generator=torch.Generator().manual_seed(1)))
     with torch.no_grad():
         torch.testing.assert_close(back(x).enhanced, model(x).enhanced, atol=5e-3, rtol=0)
+
+
+def test_average_checkpoints_is_the_weighted_mean_of_the_weights(tmp_path: Path) -> None:
+    """The model soup the shipped weights were made with: float32 weighted mean, saved slim, balance kept."""
+    from murk.models.jointid import average_checkpoints
+
+    nets = []
+    for seed in (0, 1):
+        torch.manual_seed(seed)
+        net = build_jointid("tiny").eval()
+        net.input_balance_pct = 1.0
+        nets.append(net)
+    a = save_checkpoint(nets[0], tmp_path / "a.pt", step=1)
+    b = save_checkpoint(nets[1], tmp_path / "b.pt", step=2)
+    out = average_checkpoints([a, b], tmp_path / "soup.pt", weights=[0.25, 0.75], dtype=torch.float32, made_by="test")
+    soup = load_checkpoint(out)
+    assert soup.input_balance_pct == 1.0
+    assert torch.load(out, weights_only=True)["meta"]["made_by"] == "test"
+    sa, sb, ss = nets[0].state_dict(), nets[1].state_dict(), soup.state_dict()
+    for k, v in ss.items():
+        if v.is_floating_point():
+            torch.testing.assert_close(v, 0.25 * sa[k] + 0.75 * sb[k], atol=1e-7, rtol=1e-6)
+        else:
+            assert torch.equal(v, sa[k])
+    half = load_checkpoint(average_checkpoints([a, b], tmp_path / "half.pt"))  # equal weights, fp16 on disk
+    k = next(k for k, v in sa.items() if v.is_floating_point() and v.abs().max() > 0.01)
+    torch.testing.assert_close(half.state_dict()[k], 0.5 * (sa[k] + sb[k]), atol=2e-3, rtol=1e-3)
+
+
+def test_average_checkpoints_refuses_what_cannot_be_averaged(tmp_path: Path) -> None:
+    from murk.models.jointid import average_checkpoints
+
+    torch.manual_seed(0)
+    tiny = save_checkpoint(build_jointid("tiny"), tmp_path / "tiny.pt")
+    small = save_checkpoint(build_jointid("small"), tmp_path / "small.pt")
+    balanced_net = build_jointid("tiny")
+    balanced_net.input_balance_pct = 1.0
+    balanced = save_checkpoint(balanced_net, tmp_path / "balanced.pt")
+    with pytest.raises(ValueError, match="at least two"):
+        average_checkpoints([tiny], tmp_path / "x.pt")
+    with pytest.raises(ValueError, match="sum to 1"):
+        average_checkpoints([tiny, tiny], tmp_path / "x.pt", weights=[0.5, 0.6])
+    with pytest.raises(ValueError, match=r"small\.pt: another architecture"):
+        average_checkpoints([tiny, small], tmp_path / "x.pt")
+    with pytest.raises(ValueError, match=r"balanced\.pt: input_balance_pct"):
+        average_checkpoints([tiny, balanced], tmp_path / "x.pt")
+    assert not (tmp_path / "x.pt").exists()

@@ -3,6 +3,7 @@ checkpoint-compatible."""
 
 from murk.models.jointid.checkpoint import (
     CheckpointInfo,
+    average_checkpoints,
     load_checkpoint,
     read_checkpoint,
     save_checkpoint,
@@ -34,6 +35,7 @@ __all__ = [
     "JointID",
     "JointIDConfig",
     "JointIDOutput",
+    "average_checkpoints",
     "build_jointid",
     "depth_head_parameter_names",
     "fill_golden_",
