@@ -24,6 +24,8 @@ def test_shipped_file_is_small_safe_and_the_small_variant() -> None:
     assert obj["meta"]["command"].startswith("murk train --config configs/train-small-cpu.yaml")
     assert "murk train --config configs/train-small-depth-cpu.yaml" in obj["meta"]["command"]  # stage 2
     assert "murk train --config configs/train-small-balance-cpu.yaml" in obj["meta"]["command"]  # stage 4
+    assert "murk train --config configs/train-small-snow-cpu.yaml --stop-after 1000" in obj["meta"]["command"]
+    assert obj["meta"]["soup"]["weights"] == [0.5, 0.5]  # stage 5: stage 4 and its snow-weighted continuation
     assert obj["meta"]["input_balance_pct"] == 1.0
 
 
@@ -70,6 +72,7 @@ def test_recorded_run_configs_equal_the_shipped_configs() -> None:
         "configs/train-lite-cpu.yaml": "docs/models/lite-config.yaml",
         "configs/train-lite-balance-cpu.yaml": "docs/models/lite-balance-config.yaml",
         "configs/train-small-balance-cpu.yaml": "docs/models/jointid-small-balance-config.yaml",
+        "configs/train-small-snow-cpu.yaml": "docs/models/jointid-small-snow-config.yaml",
     }
     for shipped, recorded in pairs.items():
         a, b = (load_yaml(TrainConfig, root / p) for p in (shipped, recorded))
