@@ -9,6 +9,9 @@ One random frame per size, restored alternately by the two restorers of each met
 640x480 and 1280x720, ``jointid`` at 640x480), torch at 2 threads, after 3 warm-up calls; median ms per frame
 and the ratio shipped / previous. The network's own cost does not depend on its weights' values, so the
 difference is the balance (levels + one affine map with clamping per frame).
+
+Then the levels step inside the shipped ``lite`` restorer on the CPU: its torch twin (``topk``, what the restorer
+uses) against the numpy twin (a sort of the sample), swapped in for alternate calls of the same restorer.
 """
 
 from __future__ import annotations
@@ -51,6 +54,35 @@ def main() -> None:
                     times[key].append(time.perf_counter() - t0)
             a, b = (statistics.median(times[k]) * 1e3 for k in ("old", "new"))
             print(f"{name:<10} {w}x{h}: previous weights {a:7.2f} ms, shipped {b:7.2f} ms, ratio {b / a:.3f}")
+    levels_ab(pairs["lite"][1], args.rounds)
+
+
+def levels_ab(restorer: object, rounds: int) -> None:
+    """The shipped lite restorer with its levels from the torch twin (``topk``, what it uses) and from the numpy twin
+    (a sort of the sample, per frame), alternately: the same levels, bit for bit."""
+    from murk.enhance import lite_restorer
+    from murk.physics.balance import balance_levels
+
+    torch_levels = lite_restorer.balance_levels_torch
+
+    def numpy_levels(x: torch.Tensor, low: float, high: float) -> torch.Tensor:
+        return torch.from_numpy(np.stack([balance_levels(f.permute(1, 2, 0).numpy(), low, high) for f in x]))
+
+    variants = {"torch": torch_levels, "numpy": numpy_levels}
+    try:
+        for h, w in [(480, 640), (720, 1280)]:
+            img = np.random.default_rng(0).random((1, h, w, 3), dtype=np.float32)
+            times: dict[str, list[float]] = {k: [] for k in variants}
+            for _ in range(rounds + 3):
+                for key, fn in variants.items():
+                    lite_restorer.balance_levels_torch = fn  # type: ignore[assignment]
+                    t0 = time.perf_counter()
+                    restorer.restore(img)  # type: ignore[attr-defined]
+                    times[key].append(time.perf_counter() - t0)
+            a, b = (statistics.median(times[k][3:]) * 1e3 for k in ("torch", "numpy"))
+            print(f"lite levels {w}x{h}: torch twin {a:7.2f} ms, numpy twin {b:7.2f} ms, ratio {b / a:.3f}")
+    finally:
+        lite_restorer.balance_levels_torch = torch_levels
 
 
 if __name__ == "__main__":

@@ -25,7 +25,6 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
@@ -43,7 +42,7 @@ from murk.models.lite.network import (
     work_size,
 )
 from murk.models.padding import pad_to_multiple
-from murk.physics.balance import apply_levels, apply_levels_torch, balance_levels, balance_levels_torch
+from murk.physics.balance import apply_levels, apply_levels_torch, balance_levels_torch
 
 
 class LiteRestorer(Restorer):
@@ -129,7 +128,7 @@ class LiteRestorer(Restorer):
         with torch.inference_mode():
             x = images.to(self.device, torch.float32)
             if self.input_balance_pct is not None:  # the input the network was trained on
-                levels = _balance_levels(x, self.input_balance_pct)
+                levels = balance_levels_torch(x, self.input_balance_pct, self.input_balance_pct)
                 if self.levels_state is not None and self.temporal_hook() is not None:
                     levels = self.levels_state(levels)
                 x = _apply_levels(x, levels)
@@ -194,15 +193,6 @@ def _forward_cpu(model: nn.Module, x: Tensor, work: Tensor, ema: FrameEMA | None
             rows = slice(r0, r0 + STRIP_ROWS)
             out[i, rows] = apply_maps_hwc(up[rows], frame[rows])
     return out.permute(0, 3, 1, 2)  # (B, 3, H, W) in channels-last memory
-
-
-def _balance_levels(x: Tensor, pct: float) -> Tensor:
-    """The levels (B, 2, 3) of the simplest colour balance of a batch (B, 3, H, W): on the CPU with the numpy twin
-    per frame (numpy's sort of the sample: 0.60 ms per channels-last 640x480 frame against 0.66 ms for the torch
-    twin's ``topk``, medians of 200 interleaved calls), elsewhere with the torch twin; equal (tests/twins.py)."""
-    if x.device.type != "cpu":
-        return balance_levels_torch(x, pct, pct)
-    return torch.from_numpy(np.stack([balance_levels(f.permute(1, 2, 0).numpy(), pct, pct) for f in x]))
 
 
 def _apply_levels(x: Tensor, levels: Tensor) -> Tensor:

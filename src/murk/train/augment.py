@@ -69,13 +69,9 @@ def apply_augment(
     """Apply ``params`` to a batch: inputs and targets (B, 3, H, W) in [0, 1], depth (B, 1, H, W) metres."""
     if not config.enabled:
         return inputs, targets, depth_m
-    inputs = _rotate(inputs, params.angle_deg, "bicubic").clamp(0.0, 1.0)
-    targets = _rotate(targets, params.angle_deg, "bicubic").clamp(0.0, 1.0)
-    depth_m = _rotate(depth_m, params.angle_deg, "nearest")
-    flip = params.flip.to(inputs.device).view(-1, 1, 1, 1)
-    inputs = torch.where(flip, inputs.flip(-1), inputs)
-    targets = torch.where(flip, targets.flip(-1), targets)
-    depth_m = torch.where(flip, depth_m.flip(-1), depth_m)
+    inputs = _geometric(inputs, params, "bicubic").clamp(0.0, 1.0)
+    targets = _geometric(targets, params, "bicubic").clamp(0.0, 1.0)
+    depth_m = _geometric(depth_m, params, "nearest")
     colour = params.color.to(inputs.device).view(-1, 1, 1, 1)
     scale = (params.brightness.view(-1, 1) * params.gain).to(inputs).view(-1, 3, 1, 1)
     inputs = torch.where(colour, (inputs * scale).clamp(0.0, 1.0), inputs)
@@ -86,11 +82,14 @@ def apply_augment(
 def augment_map(values: Tensor, params: AugmentParams, config: AugmentConfig) -> Tensor:
     """The geometric part of :func:`apply_augment` (rotation, bilinear; flip) for a per-pixel map (B, 1, H, W) that
     must stay aligned with the inputs and targets, e.g. the marine-snow alpha that weights ``loss.snow``."""
-    if not config.enabled:
-        return values
-    values = _rotate(values, params.angle_deg, "bilinear")
-    flip = params.flip.to(values.device).view(-1, 1, 1, 1)
-    return torch.where(flip, values.flip(-1), values)
+    return _geometric(values, params, "bilinear") if config.enabled else values
+
+
+def _geometric(x: Tensor, params: AugmentParams, mode: str) -> Tensor:
+    """Rotation (interpolated with ``mode``), then the horizontal flip, of a batch (B, C, H, W)."""
+    x = _rotate(x, params.angle_deg, mode)
+    flip = params.flip.to(x.device).view(-1, 1, 1, 1)
+    return torch.where(flip, x.flip(-1), x)
 
 
 def centre_crop(arrays: list[np.ndarray], size_hw: tuple[int, int], *, source: str = "sample") -> list[np.ndarray]:
