@@ -206,3 +206,24 @@ def test_study_result_is_a_job_summary_with_failed_arms_in_errors_jsonl(tmp_path
     (rec,) = read_errors(tmp_path / "errors.jsonl")
     assert (rec.stage, rec.index, rec.error) == ("train", 2, "arm proposed: exit 1")
     assert rec.input == str(tmp_path / "models" / "proposed")
+
+
+def test_final_recipe_studies_differ_only_in_stages() -> None:
+    """The ablations with the final data recipe (lite and the small Joint-ID) load; their arms are the paper's three
+    stage sets, each with the camera stage, and each arm's config is the training config with only the stages
+    changed (trained from scratch: no init checkpoint)."""
+    from murk._config import merge
+
+    root = Path(__file__).resolve().parents[2] / "configs"
+    for name, variant in (("study-lite-balance-cpu.yaml", "base"), ("study-small-balance-cpu.yaml", "small")):
+        study, base = load_study(root / name)
+        assert [a.stages for a in study.arms] == [
+            ("basic", "camera"),
+            ("basic", "forward_scatter", "camera"),
+            ("basic", "forward_scatter", "marine_snow", "camera"),
+        ]
+        assert base.model.variant == variant and base.model.init_checkpoint is None
+        assert study.eval.synthetic_balance_pct == 0.5
+        for arm in study.arms:
+            expected = merge(base, {"data": {"synthesis": {"stages": list(arm.stages)}}, "out": f"X/models/{arm.name}"})
+            assert arm_config(base, arm, "X") == expected
