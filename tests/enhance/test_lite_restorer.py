@@ -129,34 +129,3 @@ def test_the_opencv_upsampling_path_equals_the_network(lite_ckpt: Path, hw: tupl
         else:
             ref = net(x)
     np.testing.assert_allclose(got, ref.clamp(0, 1).permute(0, 2, 3, 1).numpy(), atol=5e-5)
-
-
-@pytest.mark.parametrize("hw", [(150, 211), (480, 640), (97, 1000)])
-def test_the_fused_balance_equals_balancing_the_whole_frame_first(lite_ckpt: Path, hw: tuple[int, int]) -> None:
-    """With a balanced-input checkpoint the CPU restorer applies the colour balance strip by strip inside its two
-    passes over the frame; the result is bit-identical to balancing the whole frame, pooling it to the working
-    image and applying the maps, and within float rounding of the network's own forward on the balanced frame."""
-    from murk.enhance import lite_restorer as lr
-    from murk.models.lite.checkpoint import load_lite
-    from murk.models.lite.network import work_image
-    from murk.physics.balance import balance_levels_torch, color_balance_torch
-
-    net = load_lite(lite_ckpt)
-    net.input_balance_pct = 1.0
-    restorer = lr.LiteRestorer(net, batch=1)
-    imgs = _images(3, *hw) ** 2  # dark, so that the balance moves every channel
-    got = restorer.restore(imgs).images
-    x = torch.from_numpy(imgs).permute(0, 3, 1, 2)
-    with torch.inference_mode():
-        levels = balance_levels_torch(x, 1.0, 1.0)
-        balanced = lr._apply_levels(x, levels).contiguous(memory_format=torch.channels_last)
-        assert torch.equal(
-            lr._balanced_work_image(x.contiguous(memory_format=torch.channels_last), levels, net.config.work_area_px),
-            work_image(balanced, net.config.work_area_px),
-        )
-        unfused = torch.cat(  # a frame at a time, as the restorer's batch=1 runs the network
-            [lr._forward_cpu(restorer.model, b[None], work_image(b[None], net.config.work_area_px)) for b in balanced]
-        )
-        ref = net(color_balance_torch(x, 1.0, 1.0))
-    np.testing.assert_array_equal(got, unfused.clamp(0, 1).permute(0, 2, 3, 1).numpy())
-    np.testing.assert_allclose(got, ref.clamp(0, 1).permute(0, 2, 3, 1).numpy(), atol=5e-5)

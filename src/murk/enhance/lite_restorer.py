@@ -21,7 +21,6 @@ the previous frames in an average of the low-resolution maps over a video's fram
 from __future__ import annotations
 
 import contextlib
-import math
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -128,30 +127,17 @@ class LiteRestorer(Restorer):
             raise ShapeError(f"images: expected shape (B, 3, H, W), got {tuple(images.shape)}")
         with torch.inference_mode():
             x = images.to(self.device, torch.float32)
-            levels: Tensor | None = None
             if self.input_balance_pct is not None:  # the input the network was trained on
                 levels = balance_levels_torch(x, self.input_balance_pct, self.input_balance_pct)
                 if self.levels_state is not None and self.temporal_hook() is not None:
                     levels = self.levels_state(levels)
+                x = _apply_levels(x, levels)
             step = self.batch or x.shape[0]
             model = self.model
-            native = work_size(x.shape[-2], x.shape[-1], self.work_area_px) is None
-            if levels is not None and model is not None and self.device.type == "cpu" and not native:
-                # the balance fused into the two strip passes over the frame (working image, then the maps):
-                # the balanced frame is never written out whole; the same result bit for bit
-                x = x.contiguous(memory_format=torch.channels_last)
-                outs = []
-                for i in range(0, x.shape[0], step):
-                    chunk, lv = x[i : i + step], levels[i : i + step]
-                    work = _balanced_work_image(chunk, lv, self.work_area_px)
-                    outs.append(_forward_cpu(model, chunk, work, self.temporal_hook(), levels=lv))
-                out = outs[0] if len(outs) == 1 else torch.cat(outs)
-                return RestoredTensor(out.clamp_(0.0, 1.0), None)
-            if levels is not None:
-                x = _apply_levels(x, levels)
             if model is None:  # an ONNX export: working image, padding and clamping are in its graph
                 outs = [self._backend(x[i : i + step]) for i in range(0, x.shape[0], step)]
                 return RestoredTensor(outs[0] if len(outs) == 1 else torch.cat(outs), None)
+            native = work_size(x.shape[-2], x.shape[-1], self.work_area_px) is None
             if native:  # the frame itself is the working image: its sides must be multiples of 16
                 x, pad = pad_to_multiple(x, SIZE_MULTIPLE, "reflect")
             x = x.contiguous(memory_format=torch.channels_last)
@@ -186,16 +172,12 @@ class LiteRestorer(Restorer):
         return f"LiteRestorer({backend}, device={self.device}, batch={self.batch})"
 
 
-def _forward_cpu(
-    model: nn.Module, x: Tensor, work: Tensor, ema: FrameEMA | None = None, *, levels: Tensor | None = None
-) -> Tensor:
+def _forward_cpu(model: nn.Module, x: Tensor, work: Tensor, ema: FrameEMA | None = None) -> Tensor:
     """The network's forward on the CPU with the full-resolution upsampling done by OpenCV: the same result as
     ``model(x, work)`` (bilinear with half-pixel centres, as torch's; equal within 5e-5, pinned by tests) and
     about 9x faster for the 12 maps of a 1280x720 frame than ``F.interpolate`` on 2 threads. The maps are applied
     in strips of :data:`STRIP_ROWS` rows so that the temporaries stay in the cache (2x faster at 1280x720).
-    ``ema`` averages the low-resolution maps over consecutive frames first. ``levels`` (B, 2, 3): ``x`` is the
-    frame before the colour balance, which is applied to each strip as it is used (:func:`_apply_levels`'s
-    result, bit for bit)."""
+    ``ema`` averages the low-resolution maps over consecutive frames first."""
     import cv2
 
     maps = model.maps(work)  # type: ignore[operator]
@@ -209,8 +191,7 @@ def _forward_cpu(
         frame = x[i].permute(1, 2, 0)
         for r0 in range(0, h, STRIP_ROWS):
             rows = slice(r0, r0 + STRIP_ROWS)
-            strip = frame[rows] if levels is None else _balanced_hwc(frame[rows], levels[i])
-            out[i, rows] = apply_maps_hwc(up[rows], strip)
+            out[i, rows] = apply_maps_hwc(up[rows], frame[rows])
     return out.permute(0, 3, 1, 2)  # (B, 3, H, W) in channels-last memory
 
 
@@ -225,34 +206,6 @@ def _apply_levels(x: Tensor, levels: Tensor) -> Tensor:
         for f, lv in zip(x, levels, strict=True)
     ]
     return frames[0][None] if len(frames) == 1 else torch.stack(frames).contiguous(memory_format=torch.channels_last)
-
-
-def _balanced_hwc(frame: Tensor, levels: Tensor) -> Tensor:
-    """The colour balance of one frame or strip (H, W, 3) with its levels (2, 3) (numpy twin, OpenCV)."""
-    return torch.from_numpy(apply_levels(frame.numpy(), levels.numpy()))
-
-
-def _balanced_work_image(x: Tensor, levels: Tensor, work_area_px: int) -> Tensor:
-    """``work_image(_apply_levels(x, levels), work_area_px)`` for a batch (B, 3, H, W) larger than the working
-    area, computed in strips of rows whose area-pooling windows do not cross a strip border (``H / gcd(H, h)``
-    input rows make ``h / gcd(H, h)`` working rows, and torch's area windows are aligned to them), so the
-    balanced frame is never held whole: the same result bit for bit (pinned by a test)."""
-    size = work_size(int(x.shape[-2]), int(x.shape[-1]), work_area_px)
-    if size is None:
-        raise ValueError(f"x: a frame of {tuple(x.shape[-2:])} is its own working image (no pooling)")
-    big_h, small_h = int(x.shape[-2]), size[0]
-    g = math.gcd(big_h, small_h)
-    unit_in, unit_out = big_h // g, small_h // g
-    per = max(1, STRIP_ROWS // unit_in)  # units per strip
-    out = torch.empty((x.shape[0], 3, *size), dtype=x.dtype).contiguous(memory_format=torch.channels_last)
-    for i in range(x.shape[0]):
-        frame = x[i].permute(1, 2, 0)
-        for u in range(0, g, per):
-            n = min(per, g - u)
-            strip = _balanced_hwc(frame[u * unit_in : (u + n) * unit_in], levels[i]).permute(2, 0, 1)[None]
-            pooled = F.interpolate(strip, size=(n * unit_out, size[1]), mode="area")
-            out[i, :, u * unit_out : (u + n) * unit_out] = pooled[0]
-    return out
 
 
 STRIP_ROWS = 128
