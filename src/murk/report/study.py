@@ -178,6 +178,7 @@ def evaluate_study(
             [parse_method(s) for s in pair_specs],
             out / "real_pairs",
             max_side=ev.real_pairs_max_side,
+            contrasts=arm_contrasts([a.name for a in study.arms]),
             on_event=say,
         )
     if ev.snow_pairs:
@@ -227,22 +228,49 @@ def pair_sets(folder: Path) -> dict[str, Path]:
     return sets
 
 
+def paired_contrasts(
+    rows: list[dict[str, Any]], contrasts: list[tuple[str, str]], keys: tuple[str, ...] = ("psnr", "ciede2000")
+) -> list[dict[str, Any]]:
+    """Method ``a`` against method ``b`` for each ``(a, b)`` of ``contrasts``, paired over the images both scored:
+    per key the mean and standard deviation of ``a - b`` over the images, how many images have ``a > b``, and the
+    paired t statistic (mean / (sd / sqrt(n)); NaN under two images or with no spread). ``rows``: dicts with
+    ``set``, ``image``, ``method`` and the keys (``murk compare`` rows, tagged with their set)."""
+    table = {(r["set"], r["image"], r["method"]): r for r in rows}
+    out = []
+    for a, b in contrasts:
+        images = sorted({(st, im) for st, im, m in table if m == a and (st, im, b) in table})
+        entry: dict[str, Any] = {"a": a, "b": b, "n": len(images)}
+        for k in keys:
+            vals = [float(table[(st, im, a)][k]) - float(table[(st, im, b)][k]) for st, im in images]
+            d = [v for v in vals if math.isfinite(v)]
+            n = len(d)
+            mean = sum(d) / n if n else float("nan")
+            sd = math.sqrt(sum((v - mean) ** 2 for v in d) / (n - 1)) if n > 1 else float("nan")
+            t = mean / (sd / math.sqrt(n)) if n > 1 and sd > 0 else float("nan")
+            entry[k] = {"mean": mean, "std": sd, "n": n, "higher": sum(v > 0 for v in d), "t": t}
+        out.append(entry)
+    return out
+
+
 def evaluate_real_pairs(
     folder: Path,
     methods: list[Any],
     out: Path,
     *,
     max_side: int,
+    contrasts: list[tuple[str, str]] | None = None,
     on_event: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
     """Score ``methods`` on every real paired set of ``folder`` (:func:`pair_sets`) with ``murk compare --ref``
     into ``out/<set>/``; the result holds each set's summary and, per method, the mean over sets of each set's
-    mean PSNR / SSIM / CIEDE2000 and paired differences (each set counted once)."""
+    mean PSNR / SSIM / CIEDE2000 and paired differences (each set counted once), and the ``contrasts`` between
+    methods paired over all images of all sets (:func:`paired_contrasts`)."""
     from murk.io.images import list_images
     from murk.report.compare import PAIRED_KEYS, REF_KEYS, run_compare
 
     say = on_event or (lambda _m: None)
     sets: dict[str, Any] = {}
+    rows: list[dict[str, Any]] = []
     for name, path in pair_sets(folder).items():
         images = list_images(path / "input", unusable=True)
         say(f"real pairs {name}: {len(images)} images x {len(methods)} methods")
@@ -255,6 +283,7 @@ def evaluate_real_pairs(
             title=f"murk study: real pairs ({name})",
         )
         sets[name] = {"folder": str(path), "images": len(images), "summary": res.summary, "errors": res.errors}
+        rows += [{**r, "set": name} for r in res.rows]
     labels = [m.label for m in methods]
     over_sets: dict[str, dict[str, float]] = {}
     for lab in labels:
@@ -262,7 +291,21 @@ def evaluate_real_pairs(
         for k in (*REF_KEYS, *PAIRED_KEYS):
             means = [s["summary"][lab][k]["mean"] for s in sets.values() if s["summary"][lab][k]["n"]]
             over_sets[lab][k] = sum(means) / len(means) if means else float("nan")
-    return {"folder": str(folder), "max_side": max_side, "methods": labels, "sets": sets, "mean_over_sets": over_sets}
+    return {
+        "folder": str(folder),
+        "max_side": max_side,
+        "methods": labels,
+        "sets": sets,
+        "mean_over_sets": over_sets,
+        "contrasts": paired_contrasts(rows, contrasts or []),
+    }
+
+
+def arm_contrasts(arms: list[str]) -> list[tuple[str, str]]:
+    """The arm comparisons a study reports: each arm against the one before (what its added stage does), and
+    the last against the first when there are more than two arms."""
+    pairs = [(arms[i], arms[i - 1]) for i in range(1, len(arms))]
+    return [*pairs, (arms[-1], arms[0])] if len(arms) > 2 else pairs
 
 
 def _training_record(study: StudyConfig, base: TrainConfig, out: Path) -> dict[str, Any]:
@@ -324,6 +367,24 @@ def real_pairs_markdown(pairs: dict[str, Any]) -> list[str]:
     for m in pairs["methods"]:
         o = pairs["mean_over_sets"][m]
         lines.append(f"| {m} | {o['psnr']:.2f} | {o['ssim']:.3f} | {o['ciede2000']:.2f} |")
+    contrasts = [c for c in pairs.get("contrasts", []) if c["n"]]
+    if contrasts:
+        lines += [
+            "",
+            "### Arms against each other: paired over all images of all sets",
+            "",
+            "a - b per image: mean +- sd, images where a's value is higher, paired t (n - 1 degrees of freedom). "
+            "Higher PSNR is better, higher CIEDE2000 worse.",
+            "",
+            "| a - b | images | PSNR dB | PSNR higher on | t | CIEDE2000 | CIEDE2000 higher on | t |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        for c in contrasts:
+            p, e = c["psnr"], c["ciede2000"]
+            lines.append(
+                f"| {c['a']} - {c['b']} | {c['n']} | {p['mean']:+.2f} +- {p['std']:.2f} | {p['higher']} | "
+                f"{p['t']:.2f} | {e['mean']:+.2f} +- {e['std']:.2f} | {e['higher']} | {e['t']:.2f} |"
+            )
     return [*lines, ""]
 
 
