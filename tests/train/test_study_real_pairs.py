@@ -124,7 +124,7 @@ def test_arm_contrasts_pair_each_arm_with_the_one_before_and_the_last_with_the_f
 
 def test_paired_contrasts_are_per_image_differences_over_all_sets() -> None:
     """a - b per image over both sets (an image name repeated in two sets is two images); an image scored by one
-    method only is left out; the t statistic is mean / (sd / sqrt(n))."""
+    method only, or a metric missing or NaN for an image, is left out; the t statistic is mean / (sd / sqrt(n))."""
     from murk.report.study import paired_contrasts, real_pairs_markdown
 
     d_psnr = {("s1", "x.png"): 1.0, ("s1", "y.png"): 2.0, ("s2", "x.png"): -0.5, ("s2", "z.png"): 3.5}
@@ -133,9 +133,12 @@ def test_paired_contrasts_are_per_image_differences_over_all_sets() -> None:
         rows.append({"set": st, "image": im, "method": "b", "psnr": 20.0, "ciede2000": 10.0})
         rows.append({"set": st, "image": im, "method": "a", "psnr": 20.0 + d, "ciede2000": 10.0 - d})
     rows.append({"set": "s2", "image": "only_a.png", "method": "a", "psnr": 99.0, "ciede2000": 0.0})
+    rows.append({"set": "s3", "image": "unscored.png", "method": "a", "psnr": float("nan")})  # no ciede2000 key
+    rows.append({"set": "s3", "image": "unscored.png", "method": "b", "psnr": 20.0})
     (c,) = paired_contrasts(rows, [("a", "b")])
     diffs = np.array(list(d_psnr.values()))
-    assert c["n"] == 4 and c["psnr"]["higher"] == 3 and c["ciede2000"]["higher"] == 1
+    assert c["n"] == 5 and c["psnr"]["n"] == 4 and c["ciede2000"]["n"] == 4
+    assert c["psnr"]["higher"] == 3 and c["ciede2000"]["higher"] == 1
     assert c["psnr"]["mean"] == pytest.approx(diffs.mean()) and c["ciede2000"]["mean"] == pytest.approx(-diffs.mean())
     assert c["psnr"]["std"] == pytest.approx(diffs.std(ddof=1))
     assert c["psnr"]["t"] == pytest.approx(diffs.mean() / (diffs.std(ddof=1) / 2.0))
@@ -143,4 +146,4 @@ def test_paired_contrasts_are_per_image_differences_over_all_sets() -> None:
     assert same["psnr"]["mean"] == 0.0 and np.isnan(same["psnr"]["t"])  # no spread: no t
     pairs = {"max_side": 256, "folder": "F", "sets": {}, "methods": [], "mean_over_sets": {}, "contrasts": [c]}
     md = "\n".join(real_pairs_markdown(pairs))
-    assert "### Arms against each other" in md and "| a - b | 4 | +1.50 +- 1.68 | 3 | 1.78 |" in md
+    assert "### Arms against each other" in md and "| a - b | 5 | +1.50 +- 1.68 | 3 | 1.78 |" in md

@@ -241,8 +241,9 @@ def paired_contrasts(
         images = sorted({(st, im) for st, im, m in table if m == a and (st, im, b) in table})
         entry: dict[str, Any] = {"a": a, "b": b, "n": len(images)}
         for k in keys:
-            vals = [float(table[(st, im, a)][k]) - float(table[(st, im, b)][k]) for st, im in images]
-            d = [v for v in vals if math.isfinite(v)]
+            pairs = [(table[(st, im, a)].get(k), table[(st, im, b)].get(k)) for st, im in images]
+            vals = [float(va) - float(vb) for va, vb in pairs if va is not None and vb is not None]
+            d = [v for v in vals if math.isfinite(v)]  # an image a metric could not score is left out
             n = len(d)
             mean = sum(d) / n if n else float("nan")
             sd = math.sqrt(sum((v - mean) ** 2 for v in d) / (n - 1)) if n > 1 else float("nan")
