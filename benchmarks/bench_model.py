@@ -36,7 +36,7 @@ from murk._config import load_yaml, merge
 from murk.data import sample_underwater_images, shipped_jointid_weights, shipped_lite_weights
 from murk.enhance.restorer import create
 from murk.io import read_rgb
-from murk.metrics import restoration_measures
+from murk.metrics import psnr, restoration_measures
 from murk.report.heldout import heldout_table, make_heldout, score_heldout
 from murk.train.config import TrainConfig
 
@@ -55,8 +55,7 @@ def affine_fit_psnr(outputs: np.ndarray, refs: np.ndarray) -> float:
             design = np.stack([out[..., c].ravel(), np.ones(out[..., c].size)], axis=1)
             coef = np.linalg.lstsq(design, ref[..., c].ravel(), rcond=None)[0]
             fitted[..., c] = coef[0] * out[..., c] + coef[1]
-        mse = float(np.mean((np.clip(fitted, 0.0, 1.0) - ref) ** 2))
-        values.append(10.0 * np.log10(1.0 / max(mse, 1e-12)))
+        values.append(psnr(np.clip(fitted, 0.0, 1.0), ref, data_range=1.0))
     return float(np.mean(values))
 
 
