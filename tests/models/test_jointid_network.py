@@ -326,3 +326,32 @@ def test_smooth_shuffled_equals_the_separable_triangle_convolution(r: int) -> No
     ref = F.conv2d(ref, k.view(1, 1, 1, -1).expand(3, 1, 1, -1), groups=3)
     ref = F.conv2d(ref, k.view(1, 1, -1, 1).expand(3, 1, -1, 1), groups=3)
     torch.testing.assert_close(smooth_shuffled(x, r), ref, rtol=0, atol=1e-6)
+
+
+def test_global_colour_head_starts_at_identity_and_maps_each_channel() -> None:
+    """The head adds parameters only when asked, starts as the identity, and then applies (1 + g) * logit + b."""
+    from dataclasses import replace
+
+    from murk.models.jointid.network import RESIDUAL_EPS, VARIANTS
+
+    torch.manual_seed(5)
+    plain = build_jointid("small")
+    headed = build_jointid(replace(VARIANTS["small"], global_colour=True))
+    assert not [n for n in plain.state_dict() if "global_colour" in n]
+    missing = headed.load_state_dict(plain.state_dict(), strict=False).missing_keys
+    assert missing and all(n.startswith("global_colour_head.") for n in missing)
+    x = normalize_input(torch.rand(2, 3, 64, 96, generator=torch.Generator().manual_seed(1)))
+    with torch.no_grad():
+        p, h = plain(x), headed(x)
+        assert torch.equal(p.enhanced, h.enhanced) and torch.equal(p.depth_m, h.depth_m)
+        head = headed.global_colour_head
+        assert head is not None
+        head.fc2.bias.copy_(torch.tensor([0.5, 0.0, -1.0, 0.2, 0.0, 0.3]))  # gains 1.5, 1, 0; offsets .2, 0, .3
+        out = headed(x).enhanced
+    logit = torch.logit(p.enhanced.double(), eps=RESIDUAL_EPS / 10)
+    expect = torch.sigmoid(
+        logit * torch.tensor([1.5, 1.0, 0.0]).view(1, 3, 1, 1).double()
+        + torch.tensor([0.2, 0.0, 0.3]).view(1, 3, 1, 1).double()
+    )
+    torch.testing.assert_close(out.double(), expect, atol=2e-4, rtol=0)
+    assert torch.allclose(out[:, 2], torch.sigmoid(torch.tensor(0.3)))  # gain 0: the offset alone

@@ -88,3 +88,21 @@ def test_export_leaves_a_training_model_untouched(tmp_path, tiny):
     finally:
         tiny.eval()
     assert (tmp_path / "t.onnx").is_file()
+
+
+def test_a_network_with_the_global_colour_head_exports_and_matches(tmp_path):
+    from dataclasses import replace
+
+    from murk.models.jointid import VARIANTS
+
+    torch.manual_seed(1)
+    model = build_jointid(replace(VARIANTS["tiny"], global_colour=True)).eval()
+    head = model.global_colour_head
+    assert head is not None
+    with torch.no_grad():  # a head that is not the identity
+        head.fc2.weight.normal_(0.0, 0.05)
+        head.fc2.bias.copy_(torch.tensor([0.2, -0.1, 0.0, 0.3, 0.0, -0.2]))
+    runner = OnnxJointID(export_onnx(model, tmp_path / "gc.onnx"), threads=1)
+    for shape in [(1, 3, 64, 96), (1, 3, 61, 97)]:
+        diff = compare_onnx(model, runner, torch.rand(shape, generator=torch.Generator().manual_seed(7)))
+        assert diff["depth_m"] < 1e-4 and diff["enhanced"] < 1e-5, diff

@@ -264,3 +264,49 @@ def test_trainable_depth_head_needs_a_checkpoint_and_a_jointid() -> None:
         merge(TrainConfig(), {"model": {"trainable": "depth_head"}})
     with pytest.raises(ValueError, match="jointid only"):
         merge(TrainConfig(), {"model": {"kind": "lite", "trainable": "depth_head", "init_checkpoint": "x.pt"}})
+
+
+def test_colour_head_trains_alone_on_weights_saved_without_it(synth_folder: Path, tmp_path: Path) -> None:
+    from murk.models.jointid import build_jointid, save_checkpoint
+
+    torch.manual_seed(4)
+    start = tmp_path / "start.pt"
+    save_checkpoint(build_jointid("tiny"), start)  # no head in the file
+    cfg = _config(
+        tmp_path / "run",
+        synth_folder,
+        steps=4,
+        model={"variant": "tiny", "init_checkpoint": str(start), "global_colour": True, "trainable": "colour_head"},
+        optim={"lr": 1e-2, "min_lr": 1e-2},
+    )
+    train(cfg)
+    a, b = _params(start), _params(tmp_path / "run" / "latest.pt")
+    assert all(torch.equal(a[k], b[k]) for k in a)  # the network itself is untouched
+    head = {k for k in b if k not in a}
+    assert head and all(k.startswith("global_colour_head.") for k in head)
+    assert b["global_colour_head.fc2.weight"].abs().sum() > 0  # it learned (it started at zero)
+    after = load_checkpoint(tmp_path / "run" / "latest.pt")
+    assert after.config.global_colour
+    x = torch.rand(2, 3, 32, 64)
+    with torch.no_grad():
+        ob, oa = load_checkpoint(start)(x), after(x)
+    assert torch.equal(ob.depth_m, oa.depth_m)
+    assert not torch.equal(ob.enhanced, oa.enhanced)
+
+
+def test_colour_head_options_are_checked(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="global_colour: true"):
+        merge(TrainConfig(), {"model": {"trainable": "colour_head", "init_checkpoint": "x.pt"}})
+    with pytest.raises(ValueError, match="init_checkpoint"):
+        merge(TrainConfig(), {"model": {"trainable": "colour_head", "global_colour": True}})
+    with pytest.raises(ValueError, match="jointid only"):
+        merge(TrainConfig(), {"model": {"kind": "lite", "global_colour": True}})
+    from murk.errors import InputFileError
+    from murk.models.jointid import build_jointid, save_checkpoint
+    from murk.train.config import ModelConfig
+    from murk.train.networks import build_network
+
+    other = tmp_path / "small.pt"
+    save_checkpoint(build_jointid("small"), other)
+    with pytest.raises(InputFileError, match=r"small\.pt"):
+        build_network(ModelConfig(variant="tiny", init_checkpoint=str(other), global_colour=True))

@@ -37,8 +37,26 @@ class LossWeights:
     input), inside the enhancement term: ``enhance * (L2 + laplacian * Lap + snow * L2_snow)``
     (:func:`murk.train.losses.snow_l2`). Needs online synthesis with the ``marine_snow`` stage. 0: the original
     loss."""
+    distill: float = 0.0
+    """Weight of a distillation term inside the enhancement term: the row-wise L2 between the network's output and
+    a teacher's restoration of the same input (``teacher``), ``enhance * (L2 + laplacian * Lap + snow * L2_snow +
+    distill * L2_teacher)``. 0: the original loss."""
+    teacher: str | None = None
+    """The teacher of ``distill``: ``lite`` or ``jointid`` (the shipped weights) or ``lite:PATH`` /
+    ``jointid:PATH`` (a checkpoint). It restores each training input (after augmentation) without gradient, with
+    its own input balance."""
     silog_lambda: float = 0.85
     depth_min_m: float = 0.001
+
+    def __post_init__(self) -> None:
+        check_range("distill", self.distill, 0.0, 1e6)
+        if self.distill > 0:
+            kind = (self.teacher or "").split(":", 1)[0]
+            if kind not in ("lite", "jointid"):
+                raise ValueError(
+                    f"teacher: expected lite, jointid, lite:PATH or jointid:PATH with loss.distill > 0, "
+                    f"got {self.teacher!r}"
+                )
 
 
 @dataclass(frozen=True)
@@ -58,11 +76,17 @@ class ModelConfig:
     trust_checkpoint: bool = False
     """Load ``init_checkpoint`` (and a resumed ``latest.pt``) even when it pickles objects other than tensors and
     plain data (``torch.load(weights_only=False)``: runs code from the file; only for files you trust)."""
-    trainable: Literal["all", "depth_head"] = "all"
+    trainable: Literal["all", "depth_head", "colour_head"] = "all"
     """``all``, or ``depth_head``: train only the depth decoder's skip convolutions and head
     (:func:`murk.models.jointid.depth_head_parameter_names`), the parameters that feed nothing but the depth
     output, so the enhanced image of ``init_checkpoint`` stays exactly as it was (jointid only; needs
-    ``init_checkpoint``)."""
+    ``init_checkpoint``), or ``colour_head``: train only the global colour head (needs ``global_colour`` and
+    ``init_checkpoint``; the rest of the network stays as it was)."""
+    global_colour: bool = False
+    """jointid: add murk's global colour head (:class:`murk.models.jointid.network.GlobalColourHead`): a per-image,
+    per-channel gain and offset of the output logits from pooled features. It starts at identity, so
+    ``init_checkpoint`` may hold weights of the same variant without the head (they load, the head starts at
+    zero). False: the network as the paper has it."""
     input_balance_pct: float | None = None
     """Take the network's input through the simplest colour balance (:mod:`murk.physics.balance`) with this
     percentage saturated at each end of each channel, in training and in every restorer of the checkpoint
@@ -79,12 +103,16 @@ class ModelConfig:
                 raise ValueError(
                     f"trainable: {self.trainable!r} applies to model.kind jointid only (lite has no depth)"
                 )
+            if self.global_colour:
+                raise ValueError("global_colour: applies to model.kind jointid only")
         if self.input_balance_pct is not None:
             check_range("input_balance_pct", self.input_balance_pct, 0.0, 49.0)
-        if self.trainable == "depth_head" and not self.init_checkpoint:
+        if self.trainable in ("depth_head", "colour_head") and not self.init_checkpoint:
             raise ValueError(
-                "trainable: depth_head trains the depth head of existing weights; set model.init_checkpoint"
+                f"trainable: {self.trainable} trains one head of existing weights; set model.init_checkpoint"
             )
+        if self.trainable == "colour_head" and not self.global_colour:
+            raise ValueError("trainable: colour_head needs model.global_colour: true")
 
 
 @dataclass(frozen=True)

@@ -135,7 +135,7 @@ def train(
         stop_after: stop after this many steps in this invocation (a time-boxed job; resume later).
         on_log: called with every log record (the CLI prints progress with it).
     """
-    from murk.train.networks import has_depth, run_network, save_network
+    from murk.train.networks import has_depth, load_teacher, run_network, save_network
 
     kind = config.model.kind
     rt = init_runtime(config.device)
@@ -143,6 +143,7 @@ def train(
     out = Path(config.out)
     check_run_folder(out, config, resume=resume)
     data = build_data(config)  # a bad source or snow bank stops here, before anything is written
+    teacher = load_teacher(config.loss.teacher) if config.loss.distill > 0 and config.loss.teacher else None
     if config.loss.snow > 0 and data.online is None:
         raise ValueError(
             f"loss.snow: needs the training inputs' marine snow, rendered online; data.source {config.data.source} "
@@ -234,8 +235,20 @@ def train(
         x = inputs.contiguous(memory_format=torch.channels_last) if config.channels_last else inputs
         with autocast:
             enhanced, depth_m = run_network(kind, net, x, config.model.input_balance_pct)
+        taught = None
+        if teacher is not None:
+            with torch.no_grad():
+                t_kind, t_net = teacher
+                balance = getattr(t_net, "input_balance_pct", None)
+                taught = run_network(t_kind, t_net.to(inputs.device), inputs, balance)[0].float().clamp(0.0, 1.0)
         terms = jointid_loss(
-            enhanced.float(), targets, None if depth_m is None else depth_m.float(), depth, config.loss, snow_alpha
+            enhanced.float(),
+            targets,
+            None if depth_m is None else depth_m.float(),
+            depth,
+            config.loss,
+            snow_alpha,
+            taught,
         )
         optim.zero_grad(set_to_none=True)
         terms.total.backward()
@@ -267,6 +280,8 @@ def train(
                 del record["silog"]
             if terms.snow is not None:
                 record["snow"] = float(terms.snow)
+            if terms.distill is not None:
+                record["distill"] = float(terms.distill)
             emit(record)
         if step % config.eval.every == 0 or step == end:
             metrics = evaluate(model, data, config, device, step, errors) if main_rank else {}

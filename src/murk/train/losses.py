@@ -11,7 +11,8 @@
   with ``ssim_weight`` > 0.
 - murk's addition, off by default: ``L2_snow`` (:func:`snow_l2`), the error on the pixels the training input's
   marine snow covers, weighted by ``loss.snow`` inside the enhancement term, so that particles left in the
-  output cost more than their share of the pixels (the real-snow issue).
+  output cost more than their share of the pixels (the real-snow issue); and ``L2_teacher``, the same row-wise
+  distance to a teacher's restoration of the input, weighted by ``loss.distill`` (distillation).
 
 Reference: Yang, Kang, Lee, Cho, "Transformer-Based Joint Image Enhancement and Depth Estimation for Underwater
 Environments", IEEE Sensors Journal 2023, doi:10.1109/JSEN.2023.3338730 (facts from docs/spec/jointid.md).
@@ -97,6 +98,8 @@ class LossTerms:
     ssim: Tensor
     snow: Tensor | None = None
     """``L2_snow`` when ``loss.snow`` > 0 and the inputs' snow alpha was given, else None."""
+    distill: Tensor | None = None
+    """``L2_teacher`` when ``loss.distill`` > 0 and the teacher's output was given, else None."""
 
 
 def jointid_loss(
@@ -106,10 +109,12 @@ def jointid_loss(
     gt_depth_m: Tensor,
     weights: LossWeights = LossWeights(),
     snow_alpha: Tensor | None = None,
+    teacher: Tensor | None = None,
 ) -> LossTerms:
     """The full training loss: ``2.0 * (L2 + 0.1 Lap) + 1.8 SILog`` (+ ``ssim * (1 - SSIM)`` when enabled; +
     ``enhance * snow * L2_snow`` when ``weights.snow`` > 0 and the inputs' marine-snow alpha ``snow_alpha``
-    (B, 1, H, W) is given).
+    (B, 1, H, W) is given; + ``enhance * distill * L2(enhanced, teacher)`` when ``weights.distill`` > 0 and a
+    teacher's restoration ``teacher`` of the same inputs is given).
 
     ``depth_m`` None (a network without a depth head, e.g. ``lite``): the SILog term is left out (0)."""
     l2 = row_l2(enhanced, clean)
@@ -119,6 +124,10 @@ def jointid_loss(
     if weights.snow > 0 and snow_alpha is not None:
         snow = snow_l2(enhanced, clean, snow_alpha)
         enhance = enhance + weights.snow * snow
+    distill = None
+    if weights.distill > 0 and teacher is not None:
+        distill = row_l2(enhanced, teacher)
+        enhance = enhance + weights.distill * distill
     total = weights.enhance * enhance
     if depth_m is None:
         si = torch.zeros((), device=enhanced.device)
@@ -130,5 +139,11 @@ def jointid_loss(
         ssim_term = 1.0 - ssim_index(enhanced, clean)
         total = total + weights.ssim * ssim_term
     return LossTerms(
-        total, l2.detach(), lap.detach(), si.detach(), ssim_term.detach(), None if snow is None else snow.detach()
+        total,
+        l2.detach(),
+        lap.detach(),
+        si.detach(),
+        ssim_term.detach(),
+        None if snow is None else snow.detach(),
+        None if distill is None else distill.detach(),
     )

@@ -10,6 +10,7 @@ starting weights), run it on RGB in [0, 1], and read/write its checkpoints.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -43,17 +44,67 @@ def build_network(config: ModelConfig) -> nn.Module:
 
         model: nn.Module = build_lite(config.variant)
     else:
-        from murk.models.jointid import build_jointid
+        from murk.models.jointid import VARIANTS, build_jointid
         from murk.models.jointid.network import icnr_init_
 
-        model = build_jointid(config.variant)
+        model = build_jointid(replace(VARIANTS[config.variant], global_colour=config.global_colour))
         if config.init == "icnr":
             icnr_init_(model)
     if config.init_checkpoint:
         state, _ = read_network_checkpoint(config.kind, config.init_checkpoint, trust=config.trust_checkpoint)
-        model.load_state_dict(state, strict=True)
+        _load_init_state(model, state, config.init_checkpoint)
     model.input_balance_pct = config.input_balance_pct  # type: ignore[assignment]  # recorded in its checkpoints
     return model
+
+
+def _load_init_state(model: nn.Module, state: dict[str, Tensor], path: str) -> None:
+    """Load ``state`` strictly, except that a global colour head absent from the file keeps its identity start.
+
+    Raises:
+        InputFileError: names or shapes that do not match (beyond the missing head).
+    """
+    from murk.errors import InputFileError
+
+    head = {n for n in model.state_dict() if n.startswith("global_colour_head.")}
+    if head and not head & set(state):
+        result = model.load_state_dict(state, strict=False)
+        if result.unexpected_keys or set(result.missing_keys) != head:
+            raise InputFileError(
+                path,
+                f"weights do not match the network: missing {sorted(set(result.missing_keys) - head)[:3]}, "
+                f"unexpected {result.unexpected_keys[:3]}",
+            )
+        return
+    try:
+        model.load_state_dict(state, strict=True)
+    except RuntimeError as exc:
+        raise InputFileError(path, f"weights do not match the network ({str(exc).splitlines()[0]})") from exc
+
+
+def load_teacher(spec: str) -> tuple[str, nn.Module]:
+    """``(kind, network)`` of a distillation teacher (``loss.teacher``): ``lite`` / ``jointid`` (the shipped
+    weights) or ``lite:PATH`` / ``jointid:PATH``, in eval mode with its input balance, gradients off.
+
+    Raises:
+        ValueError: another kind than lite or jointid.
+        InputFileError: the checkpoint cannot be read as that kind.
+    """
+    kind, _, path = spec.partition(":")
+    net: nn.Module
+    if kind == "lite":
+        from murk.data import shipped_lite_weights
+        from murk.models.lite.checkpoint import load_lite
+
+        net = load_lite(path or shipped_lite_weights())
+    elif kind == "jointid":
+        from murk.data import shipped_jointid_weights
+        from murk.models.jointid import load_checkpoint
+
+        net = load_checkpoint(path or shipped_jointid_weights())
+    else:
+        raise ValueError(f"teacher: expected lite, jointid, lite:PATH or jointid:PATH, got {spec!r}")
+    net.requires_grad_(False)
+    return kind, net.eval()
 
 
 def frozen_parameter_names(kind: str, model: nn.Module) -> list[str]:
@@ -66,11 +117,13 @@ def frozen_parameter_names(kind: str, model: nn.Module) -> list[str]:
 
 
 def trainable_parameter_names(config: ModelConfig, model: nn.Module) -> set[str]:
-    """The parameters ``config.trainable`` lets the optimiser change: all, or the depth head's."""
+    """The parameters ``config.trainable`` lets the optimiser change: all, the depth head's or the colour head's."""
     if config.trainable == "depth_head":
         from murk.models.jointid import depth_head_parameter_names
 
         return set(depth_head_parameter_names(model))
+    if config.trainable == "colour_head":
+        return {n for n, _ in model.named_parameters() if n.startswith("global_colour_head.")}
     return {n for n, _ in model.named_parameters()}
 
 

@@ -14,7 +14,7 @@ height and width are multiples of 32, and returns depth in metres and the enhanc
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any, Literal, NamedTuple
 
 import numpy as np
@@ -58,6 +58,11 @@ class JointIDConfig:
     filtered with a fixed ``2r - 1``-tap triangle (:func:`murk.models.jointid.decoder.smooth_shuffled`; no
     parameters, the state dict is unchanged), which removes every period-``r`` pattern the shuffle can make:
     the 4-32 px grids and bands that learned sub-pixel kernels otherwise draw in flat water."""
+    global_colour: bool = False
+    """False (the original). True: murk's global colour head (:class:`GlobalColourHead`, not in the paper): the
+    enhancement encoder's deepest features and the input's per-channel mean and spread, pooled over the whole
+    image, give a per-channel gain and offset of the output logits. Its last layer starts at zero, so the network
+    starts out exactly as without it (weights of the same variant load with the head at identity)."""
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict (lists and numbers only), safe for ``torch.load(weights_only=True)`` and JSON."""
@@ -117,6 +122,33 @@ class Branch(nn.Module):
         )
 
 
+class GlobalColourHead(nn.Module):
+    """A per-image, per-channel affine map of the output logits, ``(1 + g) * logits + b``, from pooled statistics.
+
+    Input: the enhancement encoder's 1/32-scale map averaged over the image (``channels`` values) and the mean and
+    standard deviation of each channel of the input's logit (6 values), so the head sees the image's global colour
+    directly, whatever the crop size. A two-layer MLP gives ``(g, b)`` per channel; its last layer is zero at the
+    start, which leaves the logits unchanged. Added by murk for issue 27: on murk's held-out water almost all of the
+    small network's error is a global colour and level error (docs/train.md).
+    """
+
+    HIDDEN = 64
+
+    def __init__(self, channels: int) -> None:
+        super().__init__()
+        self.fc1 = nn.Linear(channels + 6, self.HIDDEN)
+        self.fc2 = nn.Linear(self.HIDDEN, 6)
+        nn.init.zeros_(self.fc2.weight)
+        nn.init.zeros_(self.fc2.bias)
+
+    def forward(self, deep: Tensor, x_logit: Tensor, logits: Tensor) -> Tensor:
+        """``logits`` (B, 3, H, W) mapped per image and channel; ``deep`` (B, C, h, w), ``x_logit`` (B, 3, H, W)."""
+        stats = torch.cat([deep.mean(dim=(2, 3)), x_logit.mean(dim=(2, 3)), x_logit.std(dim=(2, 3))], dim=1)
+        gb = self.fc2(torch.nn.functional.gelu(self.fc1(stats)))
+        gain = 1.0 + gb[:, :3, None, None]
+        return logits * gain + gb[:, 3:, None, None]
+
+
 class JointID(nn.Module):
     """Joint image enhancement and depth estimation network (Yang et al. 2023).
 
@@ -140,6 +172,7 @@ class JointID(nn.Module):
         for direction in ("de", "eh"):  # de: depth branch, eh: enhancement branch
             for i, s in enumerate((3, 2, 1, 0)):
                 self.add_module(f"decoder_{direction}_joint_block_{i + 1}", JointBlock(cfg.embed_dims[s]))
+        self.global_colour_head = GlobalColourHead(cfg.embed_dims[3]) if cfg.global_colour else None
         self.register_load_state_dict_pre_hook(_strip_official_prefix)
 
     def forward(self, x: Tensor) -> JointIDOutput:
@@ -169,8 +202,12 @@ class JointID(nn.Module):
                 xe = ebr.decoder.up(s, je)
         depth_m = self.config.max_depth_m * torch.sigmoid(dbr.decoder.head(skips_d))
         logits = ebr.decoder.head(skips_e)
-        if self.config.residual_output:
-            logits = logits + input_logit(x)
+        if self.config.residual_output or self.global_colour_head is not None:
+            x_logit = input_logit(x)
+            if self.config.residual_output:
+                logits = logits + x_logit
+            if self.global_colour_head is not None:
+                logits = self.global_colour_head(fe[3], x_logit, logits)
         return JointIDOutput(depth_m, torch.sigmoid(logits))
 
 
@@ -320,8 +357,13 @@ def build_jointid(variant: Variant | JointIDConfig = "base", *, init: bool = Tru
 
 
 def variant_name(config: JointIDConfig) -> str | None:
-    """The registered variant name of ``config``, or None for a custom configuration."""
-    return next((name for name, cfg in VARIANTS.items() if cfg == config), None)
+    """The registered variant name of ``config`` (``"small+colour"`` for a registered variant with the global
+    colour head added), or None for a custom configuration."""
+    plain = replace(config, global_colour=False)
+    name = next((name for name, cfg in VARIANTS.items() if cfg == plain), None)
+    if name is None or not config.global_colour:
+        return name
+    return f"{name}+colour"
 
 
 def normalize_input(x: Tensor) -> Tensor:

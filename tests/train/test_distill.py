@@ -1,0 +1,75 @@
+"""Distillation (``loss.distill`` with ``loss.teacher``): the term, its checks, and a run that uses it."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+import torch
+import yaml
+from typer.testing import CliRunner
+
+from murk.cli.main import app
+from murk.train.config import LossWeights
+from murk.train.losses import jointid_loss, row_l2
+from murk.train.networks import load_teacher, run_network
+
+runner = CliRunner()
+
+
+def test_the_distill_term_is_the_row_l2_to_the_teacher_inside_the_enhancement_term() -> None:
+    g = torch.Generator().manual_seed(2)
+    out, clean, teacher = (torch.rand(2, 3, 16, 24, generator=g) for _ in range(3))
+    depth = torch.ones(2, 1, 16, 24)
+    plain = jointid_loss(out, clean, None, depth, LossWeights())
+    taught = jointid_loss(out, clean, None, depth, LossWeights(distill=0.5, teacher="lite"), teacher=teacher)
+    assert plain.distill is None and taught.distill is not None
+    assert torch.allclose(taught.distill, row_l2(out, teacher))
+    expect = plain.total + LossWeights().enhance * 0.5 * row_l2(out, teacher)
+    assert torch.allclose(taught.total, expect)
+    # no teacher output given: the original loss, whatever the weight
+    assert torch.equal(
+        jointid_loss(out, clean, None, depth, LossWeights(distill=0.5, teacher="lite")).total, plain.total
+    )
+
+
+def test_a_distill_weight_needs_a_known_teacher() -> None:
+    with pytest.raises(ValueError, match="teacher"):
+        LossWeights(distill=1.0)
+    with pytest.raises(ValueError, match="teacher"):
+        LossWeights(distill=1.0, teacher="udaformer")
+    with pytest.raises(ValueError, match="distill"):
+        LossWeights(distill=-1.0, teacher="lite")
+    LossWeights(distill=1.0, teacher="jointid:runs/x.pt")  # the file is read when training starts
+
+
+def test_the_shipped_lite_teacher_restores_like_its_restorer() -> None:
+    from murk.enhance.restorer import create
+
+    kind, net = load_teacher("lite")
+    assert kind == "lite" and not any(p.requires_grad for p in net.parameters())
+    x = torch.rand(1, 3, 64, 96, generator=torch.Generator().manual_seed(3))
+    with torch.no_grad():
+        got = run_network(kind, net, x, net.input_balance_pct)[0].clamp(0, 1)
+    ref = create("lite").restore(x.permute(0, 2, 3, 1).numpy()).images[0]
+    assert float((got[0].permute(1, 2, 0) - torch.from_numpy(ref).clamp(0, 1)).abs().max()) < 2e-3
+
+
+def test_murk_train_with_a_teacher_logs_the_distill_term(tmp_path: Path) -> None:
+    cfg = {
+        "model": {"variant": "tiny"},
+        "data": {"source": "scenes", "scenes_count": 4, "crop_hw": [32, 64], "workers": 0, "val_fraction": 0.25},
+        "loss": {"distill": 1.0, "teacher": "lite"},
+        "eval": {"every": 4, "val_batches": 1, "real": None},
+        "steps": 4,
+        "batch": 2,
+        "log_every": 2,
+    }
+    (tmp_path / "t.yaml").write_text(yaml.safe_dump(cfg))
+    r = runner.invoke(app, ["train", "--config", str(tmp_path / "t.yaml"), "--out", str(tmp_path / "run"), "--quiet"])
+    assert r.exit_code == 0, r.output
+    recs = [json.loads(line) for line in (tmp_path / "run" / "log.jsonl").read_text().splitlines()]
+    distill = [rec["distill"] for rec in recs if rec.get("kind") == "train"]
+    assert len(distill) == 2 and all(math.isfinite(v) and v > 0 for v in distill)
