@@ -19,13 +19,16 @@ def test_shipped_file_is_small_safe_and_the_small_variant() -> None:
     path = shipped_jointid_weights()
     assert path.is_file() and path.stat().st_size <= 10 * 2**20
     obj = torch.load(path, weights_only=True)  # no pickled code: plain tensors and data
-    assert obj["variant"] == "small" and obj["config"]["residual_output"] is True
+    assert obj["variant"] == "small+colour" and obj["config"]["residual_output"] is True
+    assert obj["config"]["global_colour"] is True  # stage 6: the global colour head
     assert all(v.dtype == torch.float16 for v in obj["state_dict"].values() if v.is_floating_point())
     assert obj["meta"]["command"].startswith("murk train --config configs/train-small-cpu.yaml")
     assert "murk train --config configs/train-small-depth-cpu.yaml" in obj["meta"]["command"]  # stage 2
     assert "murk train --config configs/train-small-balance-cpu.yaml" in obj["meta"]["command"]  # stage 4
     assert "murk train --config configs/train-small-snow-cpu.yaml --stop-after 1000" in obj["meta"]["command"]
-    assert obj["meta"]["soup"]["weights"] == [0.5, 0.5]  # stage 5: stage 4 and its snow-weighted continuation
+    assert obj["meta"]["stage6"]["soup_of_stage5"]["weights"] == [0.5, 0.5]  # stage 4 and its snow continuation
+    assert "murk train --config configs/train-small-colour-cpu.yaml" in obj["meta"]["command"]  # stage 6: head
+    assert "murk train --config configs/train-small-distill-cpu.yaml" in obj["meta"]["command"]  # stage 6: all
     assert obj["meta"]["input_balance_pct"] == 1.0
 
 
@@ -73,9 +76,23 @@ def test_recorded_run_configs_equal_the_shipped_configs() -> None:
         "configs/train-lite-balance-cpu.yaml": "docs/models/lite-balance-config.yaml",
         "configs/train-small-balance-cpu.yaml": "docs/models/jointid-small-balance-config.yaml",
         "configs/train-small-snow-cpu.yaml": "docs/models/jointid-small-snow-config.yaml",
+        "configs/train-small-colour-cpu.yaml": "docs/models/jointid-small-colour-config.yaml",
+        "configs/train-small-distill-cpu.yaml": "docs/models/jointid-small-distill-config.yaml",
+    }
+    # Stage 6 ran from the files of that day (the head from the then-shipped stage-5 file, the distillation from the
+    # head's first run); the shipped configs name where a reproduction finds them (docs/models.md, "Stage 6").
+    moved = {
+        "configs/train-small-colour-cpu.yaml": (
+            "src/murk/data/models/jointid-small.pt",
+            "runs/jointid-small-stage5.pt",
+        ),
+        "configs/train-small-distill-cpu.yaml": ("runs/small-gc-head-wb3/latest.pt", "runs/small-colour/latest.pt"),
     }
     for shipped, recorded in pairs.items():
         a, b = (load_yaml(TrainConfig, root / p) for p in (shipped, recorded))
+        if shipped in moved:
+            assert (b.model.init_checkpoint, a.model.init_checkpoint) == moved[shipped], shipped
+            b = dataclasses.replace(b, model=dataclasses.replace(b.model, init_checkpoint=a.model.init_checkpoint))
         snow = b.data.synthesis.marine_snow
         if snow.bank is None:  # recorded before 2026-12-03, when the default bank was today's builtin:snow-small
             synthesis = dataclasses.replace(
