@@ -8,15 +8,11 @@ from pathlib import Path
 
 import pytest
 import torch
-import yaml
-from typer.testing import CliRunner
 
-from murk.cli.main import app
 from murk.train.config import LossWeights
 from murk.train.losses import jointid_loss, row_l2
 from murk.train.networks import load_teacher, run_network
-
-runner = CliRunner()
+from tests.train._cli import train_cli
 
 
 def test_the_distill_term_is_the_row_l2_to_the_teacher_inside_the_enhancement_term() -> None:
@@ -67,9 +63,7 @@ def test_murk_train_with_a_teacher_logs_the_distill_term(tmp_path: Path) -> None
         "batch": 2,
         "log_every": 2,
     }
-    (tmp_path / "t.yaml").write_text(yaml.safe_dump(cfg))
-    r = runner.invoke(app, ["train", "--config", str(tmp_path / "t.yaml"), "--out", str(tmp_path / "run"), "--quiet"])
-    assert r.exit_code == 0, r.output
-    recs = [json.loads(line) for line in (tmp_path / "run" / "log.jsonl").read_text().splitlines()]
+    run = train_cli(tmp_path, cfg)
+    recs = [json.loads(line) for line in (run / "log.jsonl").read_text().splitlines()]
     distill = [rec["distill"] for rec in recs if rec.get("kind") == "train"]
     assert len(distill) == 2 and all(math.isfinite(v) and v > 0 for v in distill)

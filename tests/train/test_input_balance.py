@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-import yaml
 from typer.testing import CliRunner
 
 from murk.cli.main import app
@@ -21,6 +20,7 @@ from murk.models.lite.network import build_lite
 from murk.physics.balance import color_balance
 from murk.train.config import DataConfig, ModelConfig
 from murk.train.scenes_source import SceneDataset
+from tests.train._cli import train_cli
 
 runner = CliRunner()
 
@@ -102,9 +102,7 @@ def test_murk_train_with_a_balanced_input_writes_checkpoints_that_restore_balanc
         "batch": 2,
         "log_every": 2,
     }
-    (tmp_path / "t.yaml").write_text(yaml.safe_dump(cfg))
-    r = runner.invoke(app, ["train", "--config", str(tmp_path / "t.yaml"), "--out", str(tmp_path / "run"), "--quiet"])
-    assert r.exit_code == 0, r.output
+    train_cli(tmp_path, cfg)
     for name in ("latest.pt", "best.pt"):
         assert load_lite(tmp_path / "run" / name).input_balance_pct == 1.0
     restorer = create("lite", checkpoint=str(tmp_path / "run" / "latest.pt"))
