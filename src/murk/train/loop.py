@@ -143,7 +143,6 @@ def train(
     out = Path(config.out)
     check_run_folder(out, config, resume=resume)
     data = build_data(config)  # a bad source or snow bank stops here, before anything is written
-    teacher = load_teacher(config.loss.teacher) if config.loss.distill > 0 and config.loss.teacher else None
     if config.loss.snow > 0 and data.online is None:
         raise ValueError(
             f"loss.snow: needs the training inputs' marine snow, rendered online; data.source {config.data.source} "
@@ -157,6 +156,7 @@ def train(
     n_train = len(data.train)
     spe, total, schedule = plan_steps(config, n_train, world)
     model = build_model(config, device)
+    teacher = load_teacher(config.loss.teacher, device) if config.loss.distill > 0 and config.loss.teacher else None
     optim = build_optimiser(config, model, schedule.lr(0), device)
     start = 0
     best: dict[str, Any] = {}
@@ -240,7 +240,7 @@ def train(
             with torch.no_grad():
                 t_kind, t_net = teacher
                 balance = getattr(t_net, "input_balance_pct", None)
-                taught = run_network(t_kind, t_net.to(inputs.device), inputs, balance)[0].float().clamp(0.0, 1.0)
+                taught = run_network(t_kind, t_net, inputs, balance)[0].float().clamp(0.0, 1.0)
         terms = jointid_loss(
             enhanced.float(),
             targets,

@@ -81,9 +81,9 @@ def _load_init_state(model: nn.Module, state: dict[str, Tensor], path: str) -> N
         raise InputFileError(path, f"weights do not match the network ({str(exc).splitlines()[0]})") from exc
 
 
-def load_teacher(spec: str) -> tuple[str, nn.Module]:
+def load_teacher(spec: str, device: str | torch.device = "cpu") -> tuple[str, nn.Module]:
     """``(kind, network)`` of a distillation teacher (``loss.teacher``): ``lite`` / ``jointid`` (the shipped
-    weights) or ``lite:PATH`` / ``jointid:PATH``, in eval mode with its input balance, gradients off.
+    weights) or ``lite:PATH`` / ``jointid:PATH``, on ``device`` in eval mode with its input balance, gradients off.
 
     Raises:
         ValueError: another kind than lite or jointid.
@@ -95,12 +95,12 @@ def load_teacher(spec: str) -> tuple[str, nn.Module]:
         from murk.data import shipped_lite_weights
         from murk.models.lite.checkpoint import load_lite
 
-        net = load_lite(path or shipped_lite_weights())
+        net = load_lite(path or shipped_lite_weights(), device=device)
     elif kind == "jointid":
         from murk.data import shipped_jointid_weights
         from murk.models.jointid import load_checkpoint
 
-        net = load_checkpoint(path or shipped_jointid_weights())
+        net = load_checkpoint(path or shipped_jointid_weights(), device=device)
     else:
         raise ValueError(f"teacher: expected lite, jointid, lite:PATH or jointid:PATH, got {spec!r}")
     net.requires_grad_(False)
