@@ -253,3 +253,19 @@ def test_vectorised_screen_rects_match_the_scalar_ones() -> None:
             assert (r0, r1, c0, c1) == (s0, s1, t0, t1)
         else:
             assert r1 <= r0 or c1 <= c0
+
+
+def test_ray_parallel_to_frustum_caps_hits_the_side_without_overflow_warning() -> None:
+    # A ray perpendicular to a cylinder's axis never reaches its cap planes (dw = 0, so the cap distance is ~1e30 and
+    # its square overflows): the side hit at 2 - 0.5 m must come out, with no RuntimeWarning on the way.
+    import warnings
+
+    cyl = Frustum((2.0, 0.0, -0.5), (2.0, 0.0, 0.5), 0.5, 0.5, 0)
+    cone = Frustum((2.0, 0.0, -0.5), (2.0, 0.0, 0.5), 0.6, 0.4, 0)  # radius 0.5 at the ray's height
+    d = tuple(np.array([v], np.float32) for v in (1.0, 0.0, 0.0))
+    for prim in (cyl, cone):
+        k = geo.pack_frustum(prim, np.zeros(3)).astype(np.float32)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            t = geo.frustum_t(np, d, k)
+        np.testing.assert_allclose(t, [1.5], rtol=1e-6)

@@ -233,8 +233,11 @@ def frustum_t(xp: Any, d: tuple[Array, Array, Array], k: Any) -> Array:
     inv_w = 1.0 / _safe(xp, dw, 1e-12)
     r1 = r0 + slope * length
     for z_cap, r_cap in ((0.0, r0), (length, r1)):
-        tc = (z_cap - ow) * inv_w
-        rad2 = q + tc * (2.0 * od + tc) - z_cap * z_cap
+        # A ray parallel to the caps (dw = 0) has tc ~ 1e30 and tc * tc overflows to inf: "no hit", as it should be,
+        # so numpy's overflow warning is silenced (every finite value stays as computed; torch never warns).
+        with np.errstate(over="ignore"):
+            tc = (z_cap - ow) * inv_w
+            rad2 = q + tc * (2.0 * od + tc) - z_cap * z_cap
         best = xp.minimum(best, xp.where((tc > t_min) & (rad2 <= r_cap * r_cap), tc, INF))
     return s0 + best
 
