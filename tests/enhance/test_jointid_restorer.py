@@ -222,3 +222,21 @@ def test_bf16_base_model_stays_within_40_db_of_fp32(underwater):
     bf16 = JointIDRestorer(model, device="cuda", precision="bf16").restore(rgb[None])
     mse = float(np.mean((fp32.images - bf16.images) ** 2))
     assert 10 * np.log10(1 / mse) >= 40
+
+
+def test_refine_transfers_the_restoration_onto_the_input_and_leaves_depth(tiny_ckpt, underwater):
+    from murk.physics.affine_transfer import affine_transfer, transfer_radius_px
+
+    x = underwater[None].astype(np.float32)
+    plain = create("jointid", checkpoint=tiny_ckpt).restore(x)
+    assert np.array_equal(create("jointid", checkpoint=tiny_ckpt, refine=0.0).restore(x).images, plain.images)
+    refined = create(f"jointid?refine=0.125,refine_eps=0.001,checkpoint={tiny_ckpt}").restore(x)
+    radius = transfer_radius_px(240, 300, 0.125)
+    expected = np.clip(affine_transfer(x[0], plain.images[0], radius, 1e-3), 0, 1)
+    np.testing.assert_allclose(refined.images[0], expected, atol=1e-6)
+    assert np.abs(refined.images - plain.images).max() > 0.01  # it does change the output
+    assert np.array_equal(refined.depth_m, plain.depth_m)
+    with pytest.raises(ValueError, match=r"refine: expected a fraction of the long side in \[0, 1\]"):
+        create("jointid", checkpoint=tiny_ckpt, refine=2.0)
+    with pytest.raises(ValueError, match="refine_eps: expected > 0"):
+        create("jointid", checkpoint=tiny_ckpt, refine=0.1, refine_eps=0.0)

@@ -12,7 +12,13 @@ Registry options (``murk.enhance.create("jointid", **options)``; any other optio
 ``checkpoint`` (murk or official ``.pth``/``.pt``, or an ``.onnx`` file; required), ``onnx`` (an ``.onnx``
 path, alternative to ``checkpoint``), ``device`` ("cpu", "cuda", "cuda:N"), ``precision`` ("fp32", "bf16",
 "fp16"), ``tile`` (pixels or None), ``overlap`` (pixels, default 64), ``trust_checkpoint`` (bool),
-``batch`` (max frames or tiles per forward pass), ``compile`` and ``cuda_graph`` (bool, default False).
+``batch`` (max frames or tiles per forward pass), ``compile`` and ``cuda_graph`` (bool, default False),
+``refine`` (0 = off, the default) and ``refine_eps``.
+
+``refine`` re-expresses the network's restoration as a locally affine map of the input
+(:mod:`murk.physics.affine_transfer`). The window radius is ``refine`` times the frame's long side. The output
+then has the restoration's colours and the input's structure: what Eq. (1)'s inverse can do, without the network's
+deblurring or particle removal. Figures and the trade-off: docs/enhance.md, "jointid?refine".
 
 Reference: Yang, Kang, Lee, Cho, "Transformer-Based Joint Image Enhancement and Depth Estimation for
 Underwater Environments", IEEE Sensors Journal 23(24), 2023, doi:10.1109/JSEN.2023.3338730.
@@ -25,6 +31,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 from torch import Tensor, nn
 
@@ -111,6 +118,8 @@ class JointIDRestorer(Restorer):
         channels_last: bool | None = None,
         compile: bool = False,
         cuda_graph: bool = False,
+        refine: float = 0.0,
+        refine_eps: float = 1e-4,
     ) -> None:
         from murk.models.jointid.checkpoint import unwrap
         from murk.models.jointid.onnx_export import OnnxJointID
@@ -127,6 +136,13 @@ class JointIDRestorer(Restorer):
             raise ValueError(f"overlap: expected >= 0 pixels, got {overlap}")
         if batch is not None and (isinstance(batch, bool) or batch < 1):
             raise ValueError(f"batch: expected None or a positive integer, got {batch!r}")
+        if isinstance(refine, bool) or not 0.0 <= float(refine) <= 1.0:
+            raise ValueError(f"refine: expected a fraction of the long side in [0, 1] (0 = off), got {refine!r}")
+        if isinstance(refine_eps, bool) or not float(refine_eps) > 0:
+            raise ValueError(f"refine_eps: expected > 0, got {refine_eps!r}")
+        self.refine = float(refine)
+        """Window radius of the locally affine transfer onto the input, as a fraction of the long side (0: off)."""
+        self.refine_eps = float(refine_eps)
         self.precision = precision
         self.weights: str | None = None
         """The weights file this restorer was loaded from (set by the ``jointid`` factory)."""
@@ -214,7 +230,23 @@ class JointIDRestorer(Restorer):
             depth, enhanced = self._forward_padded(x)
             depth = pad.crop(depth).contiguous()
             enhanced = pad.crop(enhanced).clamp(0.0, 1.0).contiguous()
+            if self.refine > 0:
+                enhanced = self._refine(images, enhanced)
         return RestoredTensor(enhanced, depth)
+
+    def _refine(self, images: Tensor, enhanced: Tensor) -> Tensor:
+        """The locally affine transfer of each restoration onto its input (``refine``), on the CPU."""
+        from murk.physics.affine_transfer import affine_transfer, transfer_radius_px
+
+        h, w = int(images.shape[-2]), int(images.shape[-1])
+        radius = transfer_radius_px(h, w, self.refine)
+        outs = []
+        for src, out in zip(images.float().cpu(), enhanced.float().cpu(), strict=True):
+            hwc = affine_transfer(
+                src.permute(1, 2, 0).numpy(), out.permute(1, 2, 0).numpy(), radius, self.refine_eps
+            )
+            outs.append(torch.from_numpy(np.clip(hwc, 0.0, 1.0)).permute(2, 0, 1))
+        return torch.stack(outs).to(enhanced.device).contiguous()
 
     def __repr__(self) -> str:
         backend = self._backend if self.model is None else type(self.model).__name__
@@ -236,6 +268,8 @@ def create_jointid(
     batch: int | None = None,
     compile: bool = False,
     cuda_graph: bool = False,
+    refine: float = 0.0,
+    refine_eps: float = 1e-4,
 ) -> JointIDRestorer:
     """Factory of ``jointid`` (registered lazily by :mod:`murk.enhance.methods`): load ``checkpoint`` (or the
     ``onnx`` file) and wrap it.
@@ -279,6 +313,8 @@ def create_jointid(
         batch=batch,
         compile=compile,
         cuda_graph=cuda_graph,
+        refine=refine,
+        refine_eps=refine_eps,
     )
     restorer.weights = str(path)
     return restorer

@@ -75,6 +75,8 @@ def jointid(
     batch: int | None = None,
     compile: bool = False,
     cuda_graph: bool = False,
+    refine: float = 0.0,
+    refine_eps: float = 1e-4,
 ) -> Restorer:
     """``jointid`` (the network restores and estimates depth): :func:`murk.enhance.jointid_restorer.create_jointid`."""
     options = dict(locals())

@@ -1,0 +1,54 @@
+"""The locally affine transfer of a restoration onto its input (murk.physics.affine_transfer)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from murk.physics.affine_transfer import affine_transfer, transfer_radius_px
+
+
+def _textured(h: int = 60, w: int = 80, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    smooth = cv2.GaussianBlur(rng.random((h, w, 3)).astype(np.float32), (0, 0), 3)
+    return np.clip(0.2 + 0.6 * smooth / smooth.max() + 0.05 * rng.random((h, w, 3)), 0, 1).astype(np.float32)
+
+
+def test_a_per_channel_affine_restoration_is_reproduced_exactly() -> None:
+    # Eq. (1) inverted at one distance: J_c = a_c I_c + b_c. The fit finds it in every window, borders included.
+    img = _textured()
+    restored = img * np.array([1.8, 1.3, 0.9], np.float32) + np.array([-0.25, -0.1, 0.05], np.float32)
+    out = affine_transfer(img, restored, radius_px=4, eps=1e-9)
+    np.testing.assert_allclose(out, restored, atol=2e-3)
+
+
+def test_what_is_not_affine_in_the_input_is_dropped() -> None:
+    # A restoration that also removes a bright particle: the transfer keeps the colour change and brings the
+    # particle back (the trade-off in docs/enhance.md), while the input's own structure passes through.
+    img = _textured()
+    img[30, 40] = 1.0  # a particle in the input
+    restored = 0.5 * img + 0.1
+    restored[30, 40] = restored[29, 40]  # the restoration took it out
+    out = affine_transfer(img, restored, radius_px=8, eps=1e-6)
+    particle = out[30, 40] - out[29, 40]
+    assert np.all(particle > 0.6 * 0.5 * (img[30, 40] - img[29, 40]))  # most of the particle's contrast is back
+    away = (slice(0, 20), slice(0, 30))
+    np.testing.assert_allclose(out[away], (0.5 * img + 0.1)[away], atol=3e-3)
+
+
+def test_radius_is_a_fraction_of_the_long_side_kept_inside_the_image() -> None:
+    assert transfer_radius_px(480, 640, 0.125) == 80
+    assert transfer_radius_px(256, 192, 0.125) == 32
+    assert transfer_radius_px(10, 200, 0.5) == 9  # below the short side, for the reflected border
+    assert transfer_radius_px(40, 40, 0.001) == 1
+
+
+def test_bad_arguments_are_named() -> None:
+    img = _textured()
+    with pytest.raises(ValueError, match="image/restored: expected two"):
+        affine_transfer(img, img[:, :-1], 2)
+    with pytest.raises(ValueError, match="radius_px: expected an integer >= 1"):
+        affine_transfer(img, img, 0)
+    with pytest.raises(ValueError, match="eps: expected > 0"):
+        affine_transfer(img, img, 2, eps=0.0)
