@@ -242,9 +242,7 @@ class JointIDRestorer(Restorer):
         radius = transfer_radius_px(h, w, self.refine)
         outs = []
         for src, out in zip(images.float().cpu(), enhanced.float().cpu(), strict=True):
-            hwc = affine_transfer(
-                src.permute(1, 2, 0).numpy(), out.permute(1, 2, 0).numpy(), radius, self.refine_eps
-            )
+            hwc = affine_transfer(src.permute(1, 2, 0).numpy(), out.permute(1, 2, 0).numpy(), radius, self.refine_eps)
             outs.append(torch.from_numpy(np.clip(hwc, 0.0, 1.0)).permute(2, 0, 1))
         return torch.stack(outs).to(enhanced.device).contiguous()
 
