@@ -29,17 +29,15 @@ import tempfile
 from pathlib import Path
 
 import torch
-from bench_model import HELDOUT_SEED, ROOT, real_measures
+from bench_model import heldout_scenes, real_measures
 
-from murk._config import load_yaml, merge
 from murk.data import shipped_jointid_weights, shipped_lite_weights
 from murk.enhance.restorer import create
 from murk.io.images import list_images
 from murk.report.compare import run_compare
-from murk.report.heldout import make_heldout, score_heldout
+from murk.report.heldout import score_heldout
 from murk.report.methods import parse_method
 from murk.report.study import evaluate_real_pairs
-from murk.train.config import TrainConfig
 
 SNOW_KEYS = ("snow_residue", "snow_sites_left", "snow_free_gms")
 
@@ -95,9 +93,7 @@ def main() -> None:
                 title="bench_candidates: marine snow",
             ).summary
 
-    train_cfg = load_yaml(TrainConfig, ROOT / "configs" / "train-small-cpu.yaml")
-    synthesis = merge(train_cfg.data.synthesis, {"stages": ["basic", "forward_scatter", "marine_snow"]})
-    data = make_heldout(args.scenes, seed=HELDOUT_SEED, size_hw=(240, 320), synthesis=synthesis, balance_pct=0.5)
+    data = heldout_scenes(args.scenes, 0.5)
     restorers = {lab: create(args.method, checkpoint=path) for lab, path in cands.items()}
     held = score_heldout(data, restorers)
     paired = {c["a"]: c["psnr"] for c in real["contrasts"]}

@@ -37,12 +37,20 @@ from murk.data import sample_underwater_images, shipped_jointid_weights, shipped
 from murk.enhance.restorer import create
 from murk.io import read_rgb
 from murk.metrics import psnr, restoration_measures
-from murk.report.heldout import heldout_table, make_heldout, score_heldout
+from murk.report.heldout import HeldoutSet, heldout_table, make_heldout, score_heldout
 from murk.train.config import TrainConfig
 
 ROOT = Path(__file__).resolve().parent.parent
 HELDOUT_SEED = 20261201
 """Seed of the held-out scenes (training uses seed 0: scenes derive_seed(0, i))."""
+
+
+def heldout_scenes(scenes: int, balance_pct: float | None) -> HeldoutSet:
+    """The held-out set: ``scenes`` procedural scenes at 320x240 (seed :data:`HELDOUT_SEED`) degraded by the three
+    stages of the training recipe; ``balance_pct``: photographic (colour-balanced) clean targets."""
+    train_cfg = load_yaml(TrainConfig, ROOT / "configs" / "train-small-cpu.yaml")
+    synthesis = merge(train_cfg.data.synthesis, {"stages": ["basic", "forward_scatter", "marine_snow"]})
+    return make_heldout(scenes, seed=HELDOUT_SEED, size_hw=(240, 320), synthesis=synthesis, balance_pct=balance_pct)
 
 
 def affine_fit_psnr(outputs: np.ndarray, refs: np.ndarray) -> float:
@@ -112,11 +120,7 @@ def main() -> None:
     torch.set_num_threads(2)
     figures: dict[str, object] = {"method": args.method, "checkpoint": args.checkpoint}
 
-    train_cfg = load_yaml(TrainConfig, ROOT / "configs" / "train-small-cpu.yaml")
-    synthesis = merge(train_cfg.data.synthesis, {"stages": ["basic", "forward_scatter", "marine_snow"]})
-    data = make_heldout(
-        args.scenes, seed=HELDOUT_SEED, size_hw=(240, 320), synthesis=synthesis, balance_pct=args.heldout_balance_pct
-    )
+    data = heldout_scenes(args.scenes, args.heldout_balance_pct)
     restorer = create(args.method, checkpoint=args.checkpoint)
     restorers = {"model": restorer}
     if args.heldout_balance_pct is not None:

@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from murk.enhance import restorer as restorer_mod
-from murk.enhance.classical import clahe_lab, grey_world, guided_filter, udcp
+from murk.enhance.classical import clahe_lab, grey_world, udcp
 from murk.errors import ShapeError
+from murk.physics.affine_transfer import guided_filter
 from murk.physics.balance import color_balance
 
 

@@ -33,6 +33,7 @@ import numpy as np
 from murk._checks import check_positive, check_range
 from murk.enhance.restorer import Restored, Restorer, register
 from murk.errors import ShapeError
+from murk.physics.affine_transfer import guided_filter
 from murk.physics.balance import color_balance
 
 
@@ -132,20 +133,6 @@ def make_clahe(*, clip: float = 2.0, tiles: int = 8) -> Clahe:
 def _min_filter(x: np.ndarray, patch: int) -> np.ndarray:
     kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (patch, patch))
     return cv2.erode(x, kernel, borderType=cv2.BORDER_REPLICATE)
-
-
-def guided_filter(guide: np.ndarray, src: np.ndarray, radius: int, eps: float) -> np.ndarray:
-    """Grey-guide guided filter (He et al. 2013, Alg. 1) with box means of side ``2 radius + 1``."""
-    k = (2 * radius + 1, 2 * radius + 1)
-
-    def mean(a: np.ndarray) -> np.ndarray:
-        return cv2.boxFilter(a, cv2.CV_32F, k, borderType=cv2.BORDER_REFLECT)
-
-    mi, mp = mean(guide), mean(src)
-    var = mean(guide * guide) - mi * mi
-    a = (mean(guide * src) - mi * mp) / (var + np.float32(eps))
-    b = mp - a * mi
-    return (mean(a) * guide + mean(b)).astype(np.float32)
 
 
 def udcp(

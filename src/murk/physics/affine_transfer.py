@@ -26,17 +26,32 @@ import cv2
 import numpy as np
 
 
+def guided_filter(guide: np.ndarray, src: np.ndarray, radius: int, eps: float) -> np.ndarray:
+    """Guided filter (He et al. 2013, Alg. 1) with box means of side ``2 radius + 1`` (OpenCV's running-sum box
+    filter: the cost does not grow with the radius; reflected borders). Element-wise: a grey ``guide`` with a
+    grey ``src`` (UDCP's transmission refinement), or (H, W, 3) with (H, W, 3), each channel its own guide."""
+    k = (2 * radius + 1, 2 * radius + 1)
+
+    def mean(a: np.ndarray) -> np.ndarray:
+        return cv2.boxFilter(a, cv2.CV_32F, k, borderType=cv2.BORDER_REFLECT)
+
+    mi, mp = mean(guide), mean(src)
+    var = mean(guide * guide) - mi * mi
+    a = (mean(guide * src) - mi * mp) / (var + np.float32(eps))
+    b = mp - a * mi
+    return (mean(a) * guide + mean(b)).astype(np.float32)
+
+
 def transfer_radius_px(height: int, width: int, radius: float) -> int:
     """The window radius in pixels for ``radius`` given as a fraction of the image's long side, at least 1 and
-    smaller than the short side (the reflected border needs that much image)."""
+    smaller than the short side."""
     r = round(float(radius) * max(height, width))
     return int(max(1, min(r, min(height, width) - 1)))
 
 
 def affine_transfer(image: np.ndarray, restored: np.ndarray, radius_px: int, eps: float = 1e-4) -> np.ndarray:
-    """The locally affine transfer (module doc) of ``restored`` onto ``image``, both float (H, W, 3) in [0, 1];
-    float32 (H, W, 3), not clipped. Box sums by OpenCV's running-sum filter (cost independent of the radius),
-    reflected borders (``BORDER_REFLECT_101``).
+    """The locally affine transfer (module doc) of ``restored`` onto ``image``, both float (H, W, 3) in [0, 1]:
+    :func:`guided_filter` with ``image`` as the guide of each channel; float32 (H, W, 3), not clipped.
 
     Raises:
         ValueError: shapes differ or are not (H, W, 3), ``radius_px`` < 1, or ``eps`` <= 0.
@@ -49,13 +64,4 @@ def affine_transfer(image: np.ndarray, restored: np.ndarray, radius_px: int, eps
         raise ValueError(f"radius_px: expected an integer >= 1, got {radius_px!r}")
     if not eps > 0:
         raise ValueError(f"eps: expected > 0, got {eps!r}")
-    ksize = (2 * int(radius_px) + 1,) * 2
-
-    def box(x: np.ndarray) -> np.ndarray:
-        return cv2.boxFilter(x, -1, ksize, borderType=cv2.BORDER_REFLECT_101)
-
-    mean_i, mean_r = box(img), box(res)
-    var_i = box(img * img) - mean_i * mean_i
-    a = (box(img * res) - mean_i * mean_r) / (var_i + np.float32(eps))
-    b = mean_r - a * mean_i
-    return box(a) * img + box(b)
+    return guided_filter(img, res, int(radius_px), float(eps))
