@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from murk.physics.affine_transfer import affine_transfer, transfer_radius_px
+from murk.physics.affine_transfer import affine_transfer, guard_particle_removal, guard_size_px, transfer_radius_px
 
 
 def _textured(h: int = 60, w: int = 80, seed: int = 0) -> np.ndarray:
@@ -52,3 +52,34 @@ def test_bad_arguments_are_named() -> None:
         affine_transfer(img, img, 0)
     with pytest.raises(ValueError, match="eps: expected > 0"):
         affine_transfer(img, img, 2, eps=0.0)
+
+
+def test_the_guard_keeps_the_restorations_particle_removal_and_nothing_else() -> None:
+    # The restoration takes a 3x3 particle out of the input and darkens a large patch. The transfer brings the
+    # particle back; the guard keeps the restoration there. The large patch is no particle: the transfer stays.
+    img = cv2.GaussianBlur(_textured(), (0, 0), 2)  # smooth: no particle-like texture of its own
+    img[29:32, 39:42] = np.minimum(img[29:32, 39:42] + 0.4, 1.0)  # a particle in the input
+    restored = 0.5 * img + 0.1
+    restored[29:32, 39:42] = restored[26:29, 39:42]  # the restoration took it out
+    restored[2:22, 2:32] -= 0.1  # and darkened a large patch
+    transfer = affine_transfer(img, restored, radius_px=8, eps=1e-6)
+    out = guard_particle_removal(img, transfer, restored, threshold=0.04, size_px=7)  # larger than the particle
+    p = (slice(29, 32), slice(39, 42))
+    assert np.all(transfer[30, 40] - restored[30, 40] > 0.01)  # without the guard the particle was back
+    np.testing.assert_allclose(out[30, 40], restored[30, 40], atol=1e-6)  # with it, removed at the centre
+    assert np.all(np.abs(out[p] - restored[p]) <= 0.25 * np.abs(transfer[p] - restored[p]) + 1e-6)  # and mostly
+    assert np.abs(transfer[5:19, 5:29] - restored[5:19, 5:29]).max() > 0.01  # the patch differs, and
+    np.testing.assert_array_equal(out[:25, :35], transfer[:25, :35])  # the guard leaves it to the transfer
+    # A bright blob the restoration kept is left to the transfer (the second test fails).
+    np.testing.assert_allclose(guard_particle_removal(img, transfer, transfer, 0.04, 7), transfer, atol=1e-7)
+
+
+def test_guard_size_and_errors() -> None:
+    assert guard_size_px(480, 640) == 27 and guard_size_px(240, 320) == 13 and guard_size_px(10, 20) == 3
+    img = _textured()
+    with pytest.raises(ValueError, match="image/transfer/restored: expected three"):
+        guard_particle_removal(img, img, img[:, :-1], 0.04, 5)
+    with pytest.raises(ValueError, match="threshold: expected a top-hat luma > 0"):
+        guard_particle_removal(img, img, img, 0.0, 5)
+    with pytest.raises(ValueError, match="size_px: expected an integer >= 3"):
+        guard_particle_removal(img, img, img, 0.04, 2)

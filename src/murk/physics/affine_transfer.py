@@ -13,9 +13,17 @@ The output keeps the input's edges and texture and takes the restoration's colou
 drops whatever the restoration does that is not locally affine in the input:
 - network artefacts;
 - deblurring (forward scattering stays);
-- particles taken out (marine snow stays).
+- particles taken out (marine snow stays), unless :func:`guard_particle_removal` puts them back.
 
 A large radius approaches one global affine map per channel. A small one approaches the restoration itself.
+
+The particle guard (:func:`guard_particle_removal`) keeps the restoration's own output where it took out a
+particle. A pixel is guarded where two soft tests (ramps :data:`GUARD_RAMP` wide) both hold:
+- the input has a small bright blob there: the luma's white top-hat with a ``size_px`` square (the luma minus its
+  morphological opening) exceeds ``threshold``;
+- the restoration is darker there than the transfer: ``Y(transfer) - Y(restored)`` > 0, full at the ramp's width.
+Each test is grown by one pixel (3x3 maximum), so that a particle's rim goes with it. The output is
+``transfer + w (restored - transfer)``, with ``w`` in [0, 1] the product of the two tests.
 
 Reference: K. He, J. Sun, X. Tang, "Guided Image Filtering", IEEE TPAMI 35(6), 2013, doi:10.1109/TPAMI.2012.213.
 """
@@ -42,6 +50,13 @@ def guided_filter(guide: np.ndarray, src: np.ndarray, radius: int, eps: float) -
     return (mean(a) * guide + mean(b)).astype(np.float32)
 
 
+GUARD_RAMP = 0.02
+"""Luma width (of 1) over which each test of the particle guard goes from 0 to 1."""
+GUARD_SIZE = 0.04
+"""Side of the guard's top-hat square, as a fraction of the image's long side (:func:`guard_size_px`)."""
+_LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)  # Rec. 709
+
+
 def transfer_radius_px(height: int, width: int, radius: float) -> int:
     """The window radius in pixels for ``radius`` given as a fraction of the image's long side, at least 1 and
     smaller than the short side."""
@@ -65,3 +80,39 @@ def affine_transfer(image: np.ndarray, restored: np.ndarray, radius_px: int, eps
     if not eps > 0:
         raise ValueError(f"eps: expected > 0, got {eps!r}")
     return guided_filter(img, res, int(radius_px), float(eps))
+
+
+def guard_size_px(height: int, width: int) -> int:
+    """The side of the particle guard's top-hat square: :data:`GUARD_SIZE` x the long side, odd, at least 3."""
+    return max(3, round(GUARD_SIZE * max(height, width)) | 1)
+
+
+def guard_particle_removal(
+    image: np.ndarray, transfer: np.ndarray, restored: np.ndarray, threshold: float, size_px: int
+) -> np.ndarray:
+    """The transfer with the restoration's particle removal kept (module doc): float32 (H, W, 3), not clipped.
+
+    ``image`` is the input, ``transfer`` its :func:`affine_transfer`, ``restored`` the restoration, all float
+    (H, W, 3). ``threshold``: top-hat luma (of 1) from which the input counts as a particle; ``size_px``: side of
+    the top-hat square (particles smaller than it are found).
+
+    Raises:
+        ValueError: shapes differ or are not (H, W, 3), ``threshold`` <= 0, or ``size_px`` < 3.
+    """
+    img, tr, res = (np.asarray(a, np.float32) for a in (image, transfer, restored))
+    if img.ndim != 3 or img.shape[-1] != 3 or not img.shape == tr.shape == res.shape:
+        raise ValueError(
+            f"image/transfer/restored: expected three (H, W, 3) arrays of one shape, got {img.shape}, {tr.shape}, "
+            f"{res.shape}"
+        )
+    if isinstance(threshold, bool) or not threshold > 0:
+        raise ValueError(f"threshold: expected a top-hat luma > 0, got {threshold!r}")
+    if isinstance(size_px, bool) or int(size_px) != size_px or size_px < 3:
+        raise ValueError(f"size_px: expected an integer >= 3, got {size_px!r}")
+    grow = np.ones((3, 3), np.uint8)
+    y = img @ _LUMA
+    top_hat = y - cv2.morphologyEx(y, cv2.MORPH_OPEN, np.ones((int(size_px), int(size_px)), np.uint8))
+    blob = cv2.dilate(np.clip((top_hat - np.float32(threshold)) / np.float32(GUARD_RAMP), 0.0, 1.0), grow)
+    removed = cv2.dilate(np.clip((tr - res) @ _LUMA / np.float32(GUARD_RAMP), 0.0, 1.0), grow)
+    w = (blob * removed)[..., None]
+    return (tr + w * (res - tr)).astype(np.float32)
