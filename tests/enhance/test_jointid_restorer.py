@@ -64,7 +64,7 @@ def test_factory_defaults_to_shipped_weights_and_reports_bad_files(tmp_path, mon
 
 def test_odd_sizes_are_padded_and_cropped_not_resized(tiny):
     rgb = np.random.default_rng(0).random((2, 45, 70, 3), dtype=np.float32)
-    out = JointIDRestorer(tiny).restore(rgb)
+    out = JointIDRestorer(tiny, refine=0.0).restore(rgb)  # the network's own output
     assert out.images.shape == (2, 45, 70, 3) and out.images.dtype == np.float32
     assert out.depth_m.shape == (2, 45, 70) and out.depth_m.dtype == np.float32
     assert 0 <= out.images.min() and out.images.max() <= 1 and 0 < out.depth_m.min() and out.depth_m.max() < 15
@@ -79,7 +79,7 @@ def test_odd_sizes_are_padded_and_cropped_not_resized(tiny):
 
 def test_multiple_of_32_frames_pass_through_unpadded(tiny):
     rgb = torch.rand(1, 3, 64, 96, generator=torch.Generator().manual_seed(4))
-    out = JointIDRestorer(tiny).restore_tensor(rgb)
+    out = JointIDRestorer(tiny, refine=0.0).restore_tensor(rgb)
     with torch.no_grad():
         ref = tiny(normalize_input(rgb))
     assert torch.equal(out.depth_m, ref.depth_m) and torch.equal(out.images, ref.enhanced)
@@ -148,8 +148,8 @@ def test_onnx_backend_matches_torch(tmp_path, tiny, tiny_ckpt):
     path = export_onnx(tiny, tmp_path / "tiny.onnx")
     rgb = np.random.default_rng(3).random((2, 45, 70, 3), dtype=np.float32)
     for options in ({}, {"tile": 64, "overlap": 32}):
-        ref = JointIDRestorer(tiny, **options).restore(rgb)
-        out = create("jointid", checkpoint=path, **options).restore(rgb)  # .onnx suffix -> ONNX Runtime
+        ref = JointIDRestorer(tiny, **options).restore(rgb)  # the network alone (refine 0)
+        out = create("jointid", checkpoint=path, refine=0.0, **options).restore(rgb)  # .onnx -> ONNX Runtime
         np.testing.assert_allclose(out.images, ref.images, rtol=0, atol=2e-5)
         np.testing.assert_allclose(out.depth_m, ref.depth_m, rtol=0, atol=1e-4)
     assert "OnnxJointID" in repr(create("jointid", onnx=path))
@@ -225,18 +225,29 @@ def test_bf16_base_model_stays_within_40_db_of_fp32(underwater):
 
 
 def test_refine_transfers_the_restoration_onto_the_input_and_leaves_depth(tiny_ckpt, underwater):
-    from murk.physics.affine_transfer import affine_transfer, transfer_radius_px
+    from murk.physics.affine_transfer import (
+        affine_transfer,
+        guard_particle_removal,
+        guard_size_px,
+        transfer_radius_px,
+    )
 
     x = underwater[None].astype(np.float32)
-    plain = create("jointid", checkpoint=tiny_ckpt).restore(x)
-    assert np.array_equal(create("jointid", checkpoint=tiny_ckpt, refine=0.0).restore(x).images, plain.images)
-    refined = create(f"jointid?refine=0.125,refine_eps=0.001,checkpoint={tiny_ckpt}").restore(x)
+    plain = create("jointid", checkpoint=tiny_ckpt, refine=0.0).restore(x)  # the network alone
+    default = create("jointid", checkpoint=tiny_ckpt).restore(x)
     radius = transfer_radius_px(240, 300, 0.125)
+    transfer = affine_transfer(x[0], plain.images[0], radius, 1e-4)
+    guarded = guard_particle_removal(x[0], transfer, plain.images[0], 0.04, guard_size_px(240, 300))
+    # The default: refine=0.125 with the particle guard at 0.04.
+    np.testing.assert_allclose(default.images[0], np.clip(guarded, 0, 1), atol=1e-6)
+    refined = create(f"jointid?refine=0.125,refine_eps=0.001,refine_guard=0,checkpoint={tiny_ckpt}").restore(x)
     expected = np.clip(affine_transfer(x[0], plain.images[0], radius, 1e-3), 0, 1)
     np.testing.assert_allclose(refined.images[0], expected, atol=1e-6)
     assert np.abs(refined.images - plain.images).max() > 0.01  # it does change the output
-    assert np.array_equal(refined.depth_m, plain.depth_m)
+    assert np.array_equal(refined.depth_m, plain.depth_m) and np.array_equal(default.depth_m, plain.depth_m)
     with pytest.raises(ValueError, match=r"refine: expected a fraction of the long side in \[0, 1\]"):
         create("jointid", checkpoint=tiny_ckpt, refine=2.0)
     with pytest.raises(ValueError, match="refine_eps: expected > 0"):
         create("jointid", checkpoint=tiny_ckpt, refine=0.1, refine_eps=0.0)
+    with pytest.raises(ValueError, match=r"refine_guard: expected a top-hat luma in \[0, 1\)"):
+        create("jointid", checkpoint=tiny_ckpt, refine_guard=-0.1)

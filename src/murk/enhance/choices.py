@@ -31,3 +31,8 @@ POLICIES: tuple[str, ...] = get_args(Policy)
 
 DEFAULT_OVERLAP = 64
 """Tile overlap in pixels of the network restorers (``jointid``, ``udaformer``, ``ursct``) unless set."""
+DEFAULT_REFINE = 0.125
+"""Default ``refine`` of ``jointid``: the affine transfer's window radius as a fraction of the long side."""
+DEFAULT_REFINE_GUARD = 0.04
+"""Default ``refine_guard`` of ``jointid``: the top-hat luma from which the input counts as a particle (about 10
+of 255)."""

@@ -13,12 +13,16 @@ Registry options (``murk.enhance.create("jointid", **options)``; any other optio
 path, alternative to ``checkpoint``), ``device`` ("cpu", "cuda", "cuda:N"), ``precision`` ("fp32", "bf16",
 "fp16"), ``tile`` (pixels or None), ``overlap`` (pixels, default 64), ``trust_checkpoint`` (bool),
 ``batch`` (max frames or tiles per forward pass), ``compile`` and ``cuda_graph`` (bool, default False),
-``refine`` (0 = off, the default) and ``refine_eps``.
+``refine`` (0 = the network's output alone; the ``jointid`` method's default is
+:data:`murk.enhance.choices.DEFAULT_REFINE`, while a :class:`JointIDRestorer` built directly around a network
+defaults to 0), ``refine_eps`` and ``refine_guard``.
 
 ``refine`` re-expresses the network's restoration as a locally affine map of the input
 (:mod:`murk.physics.affine_transfer`). The window radius is ``refine`` times the frame's long side. The output
 then has the restoration's colours and the input's structure: what Eq. (1)'s inverse can do, without the network's
-deblurring or particle removal. Figures and the trade-off: docs/enhance.md, "jointid?refine".
+deblurring. ``refine_guard`` (a top-hat luma threshold, 0 = off) keeps the network's own output where it took a
+small bright particle out of the input, so that the transfer does not bring marine snow back. Figures and the
+trade-off: docs/enhance.md, "jointid?refine".
 
 Reference: Yang, Kang, Lee, Cho, "Transformer-Based Joint Image Enhancement and Depth Estimation for
 Underwater Environments", IEEE Sensors Journal 23(24), 2023, doi:10.1109/JSEN.2023.3338730.
@@ -35,7 +39,7 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from murk.enhance.choices import DEFAULT_OVERLAP, Precision
+from murk.enhance.choices import DEFAULT_OVERLAP, DEFAULT_REFINE, DEFAULT_REFINE_GUARD, Precision
 from murk.enhance.restorer import RestoredTensor, Restorer
 from murk.enhance.tiling import pad_to_multiple, tiled_apply
 from murk.errors import ShapeError
@@ -98,6 +102,12 @@ class JointIDRestorer(Restorer):
         channels_last: run convolutions in channels-last memory (default: on CUDA only).
         compile: wrap the model with ``torch.compile`` (first call per shape compiles).
         cuda_graph: capture and replay a CUDA graph per input shape (CUDA only; for fixed-size video).
+        refine: window radius of the affine transfer onto the input, as a fraction of the long side; 0 (the
+            default here: the network's output alone). The ``jointid`` method (:func:`create_jointid`) turns it
+            on (:data:`murk.enhance.choices.DEFAULT_REFINE`).
+        refine_eps: the transfer's regulariser.
+        refine_guard: top-hat luma from which the network's particle removal is kept against the transfer
+            (0: off).
 
     Raises:
         TypeError: ``model`` is neither a JointID nor an ONNX runner.
@@ -120,6 +130,7 @@ class JointIDRestorer(Restorer):
         cuda_graph: bool = False,
         refine: float = 0.0,
         refine_eps: float = 1e-4,
+        refine_guard: float = DEFAULT_REFINE_GUARD,
     ) -> None:
         from murk.models.jointid.checkpoint import unwrap
         from murk.models.jointid.onnx_export import OnnxJointID
@@ -140,9 +151,13 @@ class JointIDRestorer(Restorer):
             raise ValueError(f"refine: expected a fraction of the long side in [0, 1] (0 = off), got {refine!r}")
         if isinstance(refine_eps, bool) or not float(refine_eps) > 0:
             raise ValueError(f"refine_eps: expected > 0, got {refine_eps!r}")
+        if isinstance(refine_guard, bool) or not 0.0 <= float(refine_guard) < 1.0:
+            raise ValueError(f"refine_guard: expected a top-hat luma in [0, 1) (0 = off), got {refine_guard!r}")
         self.refine = float(refine)
         """Window radius of the locally affine transfer onto the input, as a fraction of the long side (0: off)."""
         self.refine_eps = float(refine_eps)
+        self.refine_guard = float(refine_guard)
+        """Top-hat luma from which the network's particle removal is kept against the transfer (0: off)."""
         self.precision = precision
         self.weights: str | None = None
         """The weights file this restorer was loaded from (set by the ``jointid`` factory)."""
@@ -235,14 +250,23 @@ class JointIDRestorer(Restorer):
         return RestoredTensor(enhanced, depth)
 
     def _refine(self, images: Tensor, enhanced: Tensor) -> Tensor:
-        """The locally affine transfer of each restoration onto its input (``refine``), on the CPU."""
-        from murk.physics.affine_transfer import affine_transfer, transfer_radius_px
+        """The locally affine transfer of each restoration onto its input (``refine``), with the particle guard
+        (``refine_guard``), on the CPU."""
+        from murk.physics.affine_transfer import (
+            affine_transfer,
+            guard_particle_removal,
+            guard_size_px,
+            transfer_radius_px,
+        )
 
         h, w = int(images.shape[-2]), int(images.shape[-1])
         radius = transfer_radius_px(h, w, self.refine)
         outs = []
         for src, out in zip(images.float().cpu(), enhanced.float().cpu(), strict=True):
-            hwc = affine_transfer(src.permute(1, 2, 0).numpy(), out.permute(1, 2, 0).numpy(), radius, self.refine_eps)
+            i_hwc, r_hwc = src.permute(1, 2, 0).numpy(), out.permute(1, 2, 0).numpy()
+            hwc = affine_transfer(i_hwc, r_hwc, radius, self.refine_eps)
+            if self.refine_guard > 0:
+                hwc = guard_particle_removal(i_hwc, hwc, r_hwc, self.refine_guard, guard_size_px(h, w))
             outs.append(torch.from_numpy(np.clip(hwc, 0.0, 1.0)).permute(2, 0, 1))
         return torch.stack(outs).to(enhanced.device).contiguous()
 
@@ -266,8 +290,9 @@ def create_jointid(
     batch: int | None = None,
     compile: bool = False,
     cuda_graph: bool = False,
-    refine: float = 0.0,
+    refine: float = DEFAULT_REFINE,
     refine_eps: float = 1e-4,
+    refine_guard: float = DEFAULT_REFINE_GUARD,
 ) -> JointIDRestorer:
     """Factory of ``jointid`` (registered lazily by :mod:`murk.enhance.methods`): load ``checkpoint`` (or the
     ``onnx`` file) and wrap it.
@@ -313,6 +338,7 @@ def create_jointid(
         cuda_graph=cuda_graph,
         refine=refine,
         refine_eps=refine_eps,
+        refine_guard=refine_guard,
     )
     restorer.weights = str(path)
     return restorer

@@ -17,7 +17,15 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from murk.enhance.choices import DEFAULT_OVERLAP, HEMode, Policy, PostPreset, Precision
+from murk.enhance.choices import (
+    DEFAULT_OVERLAP,
+    DEFAULT_REFINE,
+    DEFAULT_REFINE_GUARD,
+    HEMode,
+    Policy,
+    PostPreset,
+    Precision,
+)
 from murk.enhance.restorer import Restorer, register
 from murk.errors import InputFileError
 from murk.models.checkpoint_io import checkpoint_file
@@ -75,8 +83,9 @@ def jointid(
     batch: int | None = None,
     compile: bool = False,
     cuda_graph: bool = False,
-    refine: float = 0.0,
+    refine: float = DEFAULT_REFINE,
     refine_eps: float = 1e-4,
+    refine_guard: float = DEFAULT_REFINE_GUARD,
 ) -> Restorer:
     """``jointid`` (the network restores and estimates depth): :func:`murk.enhance.jointid_restorer.create_jointid`."""
     options = dict(locals())

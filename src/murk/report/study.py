@@ -100,6 +100,19 @@ def run_study(
     return result.finish()
 
 
+ARM_OPTIONS: dict[str, tuple[str, ...]] = {"jointid": ("refine=0",)}
+"""Options every arm's restorer gets, per network kind. The arms are compared as trained: ``jointid``'s affine
+transfer onto the input (``refine``, on by default in ``murk enhance``) would drop the deblurring that the
+forward-scattering arm is about."""
+
+
+def arm_spec(kind: str, body: str, *options: str) -> str:
+    """The method spec of an arm: ``body`` (``[LABEL=]METHOD[:CHECKPOINT]``) with ``options`` and the arm options
+    of the network ``kind`` (:data:`ARM_OPTIONS`)."""
+    opts = ",".join([*options, *ARM_OPTIONS.get(kind, ())])
+    return f"{body}?{opts}" if opts else body
+
+
 def evaluate_study(
     study: StudyConfig, base: TrainConfig, out: Path, *, on_event: Callable[[str], None] | None = None
 ) -> dict[str, Any]:
@@ -114,6 +127,7 @@ def evaluate_study(
     say = on_event or (lambda _m: None)
     ev = study.eval
     method = base.model.kind  # the restorer of the arms' network kind: jointid or lite
+
     ckpts = {a.name: Path(arm_config(base, a, out).out) / "latest.pt" for a in study.arms}
     for name, path in ckpts.items():
         if not path.is_file():
@@ -131,7 +145,7 @@ def evaluate_study(
             synthesis=synthesis,
             balance_pct=ev.synthetic_balance_pct,
         )
-        restorers = {name: create(method, checkpoint=str(p)) for name, p in ckpts.items()}
+        restorers = {name: create(arm_spec(method, method), checkpoint=str(p)) for name, p in ckpts.items()}
         if ev.synthetic_balance_pct is not None:  # photographic targets: the classical balance is the bar
             restorers = {"colorbalance": create("colorbalance"), **restorers}
         heldout = {
@@ -151,8 +165,8 @@ def evaluate_study(
         raise ValueError(f"eval.real: {real_dir} holds no images")
     last = study.arms[-1].name
     specs = ["raw", f"post=post?preset=paper,lam={ev.post_lambda}"]
-    specs += [f"{name}={method}:{p}" for name, p in ckpts.items()]
-    specs.append(f"{last}+post={method}+post:{ckpts[last]}?preset=paper,lam={ev.post_lambda}")
+    specs += [arm_spec(method, f"{name}={method}:{p}") for name, p in ckpts.items()]
+    specs.append(arm_spec(method, f"{last}+post={method}+post:{ckpts[last]}", "preset=paper", f"lam={ev.post_lambda}"))
     specs += list(ev.baselines)  # e.g. udaformer:PATH, ursct:PATH (docs/baselines.md)
     methods = [parse_method(s) for s in specs]
     say(f"real: {len(images)} images x {len(methods)} methods")
@@ -171,7 +185,7 @@ def evaluate_study(
             "colorbalance",
             "udcp",
             *specs[2:],
-            f"{last}+post_murk={method}+post:{ckpts[last]}",
+            arm_spec(method, f"{last}+post_murk={method}+post:{ckpts[last]}"),
         ]
         report["real_pairs"] = evaluate_real_pairs(
             Path(resolve_builtin(ev.real_pairs)),
