@@ -111,6 +111,25 @@ def _depth_inputs(rng: np.random.Generator) -> Arrays:
     return {"pred": pred, "gt": gt}
 
 
+def _transfer_inputs(rng: np.random.Generator) -> Arrays:
+    """Textured inputs with particles, and a restoration that is a smooth colour map plus its own texture with the
+    particles taken out (what the affine transfer and its guard see)."""
+    import cv2
+
+    b, h, w = 2, 41, 57
+    images = np.stack([cv2.GaussianBlur(rng.random((h, w, 3)).astype(np.float32), (0, 0), 1.5) for _ in range(b)])
+    images = 0.15 + 0.7 * (images - images.min()) / (images.max() - images.min())
+    restored = np.clip(1.4 * images - 0.1 + 0.03 * rng.standard_normal(images.shape), 0, 1).astype(np.float32)
+    for i in range(b):
+        for y, x in rng.integers(3, (h - 3, w - 3), (6, 2)):
+            images[i, y - 1 : y + 2, x - 1 : x + 2] += 0.3
+    images = np.clip(images, 0, 1).astype(np.float32)
+    return {"images": images, "restored": restored}
+
+
+_IR = ("images", "restored")
+
+
 def _flat_in_batch(rng: np.random.Generator) -> Arrays:
     images = rng.random((3, 17, 29, 3)).astype(np.float32)
     images[1] = 0.4  # a flat image in the batch
@@ -126,6 +145,7 @@ def _table() -> dict[str, Twin]:
     from murk.metrics import reference
     from murk.metrics.uciqe import uciqe, uciqe_torch
     from murk.metrics.uiqm import uiqm, uiqm_torch
+    from murk.physics import affine_transfer as at
     from murk.physics import balance, camera, medium
     from murk.physics import forward_scatter as fs
     from murk.scenes.textures import TILE_PX, lookup_numpy, lookup_torch, noise_tile
@@ -152,6 +172,38 @@ def _table() -> dict[str, Twin]:
             lambda x: {
                 "out": nhwc(
                     medium.apply_medium_torch(nchw(x["images"]), t(x["dist"])[:, None], t(x["beta"]), t(x["b_inf"]))[0]
+                )
+            },
+            atol=1e-6,
+        ),
+        "physics.guided_filter (affine_transfer, radius 6)": Twin(
+            _transfer_inputs,
+            per_image(lambda im, r: at.affine_transfer(im, r, 6, 1e-4), "images", "restored"),
+            lambda x: {"out": nhwc(at.affine_transfer_torch(nchw(x["images"]), nchw(x["restored"]), 6, 1e-4))},
+            atol=1e-6,
+        ),
+        "physics.guided_filter (radius 40, beyond half the frame)": Twin(
+            _transfer_inputs,
+            per_image(lambda im, r: at.affine_transfer(im, r, 40, 1e-3), "images", "restored"),
+            lambda x: {"out": nhwc(at.affine_transfer_torch(nchw(x["images"]), nchw(x["restored"]), 40, 1e-3))},
+            atol=1e-6,
+        ),
+        "physics.guard_particle_removal": Twin(
+            _transfer_inputs,
+            per_image(
+                lambda im, r: at.guard_particle_removal(im, at.affine_transfer(im, r, 6), r, 0.04, 7),
+                "images",
+                "restored",
+            ),
+            lambda x: {
+                "out": nhwc(
+                    at.guard_particle_removal_torch(
+                        nchw(x["images"]),
+                        at.affine_transfer_torch(nchw(x["images"]), nchw(x["restored"]), 6),
+                        nchw(x["restored"]),
+                        0.04,
+                        7,
+                    )
                 )
             },
             atol=1e-6,

@@ -214,6 +214,21 @@ def test_cuda_matches_cpu_and_cuda_graph_matches_eager(tiny, underwater):
 
 @pytest.mark.gpu
 @needs_cuda
+def test_refine_on_cuda_runs_the_torch_twins_on_the_device(tiny, underwater):
+    from murk.physics import affine_transfer as at
+
+    x = torch.from_numpy(underwater).permute(2, 0, 1)[None].cuda()
+    net = JointIDRestorer(copy.deepcopy(tiny), device="cuda").restore_tensor(x).images  # refine 0
+    out = JointIDRestorer(copy.deepcopy(tiny), device="cuda", refine=0.125).restore_tensor(x).images
+    assert out.device.type == "cuda"
+    i_hwc, r_hwc = underwater.astype(np.float32), net[0].permute(1, 2, 0).cpu().numpy()
+    want = at.affine_transfer(i_hwc, r_hwc, at.transfer_radius_px(240, 300, 0.125))
+    want = at.guard_particle_removal(i_hwc, want, r_hwc, 0.04, at.guard_size_px(240, 300))
+    np.testing.assert_allclose(out[0].permute(1, 2, 0).cpu().numpy(), np.clip(want, 0, 1), rtol=0, atol=1e-5)
+
+
+@pytest.mark.gpu
+@needs_cuda
 def test_bf16_base_model_stays_within_40_db_of_fp32(underwater):
     torch.manual_seed(0)
     model = build_jointid("base").eval()

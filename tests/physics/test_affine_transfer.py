@@ -81,5 +81,6 @@ def test_guard_size_and_errors() -> None:
         guard_particle_removal(img, img, img[:, :-1], 0.04, 5)
     with pytest.raises(ValueError, match="threshold: expected a top-hat luma > 0"):
         guard_particle_removal(img, img, img, 0.0, 5)
-    with pytest.raises(ValueError, match="size_px: expected an integer >= 3"):
-        guard_particle_removal(img, img, img, 0.04, 2)
+    for bad in (2, 4):
+        with pytest.raises(ValueError, match="size_px: expected an odd integer >= 3"):
+            guard_particle_removal(img, img, img, 0.04, bad)

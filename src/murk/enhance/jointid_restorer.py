@@ -251,24 +251,26 @@ class JointIDRestorer(Restorer):
 
     def _refine(self, images: Tensor, enhanced: Tensor) -> Tensor:
         """The locally affine transfer of each restoration onto its input (``refine``), with the particle guard
-        (``refine_guard``), on the CPU."""
-        from murk.physics.affine_transfer import (
-            affine_transfer,
-            guard_particle_removal,
-            guard_size_px,
-            transfer_radius_px,
-        )
+        (``refine_guard``): on the CPU with OpenCV per frame, elsewhere with the torch twins on the device (equal,
+        tests/twins.py)."""
+        from murk.physics import affine_transfer as at
 
         h, w = int(images.shape[-2]), int(images.shape[-1])
-        radius = transfer_radius_px(h, w, self.refine)
-        outs = []
-        for src, out in zip(images.float().cpu(), enhanced.float().cpu(), strict=True):
-            i_hwc, r_hwc = src.permute(1, 2, 0).numpy(), out.permute(1, 2, 0).numpy()
-            hwc = affine_transfer(i_hwc, r_hwc, radius, self.refine_eps)
+        radius, size = at.transfer_radius_px(h, w, self.refine), at.guard_size_px(h, w)
+        if enhanced.device.type != "cpu":
+            src = images.to(enhanced.device, torch.float32)
+            out = at.affine_transfer_torch(src, enhanced, radius, self.refine_eps)
             if self.refine_guard > 0:
-                hwc = guard_particle_removal(i_hwc, hwc, r_hwc, self.refine_guard, guard_size_px(h, w))
+                out = at.guard_particle_removal_torch(src, out, enhanced, self.refine_guard, size)
+            return out.clamp_(0.0, 1.0).contiguous()
+        outs = []
+        for src, res in zip(images.float().cpu(), enhanced.float().cpu(), strict=True):
+            i_hwc, r_hwc = src.permute(1, 2, 0).numpy(), res.permute(1, 2, 0).numpy()
+            hwc = at.affine_transfer(i_hwc, r_hwc, radius, self.refine_eps)
+            if self.refine_guard > 0:
+                hwc = at.guard_particle_removal(i_hwc, hwc, r_hwc, self.refine_guard, size)
             outs.append(torch.from_numpy(np.clip(hwc, 0.0, 1.0)).permute(2, 0, 1))
-        return torch.stack(outs).to(enhanced.device).contiguous()
+        return torch.stack(outs).contiguous()
 
     def __repr__(self) -> str:
         backend = self._backend if self.model is None else type(self.model).__name__

@@ -25,13 +25,22 @@ particle. A pixel is guarded where two soft tests (ramps :data:`GUARD_RAMP` wide
 Each test is grown by one pixel (3x3 maximum), so that a particle's rim goes with it. The output is
 ``transfer + w (restored - transfer)``, with ``w`` in [0, 1] the product of the two tests.
 
+numpy/OpenCV functions and their torch twins (``*_torch``, batches (B, C, H, W) on any device) sit side by side and
+are pinned equal by tests/twins.py. The torch box means come from cumulative sums in float64 over the reflected
+frame, as OpenCV's running sums accumulate in double.
+
 Reference: K. He, J. Sun, X. Tang, "Guided Image Filtering", IEEE TPAMI 35(6), 2013, doi:10.1109/TPAMI.2012.213.
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import cv2
 import numpy as np
+
+if TYPE_CHECKING:
+    from torch import Tensor
 
 
 def guided_filter(guide: np.ndarray, src: np.ndarray, radius: int, eps: float) -> np.ndarray:
@@ -94,10 +103,10 @@ def guard_particle_removal(
 
     ``image`` is the input, ``transfer`` its :func:`affine_transfer`, ``restored`` the restoration, all float
     (H, W, 3). ``threshold``: top-hat luma (of 1) from which the input counts as a particle; ``size_px``: side of
-    the top-hat square (particles smaller than it are found).
+    the top-hat square, odd (particles smaller than it are found).
 
     Raises:
-        ValueError: shapes differ or are not (H, W, 3), ``threshold`` <= 0, or ``size_px`` < 3.
+        ValueError: shapes differ or are not (H, W, 3), ``threshold`` <= 0, or ``size_px`` not odd and >= 3.
     """
     img, tr, res = (np.asarray(a, np.float32) for a in (image, transfer, restored))
     if img.ndim != 3 or img.shape[-1] != 3 or not img.shape == tr.shape == res.shape:
@@ -107,8 +116,8 @@ def guard_particle_removal(
         )
     if isinstance(threshold, bool) or not threshold > 0:
         raise ValueError(f"threshold: expected a top-hat luma > 0, got {threshold!r}")
-    if isinstance(size_px, bool) or int(size_px) != size_px or size_px < 3:
-        raise ValueError(f"size_px: expected an integer >= 3, got {size_px!r}")
+    if isinstance(size_px, bool) or int(size_px) != size_px or size_px < 3 or size_px % 2 == 0:
+        raise ValueError(f"size_px: expected an odd integer >= 3, got {size_px!r}")
     grow = np.ones((3, 3), np.uint8)
     y = img @ _LUMA
     top_hat = y - cv2.morphologyEx(y, cv2.MORPH_OPEN, np.ones((int(size_px), int(size_px)), np.uint8))
@@ -116,3 +125,90 @@ def guard_particle_removal(
     removed = cv2.dilate(np.clip((tr - res) @ _LUMA / np.float32(GUARD_RAMP), 0.0, 1.0), grow)
     w = (blob * removed)[..., None]
     return (tr + w * (res - tr)).astype(np.float32)
+
+
+# --- torch twins -------------------------------------------------------------------------------------------------
+
+
+def _box_mean_torch(x: Tensor, radius: int) -> Tensor:
+    """Mean over windows of side ``2 radius + 1`` of a batch (B, C, H, W), borders reflected with the edge pixel
+    repeated (OpenCV's ``BORDER_REFLECT``; ``radius`` < H and W); float32."""
+    import torch
+
+    out = x.double()
+    k = 2 * radius + 1
+    for dim in (2, 3):
+        n = int(out.shape[dim])
+        i = torch.arange(-radius, n + radius, device=x.device)
+        i = torch.where(i < 0, -i - 1, torch.where(i >= n, 2 * n - i - 1, i))
+        c = torch.cumsum(out.index_select(dim, i), dim)
+        c = torch.cat([torch.zeros_like(c.narrow(dim, 0, 1)), c], dim)
+        out = (c.narrow(dim, k, n) - c.narrow(dim, 0, n)) / k
+    return out.float()
+
+
+def guided_filter_torch(guide: Tensor, src: Tensor, radius: int, eps: float) -> Tensor:
+    """The twin of :func:`guided_filter` for batches (B, C, H, W), element-wise per channel."""
+    g, p = guide.float(), src.float()
+
+    def mean(a: Tensor) -> Tensor:
+        return _box_mean_torch(a, radius)
+
+    mi, mp = mean(g), mean(p)
+    var = mean(g * g) - mi * mi
+    a = (mean(g * p) - mi * mp) / (var + eps)
+    b = mp - a * mi
+    return mean(a) * g + mean(b)
+
+
+def affine_transfer_torch(image: Tensor, restored: Tensor, radius_px: int, eps: float = 1e-4) -> Tensor:
+    """The twin of :func:`affine_transfer` for batches (B, 3, H, W); float32, not clipped.
+
+    Raises:
+        ValueError: as :func:`affine_transfer`.
+    """
+    if image.ndim != 4 or image.shape[1] != 3 or image.shape != restored.shape:
+        raise ValueError(
+            f"image/restored: expected two (B, 3, H, W) batches of one shape, got {tuple(image.shape)}, "
+            f"{tuple(restored.shape)}"
+        )
+    if isinstance(radius_px, bool) or int(radius_px) != radius_px or radius_px < 1:
+        raise ValueError(f"radius_px: expected an integer >= 1, got {radius_px!r}")
+    if not eps > 0:
+        raise ValueError(f"eps: expected > 0, got {eps!r}")
+    return guided_filter_torch(image, restored, int(radius_px), float(eps))
+
+
+def guard_particle_removal_torch(
+    image: Tensor, transfer: Tensor, restored: Tensor, threshold: float, size_px: int
+) -> Tensor:
+    """The twin of :func:`guard_particle_removal` for batches (B, 3, H, W); float32. The morphology ignores what
+    lies outside the frame, as OpenCV's default border does.
+
+    Raises:
+        ValueError: as :func:`guard_particle_removal`.
+    """
+    import torch
+    import torch.nn.functional as F
+
+    if image.ndim != 4 or image.shape[1] != 3 or not image.shape == transfer.shape == restored.shape:
+        raise ValueError(
+            f"image/transfer/restored: expected three (B, 3, H, W) batches of one shape, got {tuple(image.shape)}, "
+            f"{tuple(transfer.shape)}, {tuple(restored.shape)}"
+        )
+    if isinstance(threshold, bool) or not threshold > 0:
+        raise ValueError(f"threshold: expected a top-hat luma > 0, got {threshold!r}")
+    if isinstance(size_px, bool) or int(size_px) != size_px or size_px < 3 or size_px % 2 == 0:
+        raise ValueError(f"size_px: expected an odd integer >= 3, got {size_px!r}")
+    luma = torch.from_numpy(_LUMA).to(image.device).view(1, 3, 1, 1)
+    img, tr, res = image.float(), transfer.float(), restored.float()
+
+    def grow(a: Tensor, k: int) -> Tensor:  # grey dilation with a k x k square (k odd)
+        return F.max_pool2d(a, k, stride=1, padding=k // 2)
+
+    k = int(size_px)
+    y = (img * luma).sum(1, keepdim=True)
+    opened = grow(-grow(-y, k), k)  # erosion, then dilation
+    blob = grow(((y - opened - threshold) / GUARD_RAMP).clamp(0.0, 1.0), 3)
+    removed = grow((((tr - res) * luma).sum(1, keepdim=True) / GUARD_RAMP).clamp(0.0, 1.0), 3)
+    return tr + blob * removed * (res - tr)
