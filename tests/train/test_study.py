@@ -239,4 +239,4 @@ def test_jointid_arms_are_scored_as_trained_without_the_affine_transfer() -> Non
     chained = parse_method(arm_spec("jointid", "full+post=jointid+post:x.pt", "preset=paper", "lam=0.5"))
     assert dict(chained.options) == {"preset": "paper", "lam": 0.5, "refine": 0}
     assert arm_spec("lite", "a=lite:x.pt") == "a=lite:x.pt"
-    assert create(arm_spec("jointid", "jointid")).refine == 0.0  # the option reaches the restorer
+    assert create(arm_spec("jointid", "jointid")).refine_settings.radius == 0.0  # the option reaches the restorer

@@ -35,11 +35,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch
 from torch import Tensor, nn
 
 from murk.enhance.choices import DEFAULT_OVERLAP, DEFAULT_REFINE, DEFAULT_REFINE_GUARD, Precision
+from murk.enhance.refine import RefineSettings, refine_restoration
 from murk.enhance.restorer import RestoredTensor, Restorer
 from murk.enhance.tiling import pad_to_multiple, tiled_apply
 from murk.errors import ShapeError
@@ -147,17 +147,8 @@ class JointIDRestorer(Restorer):
             raise ValueError(f"overlap: expected >= 0 pixels, got {overlap}")
         if batch is not None and (isinstance(batch, bool) or batch < 1):
             raise ValueError(f"batch: expected None or a positive integer, got {batch!r}")
-        if isinstance(refine, bool) or not 0.0 <= float(refine) <= 1.0:
-            raise ValueError(f"refine: expected a fraction of the long side in [0, 1] (0 = off), got {refine!r}")
-        if isinstance(refine_eps, bool) or not float(refine_eps) > 0:
-            raise ValueError(f"refine_eps: expected > 0, got {refine_eps!r}")
-        if isinstance(refine_guard, bool) or not 0.0 <= float(refine_guard) < 1.0:
-            raise ValueError(f"refine_guard: expected a top-hat luma in [0, 1) (0 = off), got {refine_guard!r}")
-        self.refine = float(refine)
-        """Window radius of the locally affine transfer onto the input, as a fraction of the long side (0: off)."""
-        self.refine_eps = float(refine_eps)
-        self.refine_guard = float(refine_guard)
-        """Top-hat luma from which the network's particle removal is kept against the transfer (0: off)."""
+        self.refine_settings = RefineSettings(refine, refine_eps, refine_guard)
+        """The ``refine`` step after the network (:mod:`murk.enhance.refine`)."""
         self.precision = precision
         self.weights: str | None = None
         """The weights file this restorer was loaded from (set by the ``jointid`` factory)."""
@@ -245,32 +236,8 @@ class JointIDRestorer(Restorer):
             depth, enhanced = self._forward_padded(x)
             depth = pad.crop(depth).contiguous()
             enhanced = pad.crop(enhanced).clamp(0.0, 1.0).contiguous()
-            if self.refine > 0:
-                enhanced = self._refine(images, enhanced)
+            enhanced = refine_restoration(images, enhanced, self.refine_settings)
         return RestoredTensor(enhanced, depth)
-
-    def _refine(self, images: Tensor, enhanced: Tensor) -> Tensor:
-        """The locally affine transfer of each restoration onto its input (``refine``), with the particle guard
-        (``refine_guard``): on the CPU with OpenCV per frame, elsewhere with the torch twins on the device (equal,
-        tests/twins.py)."""
-        from murk.physics import affine_transfer as at
-
-        h, w = int(images.shape[-2]), int(images.shape[-1])
-        radius, size = at.transfer_radius_px(h, w, self.refine), at.guard_size_px(h, w)
-        if enhanced.device.type != "cpu":
-            src = images.to(enhanced.device, torch.float32)
-            out = at.affine_transfer_torch(src, enhanced, radius, self.refine_eps)
-            if self.refine_guard > 0:
-                out = at.guard_particle_removal_torch(src, out, enhanced, self.refine_guard, size)
-            return out.clamp_(0.0, 1.0).contiguous()
-        outs = []
-        for src, res in zip(images.float().cpu(), enhanced.float().cpu(), strict=True):
-            i_hwc, r_hwc = src.permute(1, 2, 0).numpy(), res.permute(1, 2, 0).numpy()
-            hwc = at.affine_transfer(i_hwc, r_hwc, radius, self.refine_eps)
-            if self.refine_guard > 0:
-                hwc = at.guard_particle_removal(i_hwc, hwc, r_hwc, self.refine_guard, size)
-            outs.append(torch.from_numpy(np.clip(hwc, 0.0, 1.0)).permute(2, 0, 1))
-        return torch.stack(outs).contiguous()
 
     def __repr__(self) -> str:
         backend = self._backend if self.model is None else type(self.model).__name__

@@ -106,6 +106,9 @@ def lite(
     batch: int | None = None,
     threads: int | None = None,
     temporal: float = 0.0,
+    refine: float = 0.0,
+    refine_eps: float = 1e-4,
+    refine_guard: float = DEFAULT_REFINE_GUARD,
 ) -> Restorer:
     """``lite`` (the small real-time restorer): :func:`murk.enhance.lite_restorer.create_lite`."""
     options = dict(locals())
