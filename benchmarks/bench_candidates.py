@@ -39,7 +39,7 @@ from murk.report.heldout import score_heldout
 from murk.report.methods import parse_method
 from murk.report.study import evaluate_real_pairs
 
-SNOW_KEYS = ("snow_residue", "snow_sites_left", "snow_free_gms")
+SNOW_KEYS = ("snow_residue", "snow_sites_left", "snow_free_gms", "snow_colour_residue")
 
 
 def candidates(specs: list[str], method: str) -> dict[str, str]:
@@ -106,7 +106,7 @@ def main() -> None:
     head = " / ".join(sets)
     print(
         f"| weights | real pairs, mean over sets | {head} PSNR | paired dPSNR vs `{labels[0]}` | held-out gain "
-        "| snow residue / sites left / GMS away | periodic artefacts |"
+        "| snow residue / sites left / GMS away / colour residue | periodic artefacts |"
     )
     print("|---|---|---|---|---|---|---|")
     for lab in labels:

@@ -32,8 +32,19 @@ def test_identity_keeps_everything_and_a_perfect_remover_nothing() -> None:
     sites = snow_sites(snowy, clean)
     kept = snow_residue(sites, clean, snowy, clean)
     assert kept.residue == pytest.approx(1.0) and kept.sites_left == 1.0 and kept.gain == pytest.approx(1.0)
+    assert kept.colour_residue == pytest.approx(1.0)
     removed = snow_residue(sites, clean, clean, clean)
-    assert removed.residue == 0.0 and removed.sites_left == 0.0
+    assert removed.residue == 0.0 and removed.sites_left == 0.0 and removed.colour_residue == 0.0
+
+
+def test_a_particle_recoloured_into_a_dark_dot_is_removed_for_luma_and_not_for_colour() -> None:
+    # What the shipped jointid does to many real particles: they come out pinkish and darker, not gone.
+    clean, snowy, snow = _pair(np.random.default_rng(4))
+    sites = snow_sites(snowy, clean)
+    dot = clean + snow[..., None] * np.array([0.15, -0.15, -0.15], np.float32)  # redder and darker than the scene
+    r = snow_residue(sites, clean, np.clip(dot, 0, 1).astype(np.float32), clean)
+    assert r.residue == 0.0 and r.sites_left == 0.0  # nothing brighter is left
+    assert r.colour_residue > 0.4  # but the dots are still there in colour
 
 
 def test_a_contrast_stretch_is_not_counted_as_keeping_more_snow() -> None:

@@ -234,3 +234,22 @@ def test_scores_are_those_of_the_written_output(tmp_path: Path) -> None:
     saved = read_rgb(tmp_path / "out" / "restored" / "post" / "x.png")
     assert row["uiqm"] == pytest.approx(uiqm(saved, data_range=1.0).uiqm, abs=1e-9)
     assert row["uciqe"] == pytest.approx(uciqe(saved, data_range=1.0).uciqe, abs=1e-9)
+
+
+def test_snow_pairs_add_the_luma_and_colour_residues(tmp_path: Path) -> None:
+    import cv2
+
+    rng = np.random.default_rng(5)
+    clean = (cv2.GaussianBlur(rng.random((60, 80, 3)).astype(np.float32), (0, 0), 4) * 0.5 + 0.2).astype(np.float32)
+    snowy = clean.copy()
+    for y, x in rng.integers(4, 56, (12, 2)):
+        snowy[y - 1 : y + 2, x - 1 : x + 2] += 0.35
+    for sub, img in (("snowy", snowy), ("clean", clean)):
+        (tmp_path / sub).mkdir()
+        cv2.imwrite(str(tmp_path / sub / "s.png"), cv2.cvtColor(to_uint(np.clip(img, 0, 1), 8), cv2.COLOR_RGB2BGR))
+    res = run_compare(
+        [tmp_path / "snowy" / "s.png"], [parse_method("raw")], tmp_path / "rep", snow_clean=tmp_path / "clean"
+    )
+    (row,) = res.rows
+    assert row["snow_residue"] == pytest.approx(1.0) and row["snow_colour_residue"] == pytest.approx(1.0)
+    assert res.summary["raw"]["snow_colour_residue"]["mean"] == pytest.approx(1.0)

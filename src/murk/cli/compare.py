@@ -121,7 +121,12 @@ def compare(
         tables.append((("PSNR dB", "psnr"), ("dPSNR vs raw", "d_psnr"), ("SSIM", "ssim"), ("CIEDE2000", "ciede2000")))
     if snow_clean is not None:
         tables.append(
-            (("snow residue", "snow_residue"), ("sites left", "snow_sites_left"), ("GMS away", "snow_free_gms"))
+            (
+                ("snow residue", "snow_residue"),
+                ("sites left", "snow_sites_left"),
+                ("GMS away", "snow_free_gms"),
+                ("colour residue", "snow_colour_residue"),
+            )
         )
     for columns in tables:
         head = " ".join(f"{name:>18}" for name, _ in columns)

@@ -16,6 +16,12 @@ Definitions (luma ``Y`` of Rec. 709, float in [0, 1]):
   remove them), then ``residue = sum_sites max(D', 0) / sum_sites max(D, 0)``: 1 = the particles kept their
   contrast, 0 = removed, > 1 = amplified. ``sites_left`` is the share of sites whose peak ``D'`` is still at
   least half of its peak ``D``.
+- **colour residue** (``colour_residue`` of :func:`snow_residue`): the same ratio for the RGB difference,
+  ``sum_sites ||S - C|| / g_rgb / sum_sites ||snowy - clean||`` (Euclidean norm over the three channels), with
+  ``g_rgb = ||std_c(C)|| / ||std_c(clean)||`` the restorer's colour contrast gain (the norm of the three channel
+  standard deviations), so that a colour stretch alone reads 1 as a luma stretch does above. The luma residue
+  counts only what is still brighter than the snow-free output, so a particle turned into a darker or coloured dot
+  counts as removed there; here it does not (a dot as different as the particle reads 1).
 
 - **snow-free structure**: "removing snow without blurring the rest" is read with the structure fidelity
   (GMS, :func:`murk.metrics.fidelity.structure_fidelity`) of ``R(snowy)`` to ``snowy`` over the pixels at least
@@ -45,11 +51,12 @@ CLEAR_MARGIN_PX = 3
 @dataclass(frozen=True)
 class SnowSites:
     """Particle sites of a snowy/clean pair: ``labels`` (H, W) int32 (0 = no site, k = site k), ``count``,
-    and ``excess`` (H, W) float32, the luma excess ``D``."""
+    ``excess`` (H, W) float32, the luma excess ``D``, and ``colour_diff`` (H, W) float32, ``||snowy - clean||``."""
 
     labels: np.ndarray
     count: int
     excess: np.ndarray
+    colour_diff: np.ndarray
 
     @property
     def per_megapixel(self) -> float:
@@ -59,12 +66,14 @@ class SnowSites:
 @dataclass(frozen=True)
 class SnowResidue:
     """:func:`snow_residue`: contrast-normalised share of the particles' luma excess left (``residue``), share
-    of sites still visible (``sites_left``), the sites per megapixel and the contrast gain used."""
+    of sites still visible (``sites_left``), the sites per megapixel, the contrast gain used, and the share of the
+    particles' RGB difference left (``colour_residue``)."""
 
     residue: float
     sites_left: float
     sites_per_mp: float
     gain: float
+    colour_residue: float = float("nan")
 
 
 def _luma(image: np.ndarray, name: str) -> np.ndarray:
@@ -97,7 +106,8 @@ def snow_sites(
     keep = np.zeros(n, np.int32)
     kept = np.flatnonzero((areas >= min_area) & (areas <= max_area)) + 1
     keep[kept] = np.arange(1, kept.size + 1, dtype=np.int32)
-    return SnowSites(keep[labels], int(kept.size), excess)
+    diff = np.linalg.norm(np.asarray(snowy, np.float32) - np.asarray(clean, np.float32), axis=-1)
+    return SnowSites(keep[labels], int(kept.size), excess, diff.astype(np.float32))
 
 
 def snow_residue(sites: SnowSites, clean: np.ndarray, out_snowy: np.ndarray, out_clean: np.ndarray) -> SnowResidue:
@@ -105,14 +115,17 @@ def snow_residue(sites: SnowSites, clean: np.ndarray, out_snowy: np.ndarray, out
     (module doc). ``clean`` is the snow-free input (for the contrast gain). Outputs at another size than the
     pair are resized to it (area or bilinear). With no site, residue and sites_left are NaN."""
     h, w = sites.labels.shape
-    outs = []
+    rgbs = []
     for name, o in (("out_snowy", out_snowy), ("out_clean", out_clean)):
-        y = _luma(o, name)
-        if y.shape != (h, w):
-            shrink = y.size > h * w
-            y = cv2.resize(y, (w, h), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
-        outs.append(y)
-    ys, yc = outs
+        _luma(o, name)  # the shape check
+        rgb = np.asarray(o, np.float32)
+        if rgb.shape[:2] != (h, w):
+            shrink = rgb.shape[0] * rgb.shape[1] > h * w
+            rgb = np.asarray(
+                cv2.resize(rgb, (w, h), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR), np.float32
+            )
+        rgbs.append(rgb)
+    ys, yc = (_luma(x, "output") for x in rgbs)
     gain = max(float(yc.std()) / max(float(_luma(clean, "clean").std()), GAIN_FLOOR), GAIN_FLOOR)
     d_out = (ys - yc) / np.float32(gain)
     on = sites.labels > 0
@@ -121,13 +134,17 @@ def snow_residue(sites: SnowSites, clean: np.ndarray, out_snowy: np.ndarray, out
     before = np.maximum(sites.excess[on], 0.0)
     after = np.maximum(d_out[on], 0.0)
     residue = float(after.sum() / max(float(before.sum()), 1e-12))
+    spread_in = float(np.linalg.norm(np.asarray(clean, np.float32).reshape(-1, 3).std(axis=0)))
+    gain_rgb = max(float(np.linalg.norm(rgbs[1].reshape(-1, 3).std(axis=0))) / max(spread_in, GAIN_FLOOR), GAIN_FLOOR)
+    colour_after = np.linalg.norm(rgbs[0][on] - rgbs[1][on], axis=-1) / np.float32(gain_rgb)
+    colour = float(colour_after.sum() / max(float(sites.colour_diff[on].sum()), 1e-12))
     idx = sites.labels[on]
     peak_in = np.zeros(sites.count + 1, np.float32)
     peak_out = np.zeros(sites.count + 1, np.float32)
     np.maximum.at(peak_in, idx, sites.excess[on])
     np.maximum.at(peak_out, idx, d_out[on])
     left = float(np.mean(peak_out[1:] >= 0.5 * peak_in[1:]))
-    return SnowResidue(residue, left, sites.per_megapixel, gain)
+    return SnowResidue(residue, left, sites.per_megapixel, gain, colour)
 
 
 def snow_free_mask(sites: SnowSites, margin_px: int = CLEAR_MARGIN_PX) -> np.ndarray:

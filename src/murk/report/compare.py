@@ -48,12 +48,14 @@ REF_KEYS = ("psnr", "ssim", "ciede2000")
 PAIRED_KEYS = tuple(f"d_{k}" for k in REF_KEYS)
 """Paired differences to the raw input on the same image (``d_psnr = psnr(output) - psnr(input)``; for
 CIEDE2000 negative is better)."""
-SNOW_KEYS = ("snow_residue", "snow_sites_left", "snow_free_gms")
+SNOW_KEYS = ("snow_residue", "snow_sites_left", "snow_free_gms", "snow_colour_residue")
 """Marine-snow removal on a pair of the same scene without and with snow (``snow_clean``;
-:mod:`murk.metrics.snow_pairs`): contrast-normalised particle excess left, share of particle sites left."""
+:mod:`murk.metrics.snow_pairs`): contrast-normalised particle excess left, share of particle sites left, structure
+away from the sites, and the particles' RGB difference left (a recoloured particle counts as left)."""
 SNOW_HTML_COLUMNS = (
     ("snow_residue", "snow residue (pairs)"),
     ("snow_sites_left", "snow sites left"),
+    ("snow_colour_residue", "snow colour residue"),
     ("snow_free_gms", "structure away from snow (GMS)"),
 )
 REF_HTML_COLUMNS = (
@@ -355,7 +357,13 @@ def _run_compare(
                     out_free = snow_free if rest is None else rest.restore(snow_free[None]).images[0]
                     out_free = to_float(to_uint(np.clip(out_free, 0.0, 1.0), info.bit_depth))
                     r = snow_residue(sites, snow_free, restored, out_free)
-                    metrics.update({"snow_residue": r.residue, "snow_sites_left": r.sites_left})
+                    metrics.update(
+                        {
+                            "snow_residue": r.residue,
+                            "snow_sites_left": r.sites_left,
+                            "snow_colour_residue": r.colour_residue,
+                        }
+                    )
                     if restored.shape == img.shape:  # the structure away from the particles, "not blurred"
                         clear = structure_fidelity(img, restored, where=snow_free_mask(sites))
                         metrics["snow_free_gms"] = clear.gms_mean

@@ -434,10 +434,13 @@ def study_markdown(report: dict[str, Any]) -> str:
             "",
             "snow residue: the particles' contrast left on the known particle sites (1 = kept, 0 = removed); sites "
             "left: share of particle sites still at half their contrast; GMS away from snow: structure fidelity of the "
-            "output to the snowy input 3 px or more from every site (1 = nothing blurred). Mean +- std over images.",
+            "output to the snowy input 3 px or more from every site (1 = nothing blurred); colour residue: the "
+            "particles' RGB difference left (a particle turned into a darker or coloured dot still counts). "
+            "Mean +- std over images.",
             "",
-            "| method | snow residue | sites left | GMS away from snow | particles out/in (no-reference) |",
-            "|---|---|---|---|---|",
+            "| method | snow residue | sites left | GMS away from snow | colour residue "
+            "| particles out/in (no-reference) |",
+            "|---|---|---|---|---|---|",
         ]
         for m in sp["methods"]:
             r = sp["summary"][m]
@@ -448,7 +451,8 @@ def study_markdown(report: dict[str, Any]) -> str:
 
             lines.append(
                 f"| {m} | {ms(r['snow_residue'])} | {ms(r['snow_sites_left'])} | "
-                f"{ms(r.get('snow_free_gms', {}))} | {ms(r['particle_residue_ratio'])} |"
+                f"{ms(r.get('snow_free_gms', {}))} | {ms(r.get('snow_colour_residue', {}))} | "
+                f"{ms(r['particle_residue_ratio'])} |"
             )
         lines.append("")
     if report.get("heldout"):
