@@ -84,3 +84,20 @@ def test_guard_size_and_errors() -> None:
     for bad in (2, 4):
         with pytest.raises(ValueError, match="size_px: expected an odd integer >= 3"):
             guard_particle_removal(img, img, img, 0.04, bad)
+
+
+@pytest.mark.parametrize("hw", [(1, 1), (2, 3), (3, 200), (1, 50), (33, 31)])
+def test_any_frame_size_works_and_the_twins_agree(hw: tuple[int, int]) -> None:
+    import torch
+
+    from murk.physics.affine_transfer import affine_transfer_torch, guard_particle_removal_torch
+
+    rng = np.random.default_rng(sum(hw))
+    img = rng.random((*hw, 3)).astype(np.float32)
+    res = np.clip(1.3 * img - 0.1 + 0.05 * rng.standard_normal(img.shape), 0, 1).astype(np.float32)
+    radius, size = transfer_radius_px(*hw, 0.125), guard_size_px(*hw)
+    out = guard_particle_removal(img, affine_transfer(img, res, radius), res, 0.04, size)
+    assert out.shape == img.shape and np.isfinite(out).all()
+    t_img, t_res = (torch.from_numpy(a).permute(2, 0, 1)[None] for a in (img, res))
+    twin = guard_particle_removal_torch(t_img, affine_transfer_torch(t_img, t_res, radius), t_res, 0.04, size)
+    np.testing.assert_allclose(twin[0].permute(1, 2, 0).numpy(), out, atol=1e-6)
