@@ -188,6 +188,12 @@ def _table() -> dict[str, Twin]:
             lambda x: {"out": nhwc(at.affine_transfer_torch(nchw(x["images"]), nchw(x["restored"]), 40, 1e-3))},
             atol=1e-6,
         ),
+        "physics.affine_transfer (step 3, the fast guided filter)": Twin(
+            _transfer_inputs,
+            per_image(lambda im, r: at.affine_transfer(im, r, 12, 1e-4, step=3), *_IR),
+            lambda x: {"out": nhwc(at.affine_transfer_torch(nchw(x["images"]), nchw(x["restored"]), 12, 1e-4, 3))},
+            atol=1e-6,
+        ),
         "physics.guard_particle_removal": Twin(
             _transfer_inputs,
             per_image(

@@ -222,7 +222,7 @@ def test_refine_on_cuda_runs_the_torch_twins_on_the_device(tiny, underwater):
     out = JointIDRestorer(copy.deepcopy(tiny), device="cuda", refine=0.125).restore_tensor(x).images
     assert out.device.type == "cuda"
     i_hwc, r_hwc = underwater.astype(np.float32), net[0].permute(1, 2, 0).cpu().numpy()
-    want = at.affine_transfer(i_hwc, r_hwc, at.transfer_radius_px(240, 300, 0.125))
+    want = at.affine_transfer(i_hwc, r_hwc, 38, step=3)
     want = at.guard_particle_removal(i_hwc, want, r_hwc, 0.04, at.guard_size_px(240, 300))
     np.testing.assert_allclose(out[0].permute(1, 2, 0).cpu().numpy(), np.clip(want, 0, 1), rtol=0, atol=1e-5)
 
@@ -245,18 +245,20 @@ def test_refine_transfers_the_restoration_onto_the_input_and_leaves_depth(tiny_c
         guard_particle_removal,
         guard_size_px,
         transfer_radius_px,
+        transfer_step,
     )
 
     x = underwater[None].astype(np.float32)
     plain = create("jointid", checkpoint=tiny_ckpt, refine=0.0).restore(x)  # the network alone
     default = create("jointid", checkpoint=tiny_ckpt).restore(x)
     radius = transfer_radius_px(240, 300, 0.125)
-    transfer = affine_transfer(x[0], plain.images[0], radius, 1e-4)
+    assert (radius, transfer_step(radius)) == (38, 3)  # the fast guided filter's subsample: every third pixel
+    transfer = affine_transfer(x[0], plain.images[0], radius, 1e-4, step=3)
     guarded = guard_particle_removal(x[0], transfer, plain.images[0], 0.04, guard_size_px(240, 300))
     # The default: refine=0.125 with the particle guard at 0.04.
     np.testing.assert_allclose(default.images[0], np.clip(guarded, 0, 1), atol=1e-6)
     refined = create(f"jointid?refine=0.125,refine_eps=0.001,refine_guard=0,checkpoint={tiny_ckpt}").restore(x)
-    expected = np.clip(affine_transfer(x[0], plain.images[0], radius, 1e-3), 0, 1)
+    expected = np.clip(affine_transfer(x[0], plain.images[0], radius, 1e-3, step=3), 0, 1)
     np.testing.assert_allclose(refined.images[0], expected, atol=1e-6)
     assert np.abs(refined.images - plain.images).max() > 0.01  # it does change the output
     assert np.array_equal(refined.depth_m, plain.depth_m) and np.array_equal(default.depth_m, plain.depth_m)

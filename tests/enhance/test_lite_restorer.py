@@ -137,7 +137,8 @@ def test_refine_is_an_option_after_the_network_for_torch_and_onnx(lite_ckpt: Pat
     imgs = _images(1, 150, 211)
     plain = create("lite", checkpoint=str(lite_ckpt)).restore(imgs).images  # refine is off by default
     refined = create(f"lite?refine=0.125,checkpoint={lite_ckpt}").restore(imgs).images
-    want = at.affine_transfer(imgs[0], plain[0], at.transfer_radius_px(150, 211, 0.125))
+    radius = at.transfer_radius_px(150, 211, 0.125)
+    want = at.affine_transfer(imgs[0], plain[0], radius, step=at.transfer_step(radius))
     want = at.guard_particle_removal(imgs[0], want, plain[0], 0.04, at.guard_size_px(150, 211))
     np.testing.assert_allclose(refined[0], np.clip(want, 0, 1), atol=1e-6)
     assert np.abs(refined - plain).max() > 0.01

@@ -101,3 +101,21 @@ def test_any_frame_size_works_and_the_twins_agree(hw: tuple[int, int]) -> None:
     t_img, t_res = (torch.from_numpy(a).permute(2, 0, 1)[None] for a in (img, res))
     twin = guard_particle_removal_torch(t_img, affine_transfer_torch(t_img, t_res, radius), t_res, 0.04, size)
     np.testing.assert_allclose(twin[0].permute(1, 2, 0).numpy(), out, atol=1e-6)
+
+
+def test_the_fast_guided_filter_step_rule_and_how_close_it_stays() -> None:
+    from murk.physics.affine_transfer import transfer_step
+
+    assert [transfer_step(r) for r in (1, 15, 16, 24, 32, 40, 80)] == [1, 1, 1, 3, 3, 5, 9]
+    # Eq. (1) inverted exactly: the subsampled fit finds the same map.
+    img = _textured(120, 160)
+    restored = img * np.array([1.8, 1.3, 0.9], np.float32) + np.array([-0.25, -0.1, 0.05], np.float32)
+    np.testing.assert_allclose(affine_transfer(img, restored, 24, 1e-9, step=3), restored, atol=3e-3)
+    # A restoration that is not affine in the input: the fast filter stays close to the exact one.
+    rng = np.random.default_rng(1)
+    other = np.clip(cv2.GaussianBlur(restored, (0, 0), 2) + 0.05 * rng.standard_normal(img.shape), 0, 1)
+    exact = affine_transfer(img, other.astype(np.float32), 24)
+    fast = affine_transfer(img, other.astype(np.float32), 24, step=3)
+    assert np.abs(fast - exact).mean() < 3e-3
+    with pytest.raises(ValueError, match="step: expected an odd integer >= 1"):
+        affine_transfer(img, restored, 24, step=2)

@@ -49,16 +49,17 @@ def refine_restoration(images: Tensor, enhanced: Tensor, settings: RefineSetting
         return enhanced
     h, w = int(images.shape[-2]), int(images.shape[-1])
     radius, size = at.transfer_radius_px(h, w, settings.radius), at.guard_size_px(h, w)
+    step = at.transfer_step(radius)  # the fast guided filter: coefficients fitted on a subsample
     if enhanced.device.type != "cpu":
         src = images.to(enhanced.device, torch.float32)
-        out = at.affine_transfer_torch(src, enhanced, radius, settings.eps)
+        out = at.affine_transfer_torch(src, enhanced, radius, settings.eps, step)
         if settings.guard > 0:
             out = at.guard_particle_removal_torch(src, out, enhanced, settings.guard, size)
         return out.clamp_(0.0, 1.0).contiguous()
     outs = []
     for src, res in zip(images.float().cpu(), enhanced.float(), strict=True):
         i_hwc, r_hwc = src.permute(1, 2, 0).numpy(), res.permute(1, 2, 0).numpy()
-        hwc = at.affine_transfer(i_hwc, r_hwc, radius, settings.eps)
+        hwc = at.affine_transfer(i_hwc, r_hwc, radius, settings.eps, step)
         if settings.guard > 0:
             hwc = at.guard_particle_removal(i_hwc, hwc, r_hwc, settings.guard, size)
         outs.append(torch.from_numpy(np.clip(hwc, 0.0, 1.0)).permute(2, 0, 1))

@@ -17,6 +17,13 @@ drops whatever the restoration does that is not locally affine in the input:
 
 A large radius approaches one global affine map per channel. A small one approaches the restoration itself.
 
+With ``step`` > 1 the coefficients are fitted on a subsample of the frame and upsampled: He and Sun's fast guided
+filter. The subsample is every ``step``-th row and column, starting at the centre of the first ``step`` x ``step``
+block (``step`` odd), the window radius is ``radius / step`` there, and the box-averaged coefficients are resized
+bilinearly to the frame (half-pixel centres, as OpenCV's and torch's bilinear resizing). The output is then
+``mean(a) I + mean(b)`` at full resolution as before. :func:`transfer_step` picks ``step`` from the radius (at most
+an eighth of it), so that each window still holds at least about 17 x 17 samples.
+
 The particle guard (:func:`guard_particle_removal`) keeps the restoration's own output where it took out a
 particle. A pixel is guarded where two soft tests (ramps :data:`GUARD_RAMP` wide) both hold:
 - the input has a small bright blob there: the luma's white top-hat with a ``size_px`` square (the luma minus its
@@ -29,7 +36,8 @@ numpy/OpenCV functions and their torch twins (``*_torch``, batches (B, C, H, W) 
 are pinned equal by tests/twins.py. The torch box means come from cumulative sums in float64 over the reflected
 frame, as OpenCV's running sums accumulate in double.
 
-Reference: K. He, J. Sun, X. Tang, "Guided Image Filtering", IEEE TPAMI 35(6), 2013, doi:10.1109/TPAMI.2012.213.
+References: K. He, J. Sun, X. Tang, "Guided Image Filtering", IEEE TPAMI 35(6), 2013, doi:10.1109/TPAMI.2012.213;
+K. He, J. Sun, "Fast Guided Filter", arXiv:1505.00996, 2015.
 """
 
 from __future__ import annotations
@@ -73,22 +81,60 @@ def transfer_radius_px(height: int, width: int, radius: float) -> int:
     return int(max(1, min(r, min(height, width) - 1)))
 
 
-def affine_transfer(image: np.ndarray, restored: np.ndarray, radius_px: int, eps: float = 1e-4) -> np.ndarray:
-    """The locally affine transfer (module doc) of ``restored`` onto ``image``, both float (H, W, 3) in [0, 1]:
-    :func:`guided_filter` with ``image`` as the guide of each channel; float32 (H, W, 3), not clipped.
+def transfer_step(radius_px: int) -> int:
+    """The subsampling step of :func:`affine_transfer` for a window radius: the largest odd number at most an
+    eighth of the radius, at least 1 (80 px -> 9, 32 -> 3, 15 -> 1)."""
+    step = max(1, int(radius_px) // 8)
+    return step if step % 2 else step - 1
 
-    Raises:
-        ValueError: shapes differ or are not (H, W, 3), ``radius_px`` < 1, or ``eps`` <= 0.
-    """
-    img = np.asarray(image, np.float32)
-    res = np.asarray(restored, np.float32)
-    if img.ndim != 3 or img.shape[-1] != 3 or img.shape != res.shape:
-        raise ValueError(f"image/restored: expected two (H, W, 3) arrays of one shape, got {img.shape}, {res.shape}")
+
+def _check_transfer(shape: tuple[int, ...], other: tuple[int, ...], radius_px: int, eps: float, step: int) -> None:
+    if len(shape) != 3 or shape[-1] != 3 or shape != other:
+        raise ValueError(f"image/restored: expected two (H, W, 3) arrays of one shape, got {shape}, {other}")
     if isinstance(radius_px, bool) or int(radius_px) != radius_px or radius_px < 1:
         raise ValueError(f"radius_px: expected an integer >= 1, got {radius_px!r}")
     if not eps > 0:
         raise ValueError(f"eps: expected > 0, got {eps!r}")
-    return guided_filter(img, res, int(radius_px), float(eps))
+    if isinstance(step, bool) or int(step) != step or step < 1 or step % 2 == 0:
+        raise ValueError(f"step: expected an odd integer >= 1, got {step!r}")
+
+
+def _low_radius(radius_px: int, step: int, low_hw: tuple[int, int]) -> int:
+    """The window radius on the subsample: ``radius / step``, at least 1 and below its short side."""
+    return int(max(1, min(round(radius_px / step), min(low_hw) - 1)))
+
+
+def affine_transfer(
+    image: np.ndarray, restored: np.ndarray, radius_px: int, eps: float = 1e-4, step: int = 1
+) -> np.ndarray:
+    """The locally affine transfer (module doc) of ``restored`` onto ``image``, both float (H, W, 3) in [0, 1]:
+    :func:`guided_filter` with ``image`` as the guide of each channel; float32 (H, W, 3), not clipped. ``step`` > 1
+    fits the coefficients on a subsample (the fast guided filter, module doc; see :func:`transfer_step`).
+
+    Raises:
+        ValueError: shapes differ or are not (H, W, 3), ``radius_px`` < 1, ``eps`` <= 0, or ``step`` not odd.
+    """
+    img = np.asarray(image, np.float32)
+    res = np.asarray(restored, np.float32)
+    _check_transfer(img.shape, res.shape, radius_px, eps, step)
+    if step == 1:
+        return guided_filter(img, res, int(radius_px), float(eps))
+    c = step // 2
+    low_i = np.ascontiguousarray(img[c::step, c::step])
+    low_r = np.ascontiguousarray(res[c::step, c::step])
+    r = _low_radius(int(radius_px), step, low_i.shape[:2])
+    k = (2 * r + 1, 2 * r + 1)
+
+    def mean(a: np.ndarray) -> np.ndarray:
+        return cv2.boxFilter(a, cv2.CV_32F, k, borderType=cv2.BORDER_REFLECT)
+
+    mi, mp = mean(low_i), mean(low_r)
+    a = (mean(low_i * low_r) - mi * mp) / (mean(low_i * low_i) - mi * mi + np.float32(eps))
+    b = mp - a * mi
+    h, w = img.shape[:2]
+    up_a = cv2.resize(mean(a), (w, h), interpolation=cv2.INTER_LINEAR)
+    up_b = cv2.resize(mean(b), (w, h), interpolation=cv2.INTER_LINEAR)
+    return (up_a * img + up_b).astype(np.float32)
 
 
 def guard_size_px(height: int, width: int) -> int:
@@ -161,22 +207,37 @@ def guided_filter_torch(guide: Tensor, src: Tensor, radius: int, eps: float) -> 
     return mean(a) * g + mean(b)
 
 
-def affine_transfer_torch(image: Tensor, restored: Tensor, radius_px: int, eps: float = 1e-4) -> Tensor:
+def affine_transfer_torch(image: Tensor, restored: Tensor, radius_px: int, eps: float = 1e-4, step: int = 1) -> Tensor:
     """The twin of :func:`affine_transfer` for batches (B, 3, H, W); float32, not clipped.
 
     Raises:
         ValueError: as :func:`affine_transfer`.
     """
-    if image.ndim != 4 or image.shape[1] != 3 or image.shape != restored.shape:
+    import torch.nn.functional as F
+
+    if image.ndim != 4 or image.shape != restored.shape:
         raise ValueError(
             f"image/restored: expected two (B, 3, H, W) batches of one shape, got {tuple(image.shape)}, "
             f"{tuple(restored.shape)}"
         )
-    if isinstance(radius_px, bool) or int(radius_px) != radius_px or radius_px < 1:
-        raise ValueError(f"radius_px: expected an integer >= 1, got {radius_px!r}")
-    if not eps > 0:
-        raise ValueError(f"eps: expected > 0, got {eps!r}")
-    return guided_filter_torch(image, restored, int(radius_px), float(eps))
+    _check_transfer((*image.shape[2:], image.shape[1]), (*restored.shape[2:], restored.shape[1]), radius_px, eps, step)
+    if step == 1:
+        return guided_filter_torch(image, restored, int(radius_px), float(eps))
+    img, res = image.float(), restored.float()
+    c = step // 2
+    low_i, low_r = img[:, :, c::step, c::step], res[:, :, c::step, c::step]
+    r = _low_radius(int(radius_px), step, (int(low_i.shape[2]), int(low_i.shape[3])))
+
+    def mean(a: Tensor) -> Tensor:
+        return _box_mean_torch(a, r)
+
+    mi, mp = mean(low_i), mean(low_r)
+    a = (mean(low_i * low_r) - mi * mp) / (mean(low_i * low_i) - mi * mi + eps)
+    b = mp - a * mi
+    size = (int(img.shape[2]), int(img.shape[3]))
+    up_a = F.interpolate(mean(a), size=size, mode="bilinear", align_corners=False)
+    up_b = F.interpolate(mean(b), size=size, mode="bilinear", align_corners=False)
+    return up_a * img + up_b
 
 
 def guard_particle_removal_torch(
