@@ -1,8 +1,9 @@
 """The ``refine`` step of the network restorers (``jointid``, ``lite``): the restoration re-expressed as a locally
 affine map of its input, with the particle guard (:mod:`murk.physics.affine_transfer`).
 
-:class:`RefineSettings` holds the three options; :func:`refine_restoration` applies them to a batch. On the CPU it
-runs the OpenCV functions frame by frame; on another device the torch twins, on the device (equal,
+:class:`RefineSettings` holds the three options; :func:`refine_restoration` applies them to a batch, with the
+coefficients fitted on a subsample (the fast guided filter, :func:`murk.physics.affine_transfer.transfer_step`). On
+the CPU it runs the OpenCV functions frame by frame; on another device the torch twins, on the device (equal,
 tests/twins.py). Figures and the trade-off: docs/enhance.md, "`jointid?refine`".
 """
 
@@ -58,9 +59,13 @@ def refine_restoration(images: Tensor, enhanced: Tensor, settings: RefineSetting
         return out.clamp_(0.0, 1.0).contiguous()
     outs = []
     for src, res in zip(images.float().cpu(), enhanced.float(), strict=True):
-        i_hwc, r_hwc = src.permute(1, 2, 0).numpy(), res.permute(1, 2, 0).numpy()
+        # (H, W, 3) arrays in C order once: OpenCV would copy a strided view at every call
+        i_hwc = np.ascontiguousarray(src.permute(1, 2, 0).numpy())
+        r_hwc = np.ascontiguousarray(res.permute(1, 2, 0).numpy())
         hwc = at.affine_transfer(i_hwc, r_hwc, radius, settings.eps, step)
         if settings.guard > 0:
             hwc = at.guard_particle_removal(i_hwc, hwc, r_hwc, settings.guard, size)
-        outs.append(torch.from_numpy(np.clip(hwc, 0.0, 1.0)).permute(2, 0, 1))
-    return torch.stack(outs).contiguous()
+        outs.append(torch.from_numpy(np.clip(hwc, 0.0, 1.0, out=hwc)).permute(2, 0, 1))
+    if len(outs) == 1:  # channels-last memory, as a numpy frame is: no copy
+        return outs[0][None]
+    return torch.stack(outs).contiguous(memory_format=torch.channels_last)

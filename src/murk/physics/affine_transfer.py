@@ -165,12 +165,22 @@ def guard_particle_removal(
     if isinstance(size_px, bool) or int(size_px) != size_px or size_px < 3 or size_px % 2 == 0:
         raise ValueError(f"size_px: expected an odd integer >= 3, got {size_px!r}")
     grow = np.ones((3, 3), np.uint8)
-    y = img @ _LUMA
-    top_hat = y - cv2.morphologyEx(y, cv2.MORPH_OPEN, np.ones((int(size_px), int(size_px)), np.uint8))
-    blob = cv2.dilate(np.clip((top_hat - np.float32(threshold)) / np.float32(GUARD_RAMP), 0.0, 1.0), grow)
-    removed = cv2.dilate(np.clip((tr - res) @ _LUMA / np.float32(GUARD_RAMP), 0.0, 1.0), grow)
-    w = (blob * removed)[..., None]
-    return (tr + w * (res - tr)).astype(np.float32)
+    luma = _LUMA[None]  # (1, 3): cv2.transform's one-row matrix, one pass over the frame
+
+    def ramp(a: np.ndarray, start: float) -> np.ndarray:  # clip((a - start) / GUARD_RAMP, 0, 1), in place
+        a -= np.float32(start)
+        a *= np.float32(1.0 / GUARD_RAMP)
+        return np.clip(a, 0.0, 1.0, out=a)
+
+    y = cv2.transform(np.ascontiguousarray(img), luma)
+    top_hat = cv2.morphologyEx(y, cv2.MORPH_TOPHAT, np.ones((int(size_px), int(size_px)), np.uint8))
+    blob = cv2.dilate(ramp(top_hat, float(threshold)), grow)
+    change = res - tr
+    removed = cv2.dilate(ramp(-cv2.transform(change, luma), 0.0), grow)
+    w = blob * removed
+    change *= cv2.merge([w, w, w])  # a (H, W, 3) weight: numpy's broadcast of (H, W, 1) is 15x slower here
+    change += tr
+    return change
 
 
 # --- torch twins -------------------------------------------------------------------------------------------------
