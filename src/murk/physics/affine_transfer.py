@@ -142,6 +142,19 @@ def guard_size_px(height: int, width: int) -> int:
     return max(3, round(GUARD_SIZE * max(height, width)) | 1)
 
 
+def _check_guard(
+    shapes_ok: bool, layout: str, shapes: tuple[tuple[int, ...], ...], threshold: float, size_px: int
+) -> None:
+    if not shapes_ok:
+        raise ValueError(
+            f"image/transfer/restored: expected three {layout} of one shape, got {', '.join(map(str, shapes))}"
+        )
+    if isinstance(threshold, bool) or not threshold > 0:
+        raise ValueError(f"threshold: expected a top-hat luma > 0, got {threshold!r}")
+    if isinstance(size_px, bool) or int(size_px) != size_px or size_px < 3 or size_px % 2 == 0:
+        raise ValueError(f"size_px: expected an odd integer >= 3, got {size_px!r}")
+
+
 def guard_particle_removal(
     image: np.ndarray, transfer: np.ndarray, restored: np.ndarray, threshold: float, size_px: int
 ) -> np.ndarray:
@@ -155,15 +168,8 @@ def guard_particle_removal(
         ValueError: shapes differ or are not (H, W, 3), ``threshold`` <= 0, or ``size_px`` not odd and >= 3.
     """
     img, tr, res = (np.asarray(a, np.float32) for a in (image, transfer, restored))
-    if img.ndim != 3 or img.shape[-1] != 3 or not img.shape == tr.shape == res.shape:
-        raise ValueError(
-            f"image/transfer/restored: expected three (H, W, 3) arrays of one shape, got {img.shape}, {tr.shape}, "
-            f"{res.shape}"
-        )
-    if isinstance(threshold, bool) or not threshold > 0:
-        raise ValueError(f"threshold: expected a top-hat luma > 0, got {threshold!r}")
-    if isinstance(size_px, bool) or int(size_px) != size_px or size_px < 3 or size_px % 2 == 0:
-        raise ValueError(f"size_px: expected an odd integer >= 3, got {size_px!r}")
+    ok = img.ndim == 3 and img.shape[-1] == 3 and img.shape == tr.shape == res.shape
+    _check_guard(ok, "(H, W, 3) arrays", (img.shape, tr.shape, res.shape), threshold, size_px)
     grow = np.ones((3, 3), np.uint8)
     luma = _LUMA[None]  # (1, 3): cv2.transform's one-row matrix, one pass over the frame
 
@@ -262,15 +268,9 @@ def guard_particle_removal_torch(
     import torch
     import torch.nn.functional as F
 
-    if image.ndim != 4 or image.shape[1] != 3 or not image.shape == transfer.shape == restored.shape:
-        raise ValueError(
-            f"image/transfer/restored: expected three (B, 3, H, W) batches of one shape, got {tuple(image.shape)}, "
-            f"{tuple(transfer.shape)}, {tuple(restored.shape)}"
-        )
-    if isinstance(threshold, bool) or not threshold > 0:
-        raise ValueError(f"threshold: expected a top-hat luma > 0, got {threshold!r}")
-    if isinstance(size_px, bool) or int(size_px) != size_px or size_px < 3 or size_px % 2 == 0:
-        raise ValueError(f"size_px: expected an odd integer >= 3, got {size_px!r}")
+    ok = image.ndim == 4 and image.shape[1] == 3 and image.shape == transfer.shape == restored.shape
+    shapes = tuple(tuple(a.shape) for a in (image, transfer, restored))
+    _check_guard(ok, "(B, 3, H, W) batches", shapes, threshold, size_px)
     luma = torch.from_numpy(_LUMA).to(image.device).view(1, 3, 1, 1)
     img, tr, res = image.float(), transfer.float(), restored.float()
 
