@@ -7,8 +7,10 @@ Every row gives:
 - the held-out PSNR gain on the photographic held-out scenes of ``bench_model.py``;
 - the periodic-artefact ratio on the 13 shipped real images.
 
-These are the figures of the candidate tables in docs/train.md. The first candidate is the baseline, e.g. the
-shipped weights. Keep it first, so that the paired column reads "this candidate minus the shipped one".
+These are the figures of the candidate tables in docs/train.md. Candidates are scored as networks, as `murk study`
+scores its arms: `jointid` without its `refine` step (``murk.report.study.ARM_OPTIONS``). The first candidate is the
+baseline, e.g. the shipped weights. Keep it first, so that the paired column reads "this candidate minus the shipped
+one".
 
 Run: PYTHONPATH=src python benchmarks/bench_candidates.py --method jointid --pairs DIR [--snow-pairs DIR]
      [--scenes 64] [--threads 1] [--json FILE] shipped=SHIPPED run7=runs/x/latest.pt ...
@@ -37,7 +39,7 @@ from murk.io.images import list_images
 from murk.report.compare import run_compare
 from murk.report.heldout import score_heldout
 from murk.report.methods import parse_method
-from murk.report.study import evaluate_real_pairs
+from murk.report.study import arm_spec, evaluate_real_pairs
 
 SNOW_KEYS = ("snow_residue", "snow_sites_left", "snow_free_gms", "snow_colour_residue")
 
@@ -73,7 +75,8 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     cands = candidates(args.candidates, args.method)
     labels = list(cands)
-    methods = [parse_method(f"{lab}={args.method}:{path}") for lab, path in cands.items()]
+    # Candidates are networks: scored as trained, as the study scores its arms (jointid without its refine step)
+    methods = [parse_method(arm_spec(args.method, f"{lab}={args.method}:{path}")) for lab, path in cands.items()]
     figures: dict[str, dict[str, object]] = {lab: {"checkpoint": path} for lab, path in cands.items()}
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -94,7 +97,7 @@ def main() -> None:
             ).summary
 
     data = heldout_scenes(args.scenes, 0.5)
-    restorers = {lab: create(args.method, checkpoint=path) for lab, path in cands.items()}
+    restorers = {lab: create(arm_spec(args.method, args.method), checkpoint=path) for lab, path in cands.items()}
     held = score_heldout(data, restorers)
     paired = {c["a"]: c["psnr"] for c in real["contrasts"]}
 

@@ -268,3 +268,19 @@ def test_refine_transfers_the_restoration_onto_the_input_and_leaves_depth(tiny_c
         create("jointid", checkpoint=tiny_ckpt, refine=0.1, refine_eps=0.0)
     with pytest.raises(ValueError, match=r"refine_guard: expected a top-hat luma in \[0, 1\)"):
         create("jointid", checkpoint=tiny_ckpt, refine_guard=-0.1)
+
+
+def test_refine_on_a_batch_equals_frame_by_frame_and_leaves_the_inputs_alone(tiny_ckpt, underwater):
+    from murk.enhance.refine import RefineSettings, refine_restoration
+
+    frames = np.stack([underwater, underwater[::-1].copy(), 0.5 * underwater]).astype(np.float32)
+    r = create("jointid", checkpoint=tiny_ckpt)
+    batch = r.restore(frames).images
+    for i in range(3):
+        np.testing.assert_allclose(batch[i], r.restore(frames[i : i + 1]).images[0], atol=2e-5)
+    images = torch.from_numpy(frames).permute(0, 3, 1, 2)
+    enhanced = (images * 0.7 + 0.2).contiguous()
+    before = (images.clone(), enhanced.clone())
+    out = refine_restoration(images, enhanced, RefineSettings(0.125))
+    assert out.shape == images.shape and torch.equal(images, before[0]) and torch.equal(enhanced, before[1])
+    assert refine_restoration(images, enhanced, RefineSettings(0.0)) is enhanced  # off: untouched

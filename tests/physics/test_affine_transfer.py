@@ -44,14 +44,35 @@ def test_radius_is_a_fraction_of_the_long_side_kept_inside_the_image() -> None:
     assert transfer_radius_px(40, 40, 0.001) == 1
 
 
-def test_bad_arguments_are_named() -> None:
-    img = _textured()
-    with pytest.raises(ValueError, match="image/restored: expected two"):
-        affine_transfer(img, img[:, :-1], 2)
-    with pytest.raises(ValueError, match="radius_px: expected an integer >= 1"):
-        affine_transfer(img, img, 0)
-    with pytest.raises(ValueError, match="eps: expected > 0"):
-        affine_transfer(img, img, 2, eps=0.0)
+def test_bad_arguments_are_named_by_both_twins() -> None:
+    import torch
+
+    from murk.physics.affine_transfer import affine_transfer_torch, guard_particle_removal_torch
+
+    img = _textured()  # 60 x 80
+    t = torch.from_numpy(img).permute(2, 0, 1)[None]
+    cases = [
+        ("image/restored: expected two", (img, img[:, :-1], 2), {}),
+        (r"radius_px: expected an integer from 1 to the short side \(60\)", (img, img, 0), {}),
+        (r"radius_px: expected an integer from 1 to the short side \(60\)", (img, img, 61), {}),
+        ("eps: expected > 0", (img, img, 2), {"eps": 0.0}),
+        ("step: expected an odd integer >= 1", (img, img, 2), {"step": 2}),
+        ("step: expected an odd integer >= 1 whose centre sample lies in the frame", (img, img, 40), {"step": 121}),
+    ]
+    for match, (a, b, r), kw in cases:
+        with pytest.raises(ValueError, match=match):
+            affine_transfer(a, b, r, **kw)
+        ta, tb = (torch.from_numpy(np.ascontiguousarray(x)).permute(2, 0, 1)[None] for x in (a, b))
+        with pytest.raises(ValueError, match=match):
+            affine_transfer_torch(ta, tb, r, **kw)
+    assert affine_transfer(img, img, 60).shape == img.shape  # the short side itself is allowed
+    assert affine_transfer_torch(t, t, 60).shape == t.shape
+    with pytest.raises(ValueError, match=r"image/transfer/restored: expected three \(B, 3, H, W\) batches"):
+        guard_particle_removal_torch(t, t, t[..., :-1], 0.04, 5)
+    with pytest.raises(ValueError, match="threshold: expected a top-hat luma > 0"):
+        guard_particle_removal_torch(t, t, t, 0.0, 5)
+    with pytest.raises(ValueError, match="size_px: expected an odd integer >= 3"):
+        guard_particle_removal_torch(t, t, t, 0.04, 4)
 
 
 def test_the_guard_keeps_the_restorations_particle_removal_and_nothing_else() -> None:

@@ -34,5 +34,5 @@ DEFAULT_OVERLAP = 64
 DEFAULT_REFINE = 0.125
 """Default ``refine`` of ``jointid``: the affine transfer's window radius as a fraction of the long side."""
 DEFAULT_REFINE_GUARD = 0.04
-"""Default ``refine_guard`` of ``jointid``: the top-hat luma from which the input counts as a particle (about 10
-of 255)."""
+"""Default ``refine_guard`` of ``jointid`` and ``lite``: the top-hat luma from which the input counts as a particle
+(about 10 of 255)."""

@@ -243,7 +243,7 @@ class JointIDRestorer(Restorer):
         backend = self._backend if self.model is None else type(self.model).__name__
         return (
             f"JointIDRestorer({backend}, device={self.device}, precision={self.precision}, tile={self.tile}, "
-            f"overlap={self.overlap}, batch={self.batch})"
+            f"overlap={self.overlap}, batch={self.batch}, refine={self.refine_settings.radius})"
         )
 
 

@@ -6,8 +6,10 @@ levels are averaged over a video's frames like the maps) -> the working image (a
 ``work_area_px``, 128x160 for the shipped weights, is area-downsampled to about that many pixels; a smaller frame
 is reflect-padded to multiples of 16 and used itself) -> the folded (re-parameterised) network computes gain and
 offset maps from it -> upsampled to the frame -> ``gain * frame + offset`` -> clamp to [0, 1]. The frame itself
-is never resampled. No depth. An ONNX export (:mod:`murk.models.lite.onnx_export`) does all of it inside its
-graph: the runner gets the frames as they are.
+is never resampled. No depth. An ONNX export (:mod:`murk.models.lite.onnx_export`) does all of that inside its
+graph: the runner gets the frames as they are. Then, with ``refine`` > 0 (off by default), the restoration is
+re-expressed as a locally affine map of the input with the particle guard (:mod:`murk.enhance.refine`), outside
+the ONNX graph.
 
 Registry options (``murk.enhance.create("lite", **options)``; any other option is an error):
 ``checkpoint`` (a ``murk train`` checkpoint with ``model.kind: lite``, or an ``.onnx`` export; default: the
@@ -15,7 +17,8 @@ weights shipped with murk), ``onnx`` (an ``.onnx`` path, alternative to ``checkp
 "cuda", "cuda:N"; ONNX runs on the CPU), ``precision`` (only "fp32"), ``trust_checkpoint`` (bool), ``batch``
 (max frames per forward pass), ``threads`` (ONNX Runtime intra-op threads), ``temporal`` (weight in [0, 1) of
 the previous frames in an average of the low-resolution maps over a video's frames, :mod:`murk.enhance.temporal`;
-0 = each frame on its own; torch network only).
+0 = each frame on its own; torch network only), ``refine``, ``refine_eps`` and ``refine_guard`` (as ``jointid``'s,
+but ``refine`` 0 by default).
 """
 
 from __future__ import annotations
@@ -59,8 +62,8 @@ class LiteRestorer(Restorer):
         temporal: inside :meth:`sequence`, average the 12 low-resolution maps (:meth:`LiteNet.maps`) over the
             frames with this weight of the past (:class:`murk.enhance.temporal.FrameEMA`); 0 = off.
         refine, refine_eps, refine_guard: the affine transfer of the restoration onto the input, with the particle
-            guard, after the network (:mod:`murk.enhance.refine`; ``refine`` 0 = off, the default: it doubles the
-            cost of a 640x480 frame).
+            guard, after the network (:mod:`murk.enhance.refine`; ``refine`` 0 = off, the default: it costs a
+            640x480 frame about 1.3x, docs/enhance.md).
 
     Raises:
         TypeError: ``model`` is neither a LiteNet nor an OnnxLite.
@@ -181,7 +184,9 @@ class LiteRestorer(Restorer):
 
     def __repr__(self) -> str:
         backend = self._backend if self.model is None else "LiteNet (folded)"
-        return f"LiteRestorer({backend}, device={self.device}, batch={self.batch})"
+        return (
+            f"LiteRestorer({backend}, device={self.device}, batch={self.batch}, refine={self.refine_settings.radius})"
+        )
 
 
 def _forward_cpu(model: nn.Module, x: Tensor, work: Tensor, ema: FrameEMA | None = None) -> Tensor:

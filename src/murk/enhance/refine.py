@@ -43,7 +43,8 @@ class RefineSettings:
 
 def refine_restoration(images: Tensor, enhanced: Tensor, settings: RefineSettings) -> Tensor:
     """The transfer of each restoration in ``enhanced`` (B, 3, H, W) onto its input in ``images`` (same shape, any
-    device), with the guard; float32 in [0, 1] on ``enhanced``'s device. ``enhanced`` unchanged when off."""
+    device), with the guard; float32 in [0, 1] on ``enhanced``'s device, in channels-last memory on the CPU (what a
+    numpy frame converts to without a copy). ``enhanced`` itself when off; neither input is modified."""
     from murk.physics import affine_transfer as at
 
     if not settings.on:

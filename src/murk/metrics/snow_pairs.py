@@ -113,7 +113,7 @@ def snow_sites(
 def snow_residue(sites: SnowSites, clean: np.ndarray, out_snowy: np.ndarray, out_clean: np.ndarray) -> SnowResidue:
     """The residue of a restorer's outputs ``out_snowy = R(snowy)``, ``out_clean = R(clean)`` on ``sites``
     (module doc). ``clean`` is the snow-free input (for the contrast gain). Outputs at another size than the
-    pair are resized to it (area or bilinear). With no site, residue and sites_left are NaN."""
+    pair are resized to it (area or bilinear). With no site, residue, sites_left and colour_residue are NaN."""
     h, w = sites.labels.shape
     rgbs = []
     for name, o in (("out_snowy", out_snowy), ("out_clean", out_clean)):

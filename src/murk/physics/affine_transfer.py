@@ -20,7 +20,9 @@ A large radius approaches one global affine map per channel. A small one approac
 With ``step`` > 1 the coefficients are fitted on a subsample of the frame and upsampled: He and Sun's fast guided
 filter. The subsample is every ``step``-th row and column, starting at the centre of the first ``step`` x ``step``
 block (``step`` odd), the window radius is ``radius / step`` there, and the box-averaged coefficients are resized
-bilinearly to the frame (half-pixel centres, as OpenCV's and torch's bilinear resizing). The output is then
+bilinearly to the frame (half-pixel centres, as OpenCV's and torch's bilinear resizing). Samples and resized grid
+coincide when the frame's sides are multiples of ``step``; otherwise they drift apart by less than ``step / 2``
+pixels at the far border, which the coefficients, smooth over the window, do not notice. The output is then
 ``mean(a) I + mean(b)`` at full resolution as before. :func:`transfer_step` picks ``step`` from the radius (at most
 an eighth of it), so that each window still holds at least about 17 x 17 samples.
 
@@ -88,15 +90,28 @@ def transfer_step(radius_px: int) -> int:
     return step if step % 2 else step - 1
 
 
-def _check_transfer(shape: tuple[int, ...], other: tuple[int, ...], radius_px: int, eps: float, step: int) -> None:
+def _check_transfer(
+    shape: tuple[int, ...],
+    other: tuple[int, ...],
+    radius_px: int,
+    eps: float,
+    step: int,
+    layout: str = "(H, W, 3) arrays",
+) -> None:
+    """The arguments of :func:`affine_transfer` and its twin; ``shape`` and ``other`` as (H, W, C)."""
     if len(shape) != 3 or shape[-1] != 3 or shape != other:
-        raise ValueError(f"image/restored: expected two (H, W, 3) arrays of one shape, got {shape}, {other}")
-    if isinstance(radius_px, bool) or int(radius_px) != radius_px or radius_px < 1:
-        raise ValueError(f"radius_px: expected an integer >= 1, got {radius_px!r}")
+        raise ValueError(f"image/restored: expected two {layout} of one shape, got {shape}, {other} (as H, W, C)")
+    if isinstance(radius_px, bool) or int(radius_px) != radius_px or not 1 <= radius_px <= min(shape[:2]):
+        raise ValueError(
+            f"radius_px: expected an integer from 1 to the short side ({min(shape[:2])}), got {radius_px!r}"
+        )
     if not eps > 0:
         raise ValueError(f"eps: expected > 0, got {eps!r}")
-    if isinstance(step, bool) or int(step) != step or step < 1 or step % 2 == 0:
-        raise ValueError(f"step: expected an odd integer >= 1, got {step!r}")
+    if isinstance(step, bool) or int(step) != step or step < 1 or step % 2 == 0 or step // 2 >= min(shape[:2]):
+        raise ValueError(
+            f"step: expected an odd integer >= 1 whose centre sample lies in the frame (step // 2 < "
+            f"{min(shape[:2])}), got {step!r}"
+        )
 
 
 def _low_radius(radius_px: int, step: int, low_hw: tuple[int, int]) -> int:
@@ -236,7 +251,14 @@ def affine_transfer_torch(image: Tensor, restored: Tensor, radius_px: int, eps: 
             f"image/restored: expected two (B, 3, H, W) batches of one shape, got {tuple(image.shape)}, "
             f"{tuple(restored.shape)}"
         )
-    _check_transfer((*image.shape[2:], image.shape[1]), (*restored.shape[2:], restored.shape[1]), radius_px, eps, step)
+    _check_transfer(
+        (*image.shape[2:], image.shape[1]),
+        (*restored.shape[2:], restored.shape[1]),
+        radius_px,
+        eps,
+        step,
+        "(B, 3, H, W) batches",
+    )
     if step == 1:
         return guided_filter_torch(image, restored, int(radius_px), float(eps))
     img, res = image.float(), restored.float()
