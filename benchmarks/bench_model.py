@@ -1,7 +1,7 @@
 """The shipped murk-trained Joint-ID (or any checkpoint): quality on held-out data and CPU speed.
 
-Run: PYTHONPATH=src python benchmarks/bench_model.py [--method jointid|lite] [--checkpoint FILE] [--scenes 64]
-     [--heldout-balance-pct 0.5] [--affine-fit] [--json OUT.json]
+Run: PYTHONPATH=src python benchmarks/bench_model.py [--method jointid|lite] [--options KEY=VALUE,...]
+     [--checkpoint FILE] [--scenes 64] [--heldout-balance-pct 0.5] [--affine-fit] [--json OUT.json]
 
 1. Held-out procedural scenes (never seen in training: their own seed): 64 scenes, 320x240, degraded with all
    three stages and the synthesis settings of configs/train-small-cpu.yaml. PSNR/SSIM of the degraded input and
@@ -13,7 +13,9 @@ Run: PYTHONPATH=src python benchmarks/bench_model.py [--method jointid|lite] [--
    and bf16 autocast, median of interleaved rounds; the ratio bf16/fp32 is the speed claim (Joint-ID only:
    ``lite`` runs in fp32; its speed is benchmarks/bench_lite.py's).
 
-``--method lite`` measures the shipped ``lite`` network (or ``--checkpoint``) on the same data.
+``--method lite`` measures the shipped ``lite`` network (or ``--checkpoint``) on the same data. ``--options``: method
+options, as after ``?`` in a method spec (e.g. ``refine=0.125`` for ``lite``, ``refine=0`` for ``jointid``'s network
+alone).
 ``--heldout-balance-pct P``: the held-out scenes with photographic targets (each clean scene colour-balanced, as
 the training scenes of stage 4 are; docs/train.md), with the classical ``colorbalance`` scored beside.
 ``--affine-fit``: also the held-out PSNR after the best per-image, per-channel affine map of each output onto its
@@ -83,10 +85,10 @@ def real_measures(restorer: object) -> dict[str, float]:
     return mean
 
 
-def speed(checkpoint: str, repeats: int) -> dict[str, float]:
+def speed(checkpoint: str, repeats: int, spec: str = "jointid") -> dict[str, float]:
     torch.set_num_threads(2)
     frame = np.random.default_rng(0).random((1, 480, 640, 3), dtype=np.float32)
-    fns = {p: create("jointid", checkpoint=checkpoint, precision=p) for p in ("fp32", "bf16")}
+    fns = {p: create(spec, checkpoint=checkpoint, precision=p) for p in ("fp32", "bf16")}
     for r in fns.values():
         r.restore(frame)  # warm-up
     samples: dict[str, list[float]] = {k: [] for k in fns}
@@ -108,6 +110,7 @@ def speed(checkpoint: str, repeats: int) -> dict[str, float]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--method", choices=["jointid", "lite"], default="jointid")
+    ap.add_argument("--options", default="", help="method options KEY=VALUE,... (e.g. refine=0.125)")
     ap.add_argument("--checkpoint", default=None, help="default: the shipped weights of --method")
     ap.add_argument("--scenes", type=int, default=64)
     ap.add_argument("--repeats", type=int, default=7)
@@ -118,10 +121,11 @@ def main() -> None:
     if args.checkpoint is None:
         args.checkpoint = str(shipped_jointid_weights() if args.method == "jointid" else shipped_lite_weights())
     torch.set_num_threads(2)
-    figures: dict[str, object] = {"method": args.method, "checkpoint": args.checkpoint}
+    spec = f"{args.method}?{args.options}" if args.options else args.method
+    figures: dict[str, object] = {"method": spec, "checkpoint": args.checkpoint}
 
     data = heldout_scenes(args.scenes, args.heldout_balance_pct)
-    restorer = create(args.method, checkpoint=args.checkpoint)
+    restorer = create(spec, checkpoint=args.checkpoint)
     restorers = {"model": restorer}
     if args.heldout_balance_pct is not None:
         restorers["colorbalance"] = create("colorbalance")
@@ -173,7 +177,7 @@ def main() -> None:
         if args.json:
             Path(args.json).write_text(json.dumps(figures, indent=2) + "\n")
         return
-    sp = speed(args.checkpoint, args.repeats)
+    sp = speed(args.checkpoint, args.repeats, spec)
     figures["speed_640x480_2threads"] = sp
     print(
         f"\n== CPU speed, 640x480, 2 threads: fp32 {sp['fp32_ms']:.0f} ms ({sp['fp32_fps']:.1f} frames/s), "
