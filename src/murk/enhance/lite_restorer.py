@@ -63,7 +63,7 @@ class LiteRestorer(Restorer):
             frames with this weight of the past (:class:`murk.enhance.temporal.FrameEMA`); 0 = off.
         refine, refine_eps, refine_guard: the affine transfer of the restoration onto the input, with the particle
             guard, after the network (:mod:`murk.enhance.refine`; ``refine`` 0 = off, the default: it costs a
-            640x480 frame about 1.3x, docs/enhance.md).
+            640x480 frame about 1.4x, benchmarks/bench_refine.py).
 
     Raises:
         TypeError: ``model`` is neither a LiteNet nor an OnnxLite.

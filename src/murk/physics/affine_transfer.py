@@ -53,10 +53,9 @@ if TYPE_CHECKING:
     from torch import Tensor
 
 
-def guided_filter(guide: np.ndarray, src: np.ndarray, radius: int, eps: float) -> np.ndarray:
-    """Guided filter (He et al. 2013, Alg. 1) with box means of side ``2 radius + 1`` (OpenCV's running-sum box
-    filter: the cost does not grow with the radius; reflected borders). Element-wise: a grey ``guide`` with a
-    grey ``src`` (UDCP's transmission refinement), or (H, W, 3) with (H, W, 3), each channel its own guide."""
+def _coefficients(guide: np.ndarray, src: np.ndarray, radius: int, eps: float) -> tuple[np.ndarray, np.ndarray]:
+    """The box-averaged coefficients ``mean(a)``, ``mean(b)`` of the guided filter (He et al. 2013, Alg. 1): box
+    means of side ``2 radius + 1`` (OpenCV's running-sum box filter, reflected borders)."""
     k = (2 * radius + 1, 2 * radius + 1)
 
     def mean(a: np.ndarray) -> np.ndarray:
@@ -66,7 +65,15 @@ def guided_filter(guide: np.ndarray, src: np.ndarray, radius: int, eps: float) -
     var = mean(guide * guide) - mi * mi
     a = (mean(guide * src) - mi * mp) / (var + np.float32(eps))
     b = mp - a * mi
-    return (mean(a) * guide + mean(b)).astype(np.float32)
+    return mean(a), mean(b)
+
+
+def guided_filter(guide: np.ndarray, src: np.ndarray, radius: int, eps: float) -> np.ndarray:
+    """Guided filter (He et al. 2013, Alg. 1) with box means of side ``2 radius + 1`` (OpenCV's running-sum box
+    filter: the cost does not grow with the radius; reflected borders). Element-wise: a grey ``guide`` with a
+    grey ``src`` (UDCP's transmission refinement), or (H, W, 3) with (H, W, 3), each channel its own guide."""
+    mean_a, mean_b = _coefficients(guide, src, radius, eps)
+    return (mean_a * guide + mean_b).astype(np.float32)
 
 
 GUARD_RAMP = 0.02
@@ -137,18 +144,10 @@ def affine_transfer(
     c = step // 2
     low_i = np.ascontiguousarray(img[c::step, c::step])
     low_r = np.ascontiguousarray(res[c::step, c::step])
-    r = _low_radius(int(radius_px), step, low_i.shape[:2])
-    k = (2 * r + 1, 2 * r + 1)
-
-    def mean(a: np.ndarray) -> np.ndarray:
-        return cv2.boxFilter(a, cv2.CV_32F, k, borderType=cv2.BORDER_REFLECT)
-
-    mi, mp = mean(low_i), mean(low_r)
-    a = (mean(low_i * low_r) - mi * mp) / (mean(low_i * low_i) - mi * mi + np.float32(eps))
-    b = mp - a * mi
+    mean_a, mean_b = _coefficients(low_i, low_r, _low_radius(int(radius_px), step, low_i.shape[:2]), float(eps))
     h, w = img.shape[:2]
-    up_a = cv2.resize(mean(a), (w, h), interpolation=cv2.INTER_LINEAR)
-    up_b = cv2.resize(mean(b), (w, h), interpolation=cv2.INTER_LINEAR)
+    up_a = cv2.resize(mean_a, (w, h), interpolation=cv2.INTER_LINEAR)
+    up_b = cv2.resize(mean_b, (w, h), interpolation=cv2.INTER_LINEAR)
     return (up_a * img + up_b).astype(np.float32)
 
 
@@ -224,18 +223,24 @@ def _box_mean_torch(x: Tensor, radius: int) -> Tensor:
     return out.float()
 
 
-def guided_filter_torch(guide: Tensor, src: Tensor, radius: int, eps: float) -> Tensor:
-    """The twin of :func:`guided_filter` for batches (B, C, H, W), element-wise per channel."""
-    g, p = guide.float(), src.float()
+def _coefficients_torch(guide: Tensor, src: Tensor, radius: int, eps: float) -> tuple[Tensor, Tensor]:
+    """The twin of :func:`_coefficients` for batches (B, C, H, W)."""
 
     def mean(a: Tensor) -> Tensor:
         return _box_mean_torch(a, radius)
 
-    mi, mp = mean(g), mean(p)
-    var = mean(g * g) - mi * mi
-    a = (mean(g * p) - mi * mp) / (var + eps)
+    mi, mp = mean(guide), mean(src)
+    var = mean(guide * guide) - mi * mi
+    a = (mean(guide * src) - mi * mp) / (var + eps)
     b = mp - a * mi
-    return mean(a) * g + mean(b)
+    return mean(a), mean(b)
+
+
+def guided_filter_torch(guide: Tensor, src: Tensor, radius: int, eps: float) -> Tensor:
+    """The twin of :func:`guided_filter` for batches (B, C, H, W), element-wise per channel."""
+    g = guide.float()
+    mean_a, mean_b = _coefficients_torch(g, src.float(), radius, eps)
+    return mean_a * g + mean_b
 
 
 def affine_transfer_torch(image: Tensor, restored: Tensor, radius_px: int, eps: float = 1e-4, step: int = 1) -> Tensor:
@@ -265,16 +270,10 @@ def affine_transfer_torch(image: Tensor, restored: Tensor, radius_px: int, eps: 
     c = step // 2
     low_i, low_r = img[:, :, c::step, c::step], res[:, :, c::step, c::step]
     r = _low_radius(int(radius_px), step, (int(low_i.shape[2]), int(low_i.shape[3])))
-
-    def mean(a: Tensor) -> Tensor:
-        return _box_mean_torch(a, r)
-
-    mi, mp = mean(low_i), mean(low_r)
-    a = (mean(low_i * low_r) - mi * mp) / (mean(low_i * low_i) - mi * mi + eps)
-    b = mp - a * mi
+    mean_a, mean_b = _coefficients_torch(low_i, low_r, r, float(eps))
     size = (int(img.shape[2]), int(img.shape[3]))
-    up_a = F.interpolate(mean(a), size=size, mode="bilinear", align_corners=False)
-    up_b = F.interpolate(mean(b), size=size, mode="bilinear", align_corners=False)
+    up_a = F.interpolate(mean_a, size=size, mode="bilinear", align_corners=False)
+    up_b = F.interpolate(mean_b, size=size, mode="bilinear", align_corners=False)
     return up_a * img + up_b
 
 
