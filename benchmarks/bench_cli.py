@@ -86,7 +86,7 @@ def cases(tmp: Path) -> list[tuple[str, list[str]]]:
         ("enhance IMG --method foo", ["enhance", img, "--out", out, "--method", "foo"]),
         ("enhance IMG --method post?lamda=1", ["enhance", img, "--out", out, "--method", "post?lamda=1"]),
         ("enhance IMG --device foo", ["enhance", img, "--out", out, "--device", "foo"]),
-        ("enhance IMG --sigma-px -1", ["enhance", img, "--out", out, "--sigma-px", "-1"]),
+        ("enhance IMG -m post --sigma-px -1", ["enhance", img, "--out", out, "-m", "post", "--sigma-px", "-1"]),
         ("enhance MISSING", ["enhance", missing, "--out", out]),
         ("enhance IMG --checkpoint MISSING", ["enhance", img, "--out", out, "-m", "jointid", "--checkpoint", missing]),
         ("eval --help", ["eval", "--help"]),

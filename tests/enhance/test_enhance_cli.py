@@ -115,7 +115,7 @@ def test_usage_errors_exit_2(folder: Path, tmp_path: Path) -> None:
     assert res.exit_code == 2 and "this is the input folder" in _out(res)
     res = runner.invoke(app, ["enhance", str(tmp_path / "missing.png"), "--out", str(tmp_path / "o")])
     assert res.exit_code == 2 and "not found" in _out(res)
-    res = runner.invoke(app, ["enhance", str(folder), "--out", str(tmp_path / "o"), "--sigma-px", "0"])
+    res = runner.invoke(app, ["enhance", str(folder), "--out", str(tmp_path / "o"), "-m", "post", "--sigma-px", "0"])
     assert res.exit_code == 2 and "sigma_px" in _out(res)
     if not torch.cuda.is_available():
         res = runner.invoke(app, ["enhance", str(folder), "--out", str(tmp_path / "o"), "--device", "cuda"])
@@ -213,22 +213,40 @@ def test_a_flag_the_method_does_not_take_is_an_error(folder: Path, tmp_path: Pat
     assert res.exit_code == 2 and "--tile is an option of jointid" in _out(res), res.output
     # The flag reaches the stage that takes it: --lambda 0.5 equals the spec's own option.
     a, b = tmp_path / "a", tmp_path / "b"
-    assert runner.invoke(app, ["enhance", str(folder), "-o", str(a), "-r", "--lambda", "0.5"]).exit_code == 0
+    assert (
+        runner.invoke(app, ["enhance", str(folder), "-o", str(a), "-r", "-m", "post", "--lambda", "0.5"]).exit_code == 0
+    )
     assert runner.invoke(app, ["enhance", str(folder), "-o", str(b), "-r", "-m", "post?lam=0.5"]).exit_code == 0
     c = tmp_path / "c"
-    assert runner.invoke(app, ["enhance", str(folder), "-o", str(c), "-r"]).exit_code == 0
+    assert runner.invoke(app, ["enhance", str(folder), "-o", str(c), "-r", "-m", "post"]).exit_code == 0
     files = sorted(p.relative_to(a) for p in a.rglob("*.png"))
     assert files and files == sorted(p.relative_to(b) for p in b.rglob("*.png"))
     assert all((read_rgb(a / f) == read_rgb(b / f)).all() for f in files)
     assert any((read_rgb(a / f) != read_rgb(c / f)).any() for f in files)  # the default lambda (0.3) differs
 
 
+def test_the_default_method_is_lite(folder: Path, tmp_path: Path) -> None:
+    from murk.io import read_rgb
+
+    runs = {"default": [], "lite": ["-m", "lite"], "post": ["-m", "post"]}
+    for name, extra in runs.items():
+        res = runner.invoke(app, ["enhance", str(folder), "-o", str(tmp_path / name), "-r", *extra])
+        assert res.exit_code == 0, res.output
+    files = sorted(p.relative_to(tmp_path / "default") for p in (tmp_path / "default").rglob("*.png"))
+    assert files and files == sorted(p.relative_to(tmp_path / "lite") for p in (tmp_path / "lite").rglob("*.png"))
+    assert all((read_rgb(tmp_path / "default" / f) == read_rgb(tmp_path / "lite" / f)).all() for f in files)
+    assert any((read_rgb(tmp_path / "default" / f) != read_rgb(tmp_path / "post" / f)).any() for f in files)
+    # post's flags without a method name the chain that takes them.
+    res = runner.invoke(app, ["enhance", str(folder), "-o", str(tmp_path / "x"), "--lambda", "0.5"])
+    assert res.exit_code == 2 and "not of the method 'lite'" in _out(res) and "'lite+post'" in _out(res)
+
+
 def test_temporal_flag_reaches_post_for_videos_only(folder: Path, tmp_path: Path) -> None:
     video = make_video(tmp_path / "clip.avi", 8, fps=8.0)
     runs = {
-        "flag": ["--temporal", "0.8"],
+        "flag": ["-m", "post", "--temporal", "0.8"],
         "spec": ["-m", "post?temporal=0.8"],
-        "plain": [],
+        "plain": ["-m", "post"],
     }
     for name, extra in runs.items():
         res = runner.invoke(app, ["enhance", str(video), "-o", str(tmp_path / name), "--format", "png", *extra])
@@ -240,5 +258,7 @@ def test_temporal_flag_reaches_post_for_videos_only(folder: Path, tmp_path: Path
     assert any((a != b).any() for a, b in zip(frames["flag"][1:], frames["plain"][1:], strict=True))
     res = runner.invoke(app, ["enhance", str(folder), "-o", str(tmp_path / "j"), "-m", "jointid", "--temporal", "0.8"])
     assert res.exit_code == 2 and "--temporal is an option of" in _out(res), res.output
-    res = runner.invoke(app, ["enhance", str(video), "-o", str(tmp_path / "c"), "--he", "clahe", "--temporal", "0.5"])
+    res = runner.invoke(
+        app, ["enhance", str(video), "-o", str(tmp_path / "c"), "-m", "post", "--he", "clahe", "--temporal", "0.5"]
+    )
     assert res.exit_code == 2 and "CLAHE" in _out(res), res.output

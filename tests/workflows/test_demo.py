@@ -22,11 +22,12 @@ def test_demo_quick_runs_the_whole_pipeline(tmp_path: Path) -> None:
     )
     assert (out / "train" / "best.pt").exists()
     doc = json.loads((out / "report" / "metrics.json").read_text())
-    labels = ["raw", "post", "jointid", "jointid+post", "train-illustration"]
+    labels = ["raw", "post", "jointid", "jointid+post", "lite", "train-illustration"]
     assert [m["label"] for m in doc["methods"]] == labels
     assert doc["methods"][2]["checkpoint"] is None  # the shipped weights, named in "weights"
     assert doc["methods"][2]["weights"].endswith("jointid-small.pt") and doc["methods"][0]["weights"] is None
-    assert len(doc["rows"]) == 3 * 5 and not doc["errors"]
+    assert doc["methods"][4]["weights"].endswith("lite.pt")
+    assert len(doc["rows"]) == 3 * 6 and not doc["errors"]
     assert "report.html" in r.output and "jointid+post" in r.output and "shipped" in r.output
     # rerunning resumes: nothing is trained again
     mtime = (out / "train" / "best.pt").stat().st_mtime

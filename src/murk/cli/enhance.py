@@ -73,12 +73,13 @@ def enhance(
         typer.Option(
             "--method",
             "-m",
-            help="Restoration method; chain with '+' (e.g. jointid+post); method options after '?' "
+            help="Restoration method (default lite, what murk recommends for real footage); chain with '+' (e.g. "
+            "jointid+post); method options after '?' "
             "(e.g. post?lam=0.5,he=rgb; a misspelt one is an error). post?preset=paper is Eq. 9 exactly; the "
             "default preset 'real' applies 30 % of the equalisation. jointid re-expresses the network's output as a "
             "local affine map of the input by default (jointid?refine=0: the network alone; docs/enhance.md).",
         ),
-    ] = "post",
+    ] = "lite",
     recursive: Annotated[bool, typer.Option("--recursive", "-r", help="Include subfolders of a folder.")] = False,
     format: Annotated[
         ImageFormat | None,
@@ -200,7 +201,7 @@ def enhance(
     ] = None,
     quiet: QuietOpt = False,
 ) -> None:
-    """Restore underwater images, folders, videos, live streams and ROS bags (post by default: Eq. 9, preset real).
+    """Restore underwater images, folders, videos, live streams and ROS bags (lite by default).
 
     Prints processed/skipped/failed counts, frames per second and read/restore/write milliseconds per frame.
     Unreadable inputs go to errors.jsonl in the output folder (exit code 1); reruns skip finished outputs.

@@ -2,8 +2,9 @@
 
 procedural construction-site scenes (clean RGB-D) -> synthesis with the three stages and the shipped marine-snow
 bank -> a short illustration of ``murk train`` on the CPU -> restoration of the shipped REAL underwater images
-with ``post`` (Eq. 9), the SHIPPED murk-trained Joint-ID (``jointid``, ``jointid+post``; model card
-``docs/models.md``) and the short illustration run -> ``compare`` -> ``report.html``.
+with ``post`` (Eq. 9), the SHIPPED murk-trained Joint-ID (``jointid``, ``jointid+post``) and ``lite`` (what murk
+recommends for real footage; model cards ``docs/models.md``) and the short illustration run -> ``compare`` ->
+``report.html``.
 
 Honest labelling: the restoration to look at is the shipped model's (trained by ``murk train --config
 configs/train-small-cpu.yaml``, about an hour on 2 CPU cores). The demo's own training is a few dozen CPU steps of
@@ -187,6 +188,7 @@ def run_demo(
         parse_method("post"),
         parse_method("jointid"),
         parse_method("jointid+post"),
+        parse_method("lite"),  # what murk recommends for real footage (README), the default of `murk enhance`
         parse_method(f"train-illustration=jointid:{ckpt}"),
     ]
     done("real")
@@ -196,7 +198,8 @@ def run_demo(
         methods,
         out / "report",
         save_outputs=True,
-        title="murk demo: the shipped murk-trained Joint-ID ('jointid', 'jointid+post') on real underwater images; "
+        title="murk demo: the shipped murk-trained restorers ('jointid', 'jointid+post', and 'lite', what murk "
+        "recommends for real footage) on real underwater images; "
         f"'train-illustration' is the demo's own {plan.train_steps}-step CPU run (shows training runs, not a result)",
     )
     res.paths["report"] = out / "report" / "report.html"
