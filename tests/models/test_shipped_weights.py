@@ -78,6 +78,7 @@ def test_recorded_run_configs_equal_the_shipped_configs() -> None:
         "configs/train-small-snow-cpu.yaml": "docs/models/jointid-small-snow-config.yaml",
         "configs/train-small-colour-cpu.yaml": "docs/models/jointid-small-colour-config.yaml",
         "configs/train-small-distill-cpu.yaml": "docs/models/jointid-small-distill-config.yaml",
+        "configs/train-lite-mild-cpu.yaml": "docs/models/lite-mild-config.yaml",
     }
     # Stage 6 ran from the files of that day (the head from the then-shipped stage-5 file, the distillation from the
     # head's first run); the shipped configs name where a reproduction finds them (docs/models.md, "Stage 6").
@@ -87,12 +88,18 @@ def test_recorded_run_configs_equal_the_shipped_configs() -> None:
             "runs/jointid-small-stage5.pt",
         ),
         "configs/train-small-distill-cpu.yaml": ("runs/small-gc-head-wb3/latest.pt", "runs/small-colour/latest.pt"),
+        "configs/train-lite-mild-cpu.yaml": ("src/murk/data/models/lite.pt", "runs/lite-stage4.pt"),
     }
+    # Stage 6's teacher was the `lite` shipped that day (stage 4), which lite's stage 5 has since replaced.
+    teachers = {"configs/train-small-distill-cpu.yaml": ("lite", "lite:runs/lite-stage4.pt")}
     for shipped, recorded in pairs.items():
         a, b = (load_yaml(TrainConfig, root / p) for p in (shipped, recorded))
         if shipped in moved:
             assert (b.model.init_checkpoint, a.model.init_checkpoint) == moved[shipped], shipped
             b = dataclasses.replace(b, model=dataclasses.replace(b.model, init_checkpoint=a.model.init_checkpoint))
+        if shipped in teachers:
+            assert (b.loss.teacher, a.loss.teacher) == teachers[shipped], shipped
+            b = dataclasses.replace(b, loss=dataclasses.replace(b.loss, teacher=a.loss.teacher))
         snow = b.data.synthesis.marine_snow
         if snow.bank is None:  # recorded before 2026-12-03, when the default bank was today's builtin:snow-small
             synthesis = dataclasses.replace(
