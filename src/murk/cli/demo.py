@@ -42,7 +42,7 @@ def demo(
                 + ")",
                 f"  clean RGB-D scenes : {res.paths['scenes']}",
                 f"  synthetic dataset  : {res.paths['synth']}  (manifest.jsonl, train.txt, degraded/, snow_alpha/)",
-                "  restoration        : jointid / jointid+post = the shipped model (docs/models.md)",
+                "  restoration        : jointid / jointid+post / lite = the shipped models (docs/models.md)",
                 f"  train illustration : {res.paths['checkpoint']}",
                 f"  report             : {res.paths['report']}",
             ]
