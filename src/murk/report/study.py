@@ -127,7 +127,6 @@ def evaluate_study(
     say = on_event or (lambda _m: None)
     ev = study.eval
     method = base.model.kind  # the restorer of the arms' network kind: jointid or lite
-
     ckpts = {a.name: Path(arm_config(base, a, out).out) / "latest.pt" for a in study.arms}
     for name, path in ckpts.items():
         if not path.is_file():
