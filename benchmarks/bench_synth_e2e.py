@@ -144,6 +144,7 @@ def main() -> None:
     ap.add_argument("--src", default=str(Path(__file__).resolve().parents[1] / "src"), help="the murk tree to run")
     args = ap.parse_args()
     env = {**os.environ, **ONE_THREAD}
+    env.pop("PYTHONDONTWRITEBYTECODE", None)  # modules' bytecode cached, as on a user's machine (dev shells set it)
     src_dir = args.src
     env["PYTHONPATH"] = src_dir + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
     n = args.images * args.variants

@@ -34,6 +34,24 @@ def test_import_murk_is_light() -> None:
     assert out == ["False", "False"]
 
 
+def test_a_numpy_synthesis_job_imports_neither_torch_nor_scipy(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """Every stage on the sample RGB-D pairs (the Redwood depth has holes, filled by OpenCV's distance transform):
+    a worker of such a job starts without torch (1.5 s) and scipy (0.1 s) (issue 29, worker start)."""
+    code = (
+        "import sys\n"
+        "from murk.data import sample_rgbd_dir\n"
+        "from murk.synth.config import SynthConfig\n"
+        "from murk.synth.runner import synthesize\n"
+        "cfg = SynthConfig(stages=('basic', 'forward_scatter', 'marine_snow'), variants=1)\n"
+        f"summary = synthesize({str(tmp_path / 'out')!r}, cfg, rgbd=sample_rgbd_dir())\n"
+        "print(summary.processed, 'torch' in sys.modules, 'scipy' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    variants, torch_seen, scipy_seen = out.stdout.split()
+    assert int(variants) >= 2 and (torch_seen, scipy_seen) == ("False", "False")
+
+
 def test_every_top_level_export_resolves() -> None:
     for name in murk.__all__:
         assert getattr(murk, name) is not None, name

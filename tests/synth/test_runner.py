@@ -11,8 +11,9 @@ import pytest
 from murk._config import merge
 from murk.data import default_snow_bank
 from murk.io import DepthOptions, discover, load_pair, read_jsonl, read_rgb
+from murk.io.pairs import RGBDSource
 from murk.snow.bank import load_bank
-from murk.synth.common import Shard, fit_size
+from murk.synth.common import Shard, depth_range_note, fit_size
 from murk.synth.config import SynthConfig
 from murk.synth.params import variant_from_dict
 from murk.synth.pipeline import render
@@ -167,3 +168,13 @@ def test_relative_depth_and_size_via_config(tmp_path: Path) -> None:
     assert out.shape == (30, 30, 3)
     rec = json.loads((tmp_path / "out" / "manifest.jsonl").read_text().splitlines()[0])
     assert rec["width"] == 30 and rec["dist_max_m"] == pytest.approx(rec["H"], rel=1e-5)
+
+
+def test_the_depth_warning_uses_the_exact_median() -> None:
+    """The median behind the implausible-depth warning (a partial sort, so that workers skip numpy.ma's import)
+    is numpy's, for odd and even sizes: 20 m is plausible, the mean of the two middle values 20.05 m is not."""
+    src = RGBDSource(stem="x", rgb_path="x.png", depth_path="x_depth.png")
+    assert depth_range_note(src, np.array([0.5, 20.0, 20.1, 30.0], np.float32)) is not None  # median 20.05
+    assert depth_range_note(src, np.array([0.5, 19.9, 20.1, 30.0], np.float32)) is None  # median 20.0
+    assert depth_range_note(src, np.array([30.0, 0.5, 20.0], np.float32)) is None  # median 20.0
+    assert depth_range_note(src, np.array([30.0, 0.5, 21.0], np.float32)) is not None

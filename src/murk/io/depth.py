@@ -36,7 +36,7 @@ import numpy as np
 
 from murk.errors import InputFileError
 from murk.io.atomic import write_bytes_atomic
-from murk.io.images import check_declared_size, encode_image, max_pixels, png_params, read_input_bytes
+from murk.io.images import check_declared_size, encode_image, encode_png, max_pixels, read_input_bytes
 from murk.io.listing import describe_unusable
 
 InvalidDepthMode = Literal["fill", "far", "fail"]
@@ -177,8 +177,9 @@ def resolve_invalid(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Replace invalid depth pixels and return ``(depth_m, valid_mask)``.
 
-    Modes: ``fill`` copies the nearest valid pixel (exact Euclidean nearest neighbour); ``far`` sets invalid
-    pixels to the farthest valid depth (holes read as open water); ``fail`` raises.
+    Modes: ``fill`` copies the nearest valid pixel (by a 5x5 chamfer distance: at most 4 % farther than the
+    Euclidean nearest); ``far`` sets invalid pixels to the farthest valid depth (holes read as open water);
+    ``fail`` raises.
 
     Raises:
         InputFileError: no valid pixel at all, or invalid pixels with ``mode="fail"``.
@@ -201,11 +202,21 @@ def resolve_invalid(
     if mode == "far":
         out[~valid] = out[valid].max()
         return out, valid
-    from scipy import ndimage
+    return _copy_nearest_valid(out, valid), valid
 
-    idx = ndimage.distance_transform_edt(~valid, return_distances=False, return_indices=True)
-    out = out[idx[0], idx[1]]
-    return out, valid
+
+def _copy_nearest_valid(depth_m: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Each invalid pixel takes the value of its nearest valid pixel by OpenCV's 5x5 chamfer distance transform
+    (``cv2.distanceTransformWithLabels``, one label per valid pixel). The pixel it copies is at most 4 % farther
+    than the Euclidean nearest (tests/io/test_depth.py against scipy's exact transform on random masks: at most
+    3.6 %; on the Redwood sample 462 of 40,071 holes copy another pixel than the exact transform would, at most
+    2.9 % farther). It is 6x faster than scipy's exact transform at 640x480 and spares every synthesis worker
+    scipy's import (0.1 s per process)."""
+    src = np.where(valid, 0, 255).astype(np.uint8)
+    _, labels = cv2.distanceTransformWithLabels(src, cv2.DIST_L2, 5, labelType=cv2.DIST_LABEL_PIXEL)
+    value_of = np.empty(int(labels.max()) + 1, depth_m.dtype)
+    value_of[labels[valid]] = depth_m[valid]  # a valid pixel's own label names it (any label order)
+    return value_of[labels]
 
 
 def write_depth_png(path: str | Path, depth_m: np.ndarray, *, depth_scale: float = 1000.0) -> Path:
@@ -213,8 +224,8 @@ def write_depth_png(path: str | Path, depth_m: np.ndarray, *, depth_scale: float
     path = Path(path)
     d = np.where(validity_mask(depth_m), depth_m, 0.0).astype(np.float64) * depth_scale
     raw = np.clip(np.rint(d), 0, 65535).astype(np.uint16)
-    params = png_params() if path.suffix.lower() == ".png" else []
-    write_bytes_atomic(path, encode_image(path, raw, params), fsync=False)
+    data = encode_png(raw) if path.suffix.lower() == ".png" else encode_image(path, raw)
+    write_bytes_atomic(path, data, fsync=False)
     return path
 
 
