@@ -1,10 +1,12 @@
 """Writing PNG: encode time and size of the PNG settings murk could use, on murk's own 640x480 images (issue 29).
 
-Candidates, all lossless standard PNG through OpenCV's libpng (no new dependency):
+Candidates, all lossless standard PNG:
+- ``murk ISA-L`` (:func:`murk.io.png.encode_png_isal`, level 3, murk's default since 2026-12-04): the Sub filter
+  in numpy and ISA-L's deflate (``isal``), from the RGB array murk holds;
 - ``murk before`` (until 2026-12-03): zlib level 3 with libpng's defaults (all five filters tried per row,
-  zlib's default strategy);
-- ``murk fast`` (:func:`murk.io.images.png_params`, level 3): libpng's fast filters (none/sub/up) and zlib's
-  run-length strategy;
+  zlib's default strategy), through OpenCV;
+- ``murk fast`` (:func:`murk.io.images.png_params`, level 3; murk's fast path 2026-12-03, still its fallback
+  without ``isal``): libpng's fast filters (none/sub/up) and zlib's run-length strategy;
 - ``cv2.imwrite defaults``: what a plain script gets from ``cv2.imwrite(path, image)``;
 - level 1, default filters; level 9 (the smallest files).
 
@@ -32,6 +34,7 @@ import numpy as np  # noqa: E402
 from murk.data import sample_rgbd_dir  # noqa: E402
 from murk.io import DepthOptions, discover, load_pair  # noqa: E402
 from murk.io.images import png_params, to_uint  # noqa: E402
+from murk.io.png import encode_png_isal  # noqa: E402
 from murk.synth.config import SynthConfig  # noqa: E402
 from murk.synth.params import sample_variant  # noqa: E402
 from murk.synth.pipeline import render  # noqa: E402
@@ -43,6 +46,16 @@ CANDIDATES: dict[str, list[int]] = {
     "l1, libpng default filters": [cv2.IMWRITE_PNG_COMPRESSION, 1],
     "l9 (smallest)": [cv2.IMWRITE_PNG_COMPRESSION, 9],
 }
+
+
+ISAL = "murk ISA-L (l3, Sub, isal)"
+
+
+def encode(name: str, img: np.ndarray) -> bytes:
+    """One candidate's PNG bytes of a BGR (OpenCV's order) or grey image."""
+    if name == ISAL:  # murk holds RGB: the reversed view is what it passes
+        return encode_png_isal(np.ascontiguousarray(img[:, :, ::-1]) if img.ndim == 3 else img, 3)
+    return cv2.imencode(".png", img, CANDIDATES[name])[1].tobytes()
 
 
 def images() -> dict[str, np.ndarray]:
@@ -67,20 +80,20 @@ def main() -> None:
     imgs = images()
     stamp = time.strftime("%Y-%m-%d %H:%M")
     print(f"# bench_png  {stamp}  {len(imgs)} images 640x480, 1 thread, OpenCV {cv2.__version__}")
-    totals = {k: [0.0, 0] for k in CANDIDATES}
+    names = [ISAL, *CANDIDATES]
+    totals = {k: [0.0, 0] for k in names}
     for name, img in imgs.items():
-        ms = interleaved(
-            {k: (lambda p=p, img=img: cv2.imencode(".png", img, p)) for k, p in CANDIDATES.items()},
-            rounds=args.rounds,
-            inner=2,
-        )
-        for k, p in CANDIDATES.items():
-            size = len(cv2.imencode(".png", img, p)[1])
+        rgb = np.ascontiguousarray(img[:, :, ::-1]) if img.ndim == 3 else img
+        calls = {k: (lambda p=p, img=img: cv2.imencode(".png", img, p)) for k, p in CANDIDATES.items()}
+        calls[ISAL] = lambda rgb=rgb: encode_png_isal(rgb, 3)  # type: ignore[misc]
+        ms = interleaved(calls, rounds=args.rounds, inner=2)
+        for k in names:
+            data = encode(k, img)
             totals[k][0] += ms[k]
-            totals[k][1] += size
-            back = cv2.imdecode(cv2.imencode(".png", img, p)[1], cv2.IMREAD_UNCHANGED)
+            totals[k][1] += len(data)
+            back = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
             assert np.array_equal(back, img), (name, k)  # lossless
-        print(name + ": " + "; ".join(f"{k} {ms[k]:.1f} ms" for k in CANDIDATES))
+        print(name + ": " + "; ".join(f"{k} {ms[k]:.1f} ms" for k in names))
     base_ms, base_kb = totals["murk before (l3, libpng defaults)"]
     print("\ntotal over the images (lossless checked):")
     for k, (t, b) in totals.items():

@@ -18,7 +18,7 @@ from typing import Any, Literal
 import cv2
 import numpy as np
 
-from murk.io.images import png_params
+from murk.io.images import encode_png
 
 IMAGE_MSG = "sensor_msgs/msg/Image"
 COMPRESSED_MSG = "sensor_msgs/msg/CompressedImage"
@@ -158,11 +158,10 @@ def encode_pixels(rgb: np.ndarray, msgtype: str, encoding: str, *, jpeg_quality:
     """
     if msgtype == COMPRESSED_MSG:
         kind = compressed_kind(encoding)
+        if kind == "png":
+            return f"rgb8; {kind} compressed bgr8", encode_png(rgb), 0
         bgr = np.ascontiguousarray(rgb[:, :, ::-1])
-        if kind == "jpeg":
-            ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)])
-        else:
-            ok, buf = cv2.imencode(".png", bgr, png_params())
+        ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)])
         if not ok:
             raise ValueError(f"OpenCV could not encode a {kind} image ({rgb.dtype}, {rgb.shape})")
         return f"rgb8; {kind} compressed bgr8", buf.tobytes(), 0

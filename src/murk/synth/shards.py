@@ -42,7 +42,7 @@ import numpy as np
 from murk._config import dump_yaml
 from murk._version import __version__
 from murk.io.atomic import atomic_path, make_output_folder, remove_stale_temporaries, write_text_atomic
-from murk.io.images import encode_image, png_params, to_uint
+from murk.io.images import encode_png, to_uint
 from murk.io.jobs import ErrorRecord, JobSummary
 from murk.io.jsonl import append_jsonl, read_jsonl
 from murk.io.pairs import DepthOptions, RGBDSource, load_pair
@@ -154,15 +154,13 @@ def plan_shards(sources: Sequence[RGBDSource], variants: int, samples_per_shard:
 
 
 def _png(image: np.ndarray, level: int) -> bytes:
-    """PNG bytes of a uint8/uint16 RGB (H, W, 3) or (H, W) array (fixed zlib level: deterministic)."""
-    if image.ndim == 3:
-        image = np.ascontiguousarray(image[:, :, ::-1])
-    return encode_image("x.png", image, png_params(level))
+    """PNG bytes of a uint8/uint16 RGB (H, W, 3) or (H, W) array (fixed level: deterministic)."""
+    return encode_png(image, level)
 
 
 def _depth_png(depth_m: np.ndarray, valid: np.ndarray) -> bytes:
     d = np.where(valid, depth_m, 0.0).astype(np.float64) * DEPTH_SCALE_OUT
-    return encode_image("x.png", np.clip(np.rint(d), 0, 65535).astype(np.uint16))
+    return encode_png(np.clip(np.rint(d), 0, 65535).astype(np.uint16))
 
 
 def render_source_samples(
