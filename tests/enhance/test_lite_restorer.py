@@ -109,6 +109,12 @@ def test_errors(lite_ckpt: Path, tmp_path: Path) -> None:
 
     with pytest.raises(ShapeError, match=r"\(B, 3, H, W\)"):
         r.restore_tensor(torch.zeros(3, 8, 8))
+    with pytest.raises(ShapeError, match=r"got \(8, 8, 3\) \(one image \(H, W, 3\): pass images\[None\]\)"):
+        r.restore(np.zeros((8, 8, 3), np.float32))  # the numpy path names the batch shape too
+    with pytest.raises(ShapeError, match="got list"):
+        r.restore([[0.0]])  # type: ignore[arg-type]
+    with pytest.raises(ShapeError, match=r"got \(0, 8, 8, 3\)"):
+        r.restore(np.zeros((0, 8, 8, 3), np.float32))
 
 
 @pytest.mark.parametrize("hw", [(37, 53), (150, 211), (480, 640)])

@@ -61,6 +61,17 @@ class _CPUDevice:
         return torch.device("cpu")
 
 
+def check_batch(images: object) -> None:
+    """A numpy batch (B, H, W, 3) with B, H, W >= 1, or a :class:`murk.errors.ShapeError` saying what it got."""
+    from murk.errors import ShapeError
+
+    if not isinstance(images, np.ndarray):
+        raise ShapeError(f"images: expected a numpy array (B, H, W, 3), got {type(images).__name__}")
+    if images.ndim != 4 or images.shape[3] != 3 or min(images.shape[:3]) < 1:
+        hint = " (one image (H, W, 3): pass images[None])" if images.ndim == 3 and images.shape[2] == 3 else ""
+        raise ShapeError(f"images: expected shape (B, H, W, 3), got {images.shape}{hint}")
+
+
 class Restorer:
     """Base class of restoration methods. Subclasses set ``name`` and override ``restore`` and/or
     ``restore_tensor``; ``device`` is where the tensor path runs."""
@@ -69,11 +80,16 @@ class Restorer:
     device: torch.device = _CPUDevice()  # type: ignore[assignment]
 
     def restore(self, images: np.ndarray) -> Restored:
-        """Restore a numpy batch (B, H, W, 3) float32 in [0, 1]."""
+        """Restore a numpy batch (B, H, W, 3) float32 in [0, 1].
+
+        Raises:
+            ShapeError: not a numpy array (B, H, W, 3) (one image (H, W, 3) is ``images[None]``).
+        """
         import torch
 
         if type(self).restore_tensor is Restorer.restore_tensor:
             raise NotImplementedError(f"{type(self).__name__} implements neither restore nor restore_tensor")
+        check_batch(images)
         x = torch.from_numpy(np.ascontiguousarray(images)).permute(0, 3, 1, 2).to(self.device, torch.float32)
         out = self.restore_tensor(x)
         imgs = out.images.detach().float().permute(0, 2, 3, 1).cpu().numpy()
