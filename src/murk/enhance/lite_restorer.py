@@ -28,6 +28,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
@@ -38,6 +39,7 @@ from murk.enhance.restorer import RestoredTensor, Restorer
 from murk.enhance.temporal import FrameEMA
 from murk.errors import ShapeError
 from murk.models.lite.network import (
+    LUMA,
     SIZE_MULTIPLE,
     apply_maps,
     apply_maps_hwc,
@@ -203,13 +205,20 @@ def _forward_cpu(model: nn.Module, x: Tensor, work: Tensor, ema: FrameEMA | None
     h, w = x.shape[-2:]
     out = torch.empty((x.shape[0], h, w, 3), dtype=x.dtype)
     for i in range(x.shape[0]):
-        lo = maps[i].permute(1, 2, 0).contiguous().numpy()
-        up = torch.from_numpy(cv2.resize(lo, (w, h), interpolation=cv2.INTER_LINEAR))
+        lo = maps[i].permute(1, 2, 0).numpy()
+        # four 3-channel resizes: OpenCV's 12-channel path is 2.2x slower at 640x480 (0.60 against 0.27 ms)
+        ups = [torch.from_numpy(cv2.resize(np.ascontiguousarray(lo[:, :, k : k + 3]), (w, h))) for k in (0, 3, 6, 9)]
         frame = x[i].permute(1, 2, 0)
+        frame_np = frame.numpy()
         for r0 in range(0, h, STRIP_ROWS):
             rows = slice(r0, r0 + STRIP_ROWS)
-            out[i, rows] = apply_maps_hwc(up[rows], frame[rows])
+            luma = torch.from_numpy(cv2.transform(frame_np[rows], _LUMA_ROW))[..., None]  # one SIMD pass
+            apply_maps_hwc(*(u[rows] for u in ups), frame[rows], luma=luma, out=out[i, rows])
     return out.permute(0, 3, 1, 2)  # (B, 3, H, W) in channels-last memory
+
+
+_LUMA_ROW = np.array([LUMA], np.float32)
+"""The guide's luma weights as OpenCV's 1x3 colour transform."""
 
 
 def _apply_levels(x: Tensor, levels: Tensor) -> Tensor:

@@ -176,12 +176,23 @@ def apply_maps(maps: Tensor, x: Tensor) -> Tensor:
     return torch.addcmul(c[:, 3:], c[:, :3], x)  # Eq. (1) inverted: J = I / t - B (1 - t) / t, per channel
 
 
-def apply_maps_hwc(maps: Tensor, x: Tensor) -> Tensor:
-    """:func:`apply_maps` for one frame in (H, W, C) layout: maps (H, W, 12), x (H, W, 3) -> (H, W, 3)."""
-    y = LUMA[0] * x[..., 0:1] + LUMA[1] * x[..., 1:2] + LUMA[2] * x[..., 2:3]
-    gain = torch.addcmul(maps[..., 6:9], maps[..., 0:3], y)
-    offset = torch.addcmul(maps[..., 9:12], maps[..., 3:6], y)
-    return torch.addcmul(offset, gain, x)
+def apply_maps_hwc(
+    a_gain: Tensor,
+    a_offset: Tensor,
+    b_gain: Tensor,
+    b_offset: Tensor,
+    x: Tensor,
+    *,
+    luma: Tensor | None = None,
+    out: Tensor | None = None,
+) -> Tensor:
+    """:func:`apply_maps` for one frame in (H, W, C) layout, its 12 maps as four (H, W, 3) groups (channels 0-2,
+    3-5, 6-8, 9-11 of :meth:`LiteNet.maps`) and x (H, W, 3) -> (H, W, 3), written into ``out`` when given.
+    ``luma`` (H, W, 1): x's luma when the caller has it (else computed here)."""
+    y = LUMA[0] * x[..., 0:1] + LUMA[1] * x[..., 1:2] + LUMA[2] * x[..., 2:3] if luma is None else luma
+    gain = torch.addcmul(b_gain, a_gain, y)
+    offset = torch.addcmul(b_offset, a_offset, y)
+    return torch.addcmul(offset, gain, x, out=out)  # type: ignore[arg-type]
 
 
 def work_size(height: int, width: int, work_area_px: int) -> tuple[int, int] | None:
