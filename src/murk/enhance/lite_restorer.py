@@ -207,13 +207,16 @@ def _forward_cpu(model: nn.Module, x: Tensor, work: Tensor, ema: FrameEMA | None
     for i in range(x.shape[0]):
         lo = maps[i].permute(1, 2, 0).numpy()
         # four 3-channel resizes: OpenCV's 12-channel path is 2.2x slower at 640x480 (0.60 against 0.27 ms)
-        ups = [torch.from_numpy(cv2.resize(np.ascontiguousarray(lo[:, :, k : k + 3]), (w, h))) for k in (0, 3, 6, 9)]
+        a_gain, a_offset, b_gain, b_offset = (
+            torch.from_numpy(cv2.resize(np.ascontiguousarray(lo[:, :, k : k + 3]), (w, h))) for k in (0, 3, 6, 9)
+        )
         frame = x[i].permute(1, 2, 0)
         frame_np = frame.numpy()
         for r0 in range(0, h, STRIP_ROWS):
             rows = slice(r0, r0 + STRIP_ROWS)
             luma = torch.from_numpy(cv2.transform(frame_np[rows], _LUMA_ROW))[..., None]  # one SIMD pass
-            apply_maps_hwc(*(u[rows] for u in ups), frame[rows], luma=luma, out=out[i, rows])
+            maps_at = (a_gain[rows], a_offset[rows], b_gain[rows], b_offset[rows])
+            apply_maps_hwc(*maps_at, frame[rows], luma=luma, out=out[i, rows])
     return out.permute(0, 3, 1, 2)  # (B, 3, H, W) in channels-last memory
 
 
