@@ -47,6 +47,16 @@ def test_every_layout_decodes_to_the_same_pixels(shape: tuple[int, int], channel
         assert back.dtype == dtype and np.array_equal(back, _opencv_order(expected))
 
 
+def test_imageio_reads_the_files_too(tmp_path: Path) -> None:
+    iio = pytest.importorskip("imageio.v3")  # scikit-image's dependency
+    rgb = np.random.default_rng(3).integers(0, 256, (21, 34, 3), dtype=np.uint8)
+    depth = np.random.default_rng(4).integers(0, 65536, (21, 34), dtype=np.uint16)
+    for name, image in (("rgb.png", rgb), ("depth.png", depth)):
+        (tmp_path / name).write_bytes(png.encode_png_isal(image, 3))
+        back = iio.imread(tmp_path / name)
+        assert back.dtype == image.dtype and np.array_equal(back, image)
+
+
 def test_the_same_pixels_give_the_same_bytes_and_levels_differ() -> None:
     image = (np.arange(64 * 80 * 3) % 251).astype(np.uint8).reshape(64, 80, 3)
     assert png.encode_png_isal(image, 3) == png.encode_png_isal(image.copy(), 3)
