@@ -187,7 +187,7 @@ def write_rgb(
 def write_uint(path: str | Path, image: np.ndarray, *, jpeg_quality: int = 95, png_compression: int = 3) -> Path:
     """Write a uint8/uint16 RGB (H, W, 3) or single-channel (H, W) array atomically.
 
-    ``jpeg_quality`` (0-100) applies to JPEG, ``png_compression`` (zlib level 0-9) to PNG.
+    ``jpeg_quality`` (0-100) applies to JPEG, ``png_compression`` (deflate level 0-9, :func:`encode_png`) to PNG.
 
     Raises:
         ValueError: the format cannot hold this array.
@@ -207,7 +207,8 @@ def write_uint(path: str | Path, image: np.ndarray, *, jpeg_quality: int = 95, p
 
 
 FAST_PNG_LEVELS = range(1, 4)
-"""zlib levels written by murk's fast PNG path (see :func:`png_params`)."""
+"""Levels written by murk's fast PNG path: ISA-L's deflate (:func:`encode_png`), or OpenCV's fast filters and
+zlib's run-length strategy where ``isal`` is missing (:func:`png_params`)."""
 
 
 def png_params(level: int = 3) -> list[int]:

@@ -235,7 +235,8 @@ class OutputConfig:
     save_intermediate: bool = False
     """Also write basic/ (Eq. 1 result) and transmission/ (T as an RGB image)."""
     png_compression: int = 3
-    """zlib level 0-9 of the PNG files (3 = a good speed/size balance)."""
+    """Deflate level 0-9 of the PNG files (0 stores; 1-3 murk's fast path, ISA-L's deflate when ``isal`` is
+    installed; 4-9 libpng's adaptive filters and zlib, smaller and slower; see :func:`murk.io.images.encode_png`)."""
 
     def __post_init__(self) -> None:
         if not 0 <= self.png_compression <= 9:
