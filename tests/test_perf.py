@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import platform
 import subprocess
 import sys
 from pathlib import Path
@@ -52,12 +53,12 @@ def test_the_murk_command_applies_it_before_torch_loads() -> None:
     assert proc.stdout.split()[-2:] == ["PASSIVE", "False"], proc.stdout
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's mallopt")
+@pytest.mark.skipif(platform.libc_ver()[0] != "glibc", reason="glibc's mallopt")
 def test_tune_allocator_applies_every_setting_on_glibc() -> None:
     """Each of the three mallopt settings (mmap threshold, trim threshold, top pad) is accepted: a value glibc
     refuses (mallopt returns 0) makes it False."""
-    code = "from murk._perf import tune_allocator as t; print(t(), t())"
+    code = "from murk._perf import tune_allocator; print(tune_allocator())"
     env = {**os.environ, "PYTHONPATH": SRC}
     proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.split() == ["True", "True"]
+    assert proc.stdout.strip() == "True"

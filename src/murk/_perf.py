@@ -7,8 +7,9 @@ default and 4.5 ms with the thresholds below. :func:`tune_allocator` raises the 
 32 MiB (glibc's maximum mmap threshold on 64-bit), so freed buffers are reused, and the top pad (what the heap
 grows by and keeps when it shrinks) to 64 MiB: without it a ``murk synth`` process still took 100,000 page
 faults for 64 variants with marine snow at 640x480, with it 28,000, and the whole command 1.02 s against 1.16 s
-(best of 4, 2026-12-03). It is a no-op on non-glibc platforms. The cost: a process keeps up to about 100 MiB of
-freed memory for reuse.
+(best of 4, 2026-12-03). It is a no-op on non-glibc platforms. The cost: freed memory kept for reuse, up to about
+100 MiB in the main heap and up to the 64 MiB pad in each further arena glibc gives a busy thread (murk's writer
+threads may have their own).
 
 :func:`prefer_passive_openmp` lets torch's idle OpenMP threads sleep instead of spinning (``OMP_WAIT_POLICY=PASSIVE``).
 By default GNU OpenMP keeps a thread that waits at the end of a parallel region spinning for about 3 ms, which is
@@ -39,7 +40,8 @@ _done = False
 
 
 def tune_allocator() -> bool:
-    """Raise glibc's mmap/trim thresholds once per process; returns True when applied."""
+    """Raise glibc's mmap and trim thresholds and its top pad once per process (module doc); returns True when
+    applied."""
     global _done
     if _done:
         return True

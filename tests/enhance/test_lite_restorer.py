@@ -111,8 +111,10 @@ def test_errors(lite_ckpt: Path, tmp_path: Path) -> None:
         r.restore_tensor(torch.zeros(3, 8, 8))
     with pytest.raises(ShapeError, match=r"got \(8, 8, 3\) \(one image \(H, W, 3\): pass images\[None\]\)"):
         r.restore(np.zeros((8, 8, 3), np.float32))  # the numpy path names the batch shape too
-    with pytest.raises(ShapeError, match="got list"):
+    with pytest.raises(ShapeError, match=r"got \(1, 1\)"):
         r.restore([[0.0]])  # type: ignore[arg-type]
+    frames = [np.full((8, 8, 3), 0.5, np.float32)] * 2  # a list of equal frames is a batch, as before
+    assert r.restore(frames).images.shape == (2, 8, 8, 3)  # type: ignore[arg-type]
     with pytest.raises(ShapeError, match=r"got \(0, 8, 8, 3\)"):
         r.restore(np.zeros((0, 8, 8, 3), np.float32))
 

@@ -61,15 +61,19 @@ class _CPUDevice:
         return torch.device("cpu")
 
 
-def check_batch(images: object) -> None:
-    """A numpy batch (B, H, W, 3) with B, H, W >= 1, or a :class:`murk.errors.ShapeError` saying what it got."""
+def as_batch(images: object) -> np.ndarray:
+    """``images`` as a contiguous numpy batch (B, H, W, 3) with B, H, W >= 1 (an array or a list of equal-size
+    frames), or a :class:`murk.errors.ShapeError` saying what it got."""
     from murk.errors import ShapeError
 
-    if not isinstance(images, np.ndarray):
-        raise ShapeError(f"images: expected a numpy array (B, H, W, 3), got {type(images).__name__}")
-    if images.ndim != 4 or images.shape[3] != 3 or min(images.shape[:3]) < 1:
-        hint = " (one image (H, W, 3): pass images[None])" if images.ndim == 3 and images.shape[2] == 3 else ""
-        raise ShapeError(f"images: expected shape (B, H, W, 3), got {images.shape}{hint}")
+    try:
+        batch = np.ascontiguousarray(images)
+    except (TypeError, ValueError) as exc:  # ragged lists, objects numpy cannot hold
+        raise ShapeError(f"images: expected a numpy batch (B, H, W, 3), got {type(images).__name__} ({exc})") from None
+    if batch.ndim != 4 or batch.shape[3] != 3 or min(batch.shape[:3]) < 1:
+        hint = " (one image (H, W, 3): pass images[None])" if batch.ndim == 3 and batch.shape[2] == 3 else ""
+        raise ShapeError(f"images: expected shape (B, H, W, 3), got {batch.shape}{hint}")
+    return batch
 
 
 class Restorer:
@@ -83,14 +87,13 @@ class Restorer:
         """Restore a numpy batch (B, H, W, 3) float32 in [0, 1].
 
         Raises:
-            ShapeError: not a numpy array (B, H, W, 3) (one image (H, W, 3) is ``images[None]``).
+            ShapeError: not a batch (B, H, W, 3) (one image (H, W, 3) is ``images[None]``).
         """
         import torch
 
         if type(self).restore_tensor is Restorer.restore_tensor:
             raise NotImplementedError(f"{type(self).__name__} implements neither restore nor restore_tensor")
-        check_batch(images)
-        x = torch.from_numpy(np.ascontiguousarray(images)).permute(0, 3, 1, 2).to(self.device, torch.float32)
+        x = torch.from_numpy(as_batch(images)).permute(0, 3, 1, 2).to(self.device, torch.float32)
         out = self.restore_tensor(x)
         imgs = out.images.detach().float().permute(0, 2, 3, 1).cpu().numpy()
         depth = None if out.depth_m is None else out.depth_m.detach().float()[:, 0].cpu().numpy()

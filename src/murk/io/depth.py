@@ -224,7 +224,7 @@ def write_depth_png(path: str | Path, depth_m: np.ndarray, *, depth_scale: float
     path = Path(path)
     d = np.where(validity_mask(depth_m), depth_m, 0.0).astype(np.float64) * depth_scale
     raw = np.clip(np.rint(d), 0, 65535).astype(np.uint16)
-    data = encode_png(raw) if path.suffix.lower() == ".png" else encode_image(path, raw)
+    data = encode_png(raw, path=path) if path.suffix.lower() == ".png" else encode_image(path, raw)
     write_bytes_atomic(path, data, fsync=False)
     return path
 

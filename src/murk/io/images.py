@@ -195,7 +195,7 @@ def write_uint(path: str | Path, image: np.ndarray, *, jpeg_quality: int = 95, p
     """
     path = Path(path)
     if path.suffix.lower() == ".png":
-        write_bytes_atomic(path, encode_png(image, png_compression), fsync=False)
+        write_bytes_atomic(path, encode_png(image, png_compression, path=path), fsync=False)
         return path
     if image.ndim == 3:
         image = np.ascontiguousarray(image[:, :, ::-1])
@@ -232,24 +232,28 @@ def png_params(level: int = 3) -> list[int]:
     return params
 
 
-def encode_png(image: np.ndarray, level: int = 3) -> bytes:
+def encode_png(image: np.ndarray, level: int = 3, *, path: str | Path = "image.png") -> bytes:
     """PNG bytes of a uint8/uint16 image in PNG's channel order ((H, W) grey, (H, W, 3) RGB, (H, W, 4) RGBA) at
     ``output.png_compression`` ``level`` (0-9): levels 1-3 with ISA-L's deflate (:mod:`murk.io.png`, about 4.8x
     faster than OpenCV's fast path) when ``isal`` is installed, otherwise and at levels 0 and 4-9 with OpenCV
-    (:func:`png_params`). Lossless either way.
+    (:func:`png_params`). Lossless either way. The bytes depend on which path wrote them (and on the ``isal`` or
+    OpenCV version), the pixels never. ``path`` only names the file in errors.
 
     Raises:
-        ValueError: ``level`` is not an integer in 0-9; OpenCV cannot encode this dtype/shape.
+        ValueError: ``level`` is not an integer in 0-9; pixels other than uint8/uint16; a shape OpenCV cannot
+            write on its path (e.g. grey + alpha (H, W, 2), which only the ISA-L path writes).
     """
     from murk.io.png import encode_png_isal, isal_available
 
     params = png_params(level)  # checks the level
-    if int(level) in FAST_PNG_LEVELS and image.dtype in (np.uint8, np.uint16) and isal_available():
+    if image.dtype not in (np.uint8, np.uint16):  # OpenCV would write other dtypes as 8 bits, silently
+        raise ValueError(f"{path}: PNG takes uint8 or uint16 pixels, got {image.dtype}")
+    if int(level) in FAST_PNG_LEVELS and isal_available():
         return encode_png_isal(image, int(level))
     if image.ndim == 3 and image.shape[2] in (3, 4):
         order = [2, 1, 0, 3][: image.shape[2]]
         image = np.ascontiguousarray(image[:, :, order])  # OpenCV takes BGR(A)
-    return encode_image("x.png", image, params)
+    return encode_image(path, image, params)
 
 
 def encode_image(path: str | Path, image: np.ndarray, params: Sequence[int] = ()) -> bytes:

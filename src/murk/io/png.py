@@ -9,11 +9,13 @@ with the GIL released, so that murk's writer threads encode beside the renderer.
 
 On murk's 640x480 images (BENCHMARKS.md, "Writing PNG") that is 4.8x faster than OpenCV's fast path (libpng's
 fast filters and zlib's run-length strategy), with files 11 % larger in all (clean photographs +8 %, degraded
-variants +19 %, depth maps -2 %). Any PNG reader decodes the files (tested with OpenCV and Pillow); the same
-pixels give the same bytes with a given ``isal``.
+variants +19 %, depth maps -2 %). Any PNG reader decodes the files (tested with OpenCV, Pillow and imageio). The
+same pixels give the same bytes with a given ``isal`` build; the bytes differ from those of OpenCV's path (used
+where ``isal`` is missing) and may differ between ISA-L versions or CPU instruction sets, the pixels never.
 
-Sub was chosen over Up because it made depth maps 9 % smaller (RGB within 2 % either way); per-row adaptive
-filtering was not tried. ``output.png_compression`` 1, 2, 3 use ISA-L levels 0, 1, 2.
+Sub was chosen over Up because the depth maps came out 5 % smaller in all (two of the three smaller; RGB within
+2 % either way); per-row adaptive filtering was not tried. ``output.png_compression`` 1, 2, 3 use ISA-L levels
+0, 1, 2.
 """
 
 from __future__ import annotations

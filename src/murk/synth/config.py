@@ -235,8 +235,9 @@ class OutputConfig:
     save_intermediate: bool = False
     """Also write basic/ (Eq. 1 result) and transmission/ (T as an RGB image)."""
     png_compression: int = 3
-    """Deflate level 0-9 of the PNG files (0 stores; 1-3 murk's fast path, ISA-L's deflate when ``isal`` is
-    installed; 4-9 libpng's adaptive filters and zlib, smaller and slower; see :func:`murk.io.images.encode_png`)."""
+    """Deflate level 0-9 of the image PNG files (0 stores; 1-3 murk's fast path, ISA-L's deflate when ``isal`` is
+    installed; 4-9 libpng's adaptive filters and zlib, smaller and slower; see :func:`murk.io.images.encode_png`).
+    Depth maps are always written at level 3."""
 
     def __post_init__(self) -> None:
         if not 0 <= self.png_compression <= 9:
