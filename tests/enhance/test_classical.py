@@ -94,3 +94,16 @@ def test_bad_options_are_refused_by_name(spec: str, match: str) -> None:
 def test_wrong_shapes_are_refused() -> None:
     with pytest.raises(ShapeError, match="images"):
         restorer_mod.create("greyworld")(np.zeros((4, 4, 3), np.float32))
+
+
+@pytest.mark.parametrize("method", ["greyworld", "colorbalance", "clahe", "udcp", "post"])
+def test_numpy_restorers_share_the_batch_contract(method: str) -> None:
+    """One batch check (restorer.as_batch) for every numpy restorer: one image is told to pass images[None], an
+    empty batch is refused, a list of equal frames is a batch."""
+    r = restorer_mod.create(method)
+    with pytest.raises(ShapeError, match=r"got \(8, 8, 3\) \(one image \(H, W, 3\): pass images\[None\]\)"):
+        r.restore(np.zeros((8, 8, 3), np.float32))
+    with pytest.raises(ShapeError, match=r"got \(0, 8, 8, 3\)"):
+        r.restore(np.zeros((0, 8, 8, 3), np.float32))
+    frames = [np.full((8, 8, 3), 0.4, np.float32)] * 2
+    assert r.restore(frames).images.shape == (2, 8, 8, 3)  # type: ignore[arg-type]

@@ -31,17 +31,13 @@ import cv2
 import numpy as np
 
 from murk._checks import check_positive, check_range
-from murk.enhance.restorer import Restored, Restorer, register
-from murk.errors import ShapeError
+from murk.enhance.restorer import Restored, Restorer, as_batch, register
 from murk.physics.affine_transfer import guided_filter
 from murk.physics.balance import color_balance
 
 
 def _check(images: np.ndarray) -> np.ndarray:
-    if not isinstance(images, np.ndarray) or images.ndim != 4 or images.shape[3] != 3:
-        shape = getattr(images, "shape", type(images).__name__)
-        raise ShapeError(f"images: expected a numpy array (B, H, W, 3), got {shape}")
-    return images.astype(np.float32, copy=False)
+    return as_batch(images).astype(np.float32, copy=False)  # the batch contract of every restorer
 
 
 # ------------------------------------------------------------------------------------------------ grey world

@@ -43,7 +43,7 @@ import torch.nn.functional as F
 
 from murk._checks import check_positive, check_range, check_rgb
 from murk.enhance.choices import HE_MODES, HEMode, PostPreset
-from murk.enhance.restorer import Restored, RestoredTensor, Restorer
+from murk.enhance.restorer import Restored, RestoredTensor, Restorer, as_batch
 from murk.enhance.temporal import FrameEMA
 from murk.errors import ShapeError
 
@@ -616,13 +616,10 @@ def _check_batch(images: Any, channels: int | None) -> None:
 
 
 def _check_numpy_batch(images: Any) -> np.ndarray:
-    if not isinstance(images, np.ndarray):
-        raise TypeError(f"images: expected a numpy array (B, H, W, 3), got {type(images).__name__}")
-    if images.ndim != 4 or images.shape[3] != 3:
-        raise ShapeError(f"images: expected shape (B, H, W, 3), got {images.shape}")
-    if not np.issubdtype(images.dtype, np.floating):
-        raise TypeError(f"images: expected a float array in [0, 1], got dtype {images.dtype}")
-    return images.astype(np.float32, copy=False)
+    batch = as_batch(images)  # the batch contract of every restorer
+    if not np.issubdtype(batch.dtype, np.floating):
+        raise TypeError(f"images: expected a float array in [0, 1], got dtype {batch.dtype}")
+    return batch.astype(np.float32, copy=False)
 
 
 POST_PRESETS: dict[str, PostParams] = {
