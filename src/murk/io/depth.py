@@ -72,8 +72,8 @@ def read_depth(
         raise ValueError(f"depth_encoding: expected one of {', '.join(DEPTH_ENCODINGS)}, got {encoding!r}")
     if path.suffix.lower() == ".npy":
         return read_npy_depth(path)
-    check_declared_size(path)
     data = read_input_bytes(path, "depth file")
+    check_declared_size(path, data)
     raw = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
     if raw is None:
         raise InputFileError(path, "cannot decode depth image (unsupported format or corrupt file)")

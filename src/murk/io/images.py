@@ -21,6 +21,7 @@ from murk._limits import max_pixels
 from murk._limits import set_max_pixels as set_max_pixels
 from murk.errors import InputFileError
 from murk.io.atomic import write_bytes_atomic
+from murk.io.header import Header, read_header
 from murk.io.listing import can_list, describe_unusable, walk_files
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".ppm", ".webp")
@@ -29,39 +30,31 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".ppm", ".we
 BitDepth = Literal[8, 16]
 
 
-def _header_size(path: Path) -> tuple[int, int] | None:
-    """(width, height) declared in the file header (Pillow reads the header only), or None if unknown."""
-    try:
-        import warnings
-
-        from PIL import Image
-
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # Pillow's own bomb warning: murk applies its limit, naming the file
-            saved, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None
-            try:
-                with Image.open(path) as im:
-                    return int(im.size[0]), int(im.size[1])
-            finally:
-                Image.MAX_IMAGE_PIXELS = saved
-    except Exception:  # not a format Pillow knows: OpenCV decides below
-        return None
+def _check_declared(path: Path, header: Header | None) -> None:
+    limit = max_pixels()
+    if header is not None and header.width * header.height > limit:
+        w, h = header.width, header.height
+        raise InputFileError(
+            path,
+            f"declares {w}x{h} = {w * h:,} pixels, over the limit of {limit:,} "
+            "(a decompression bomb or a huge frame; raise it with 'murk --max-pixels N' or MURK_MAX_PIXELS)",
+        )
 
 
-def check_declared_size(path: str | Path) -> None:
+def check_declared_size(path: str | Path, data: np.ndarray | bytes | None = None) -> None:
     """Refuse an image file whose header declares more than :func:`max_pixels` pixels (read without decoding).
+
+    ``data``: the file's bytes when the caller has read them already (else the file is read here).
 
     Raises:
         InputFileError: the declared size is over the limit.
     """
-    limit = max_pixels()
-    size = _header_size(Path(path))
-    if size is not None and size[0] * size[1] > limit:
-        raise InputFileError(
-            path,
-            f"declares {size[0]}x{size[1]} = {size[0] * size[1]:,} pixels, over the limit of {limit:,} "
-            "(a decompression bomb or a huge frame; raise it with 'murk --max-pixels N' or MURK_MAX_PIXELS)",
-        )
+    path = Path(path)
+    if data is None:
+        data = read_input_bytes(path)
+    _check_declared(
+        path, read_header(np.ascontiguousarray(data, np.uint8).data if isinstance(data, np.ndarray) else data)
+    )
 
 
 @dataclass(frozen=True)
@@ -72,17 +65,6 @@ class ImageInfo:
     bit_depth: BitDepth
     source_mode: str
     notes: tuple[str, ...] = field(default_factory=tuple)
-
-
-def _source_mode(path: Path) -> str:
-    """The colour mode stored in the file header (Pillow's names: RGB, L, LA, RGBA, P, I;16, ...)."""
-    try:
-        from PIL import Image
-
-        with Image.open(path) as im:  # reads the header only
-            return str(im.mode)
-    except Exception:  # Pillow missing or unable to parse: the note is informative only
-        return "unknown"
 
 
 def read_image(path: str | Path) -> tuple[np.ndarray, ImageInfo]:
@@ -102,9 +84,10 @@ def read_image(path: str | Path) -> tuple[np.ndarray, ImageInfo]:
     why = describe_unusable(path)
     if why is not None:
         raise InputFileError(path, why)
-    check_declared_size(path)
-    limit = max_pixels()
     data = read_input_bytes(path)
+    header = read_header(data.data)
+    _check_declared(path, header)
+    limit = max_pixels()
     try:
         bgr = cv2.imdecode(data, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH) if data.size else None
     except cv2.error as exc:
@@ -117,7 +100,7 @@ def read_image(path: str | Path) -> tuple[np.ndarray, ImageInfo]:
         raise InputFileError(path, "cannot decode image (unsupported format or corrupt file)")
     if bgr.dtype not in (np.uint8, np.uint16):
         raise InputFileError(path, f"unsupported sample type {bgr.dtype}; expected 8- or 16-bit integer samples")
-    mode = _source_mode(path)
+    mode = header.mode if header is not None else "unknown"
     notes: list[str] = []
     if mode in ("L", "I;16", "I;16B", "I;16L", "I", "1"):
         notes.append(f"grayscale ({mode}) converted to RGB")
