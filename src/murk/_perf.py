@@ -26,7 +26,6 @@ job (BENCHMARKS.md). Every ``murk`` command applies it before torch is imported,
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 import os
 import sys
 from collections.abc import MutableMapping
@@ -48,7 +47,7 @@ def tune_allocator() -> bool:
     if not sys.platform.startswith("linux"):
         return False
     try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        libc = ctypes.CDLL(None)  # the process's own symbols, libc's among them (no ldconfig run: ~10 ms)
         mallopt = libc.mallopt
     except (OSError, AttributeError):
         return False
