@@ -130,3 +130,20 @@ def test_decompression_bombs_are_refused_from_the_header(tmp_path: Path, monkeyp
             set_max_pixels(0)
     finally:
         set_max_pixels(None)
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.float32, np.float64, np.int32])
+def test_swap_red_blue_equals_the_reversed_channels(dtype: type) -> None:
+    from murk.io.images import swap_red_blue
+
+    rng = np.random.default_rng(3)
+    for h, w in ((1, 1), (5, 7), (480, 640)):
+        image = (rng.random((h, w, 3)) * 1000).astype(dtype)
+        got = swap_red_blue(image)
+        np.testing.assert_array_equal(got, image[:, :, ::-1])
+        assert got.dtype == image.dtype and got.flags.c_contiguous and not np.shares_memory(got, image)
+    view = (rng.random((9, 8, 3)) * 255).astype(dtype)[::2, 1::3]  # a strided view
+    np.testing.assert_array_equal(swap_red_blue(view), view[:, :, ::-1])
+    assert swap_red_blue(np.zeros((0, 4, 3), dtype)).shape == (0, 4, 3)
+    with pytest.raises(ValueError, match=r"expected shape \(H, W, 3\)"):
+        swap_red_blue(np.zeros((4, 4, 4), dtype))

@@ -30,6 +30,17 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".ppm", ".we
 BitDepth = Literal[8, 16]
 
 
+def swap_red_blue(image: np.ndarray) -> np.ndarray:
+    """An (H, W, 3) image with its first and last channels swapped (RGB <-> BGR, murk's order <-> OpenCV's), as a
+    new C-contiguous array. OpenCV's cvtColor does it for uint8, uint16 and float32 about 50x faster than numpy's
+    copy of a reversed-stride view (0.02 against 0.8 ms at 640x480); other dtypes take the numpy copy."""
+    if image.ndim != 3 or image.shape[2] != 3:
+        raise ValueError(f"image: expected shape (H, W, 3), got {image.shape}")
+    if image.dtype in (np.uint8, np.uint16, np.float32) and image.size:
+        return cv2.cvtColor(np.ascontiguousarray(image), cv2.COLOR_RGB2BGR)
+    return np.ascontiguousarray(image[:, :, ::-1])
+
+
 def _check_declared(path: Path, header: Header | None) -> None:
     limit = max_pixels()
     if header is not None and header.width * header.height > limit:
@@ -107,7 +118,7 @@ def read_image(path: str | Path) -> tuple[np.ndarray, ImageInfo]:
     elif mode in ("LA", "RGBA", "PA"):
         notes.append(f"alpha channel of {mode} image dropped")
     info = ImageInfo(str(path), 16 if bgr.dtype == np.uint16 else 8, mode, tuple(notes))
-    return np.ascontiguousarray(bgr[:, :, ::-1]), info
+    return swap_red_blue(bgr), info
 
 
 def read_input_bytes(path: str | Path, what: str = "input file") -> np.ndarray:
@@ -180,7 +191,9 @@ def write_uint(path: str | Path, image: np.ndarray, *, jpeg_quality: int = 95, p
     if path.suffix.lower() == ".png":
         write_bytes_atomic(path, encode_png(image, png_compression, path=path), fsync=False)
         return path
-    if image.ndim == 3:
+    if image.ndim == 3 and image.shape[2] == 3:
+        image = swap_red_blue(image)
+    elif image.ndim == 3:
         image = np.ascontiguousarray(image[:, :, ::-1])
     params: list[int] = []
     if path.suffix.lower() in (".jpg", ".jpeg"):

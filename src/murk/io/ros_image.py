@@ -18,7 +18,7 @@ from typing import Any, Literal
 import cv2
 import numpy as np
 
-from murk.io.images import encode_png
+from murk.io.images import encode_png, swap_red_blue
 
 IMAGE_MSG = "sensor_msgs/msg/Image"
 COMPRESSED_MSG = "sensor_msgs/msg/CompressedImage"
@@ -114,7 +114,7 @@ def decode_image_msg(msg: Any, msgtype: str) -> np.ndarray:
         bgr = cv2.imdecode(data, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH) if data.size else None  # as read_image
         if bgr is None:
             raise ValueError("compressed image data could not be decoded")
-        return np.ascontiguousarray(bgr[:, :, ::-1])
+        return swap_red_blue(bgr)
     if msgtype != IMAGE_MSG:
         raise UnsupportedEncoding(f"message type {msgtype} is not an image")
     enc = check_encoding(msg, msgtype)
@@ -160,7 +160,7 @@ def encode_pixels(rgb: np.ndarray, msgtype: str, encoding: str, *, jpeg_quality:
         kind = compressed_kind(encoding)
         if kind == "png":
             return f"rgb8; {kind} compressed bgr8", encode_png(rgb), 0
-        bgr = np.ascontiguousarray(rgb[:, :, ::-1])
+        bgr = swap_red_blue(rgb)
         ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)])
         if not ok:
             raise ValueError(f"OpenCV could not encode a {kind} image ({rgb.dtype}, {rgb.shape})")

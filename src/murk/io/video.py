@@ -48,6 +48,7 @@ import numpy as np
 
 from murk.errors import InputFileError, OutputError, ShapeError
 from murk.io.atomic import TMP_PREFIX, make_output_folder, no_space_as_error, no_space_error
+from murk.io.images import swap_red_blue
 
 VIDEO_SUFFIXES = (".mp4", ".m4v", ".mov", ".mkv", ".avi", ".mpg", ".mpeg", ".wmv", ".webm", ".ts", ".mts", ".flv")
 """File suffixes read as video."""
@@ -349,7 +350,7 @@ class VideoSink:
             image = np.pad(image, ((0, self._even[1] - h), (0, self._even[0] - w), (0, 0)), mode="edge")
         with no_space_as_error(self.path):
             if self.backend == "opencv":
-                self._writer.write(np.ascontiguousarray(image[:, :, ::-1]))
+                self._writer.write(swap_red_blue(image))
             else:
                 import av
 

@@ -35,7 +35,7 @@ import numpy as np
 from murk.enhance.job import RESTORE_ERRORS, restore_batch
 from murk.enhance.options import parse_spec
 from murk.enhance.restorer import Restorer
-from murk.io.images import to_float, to_uint
+from murk.io.images import swap_red_blue, to_float, to_uint
 from murk.io.readahead import ReadAhead
 from murk.live.outputs import Recorder, SnapshotFrame, write_snapshot
 from murk.live.source import LiveFrame, PacedSource
@@ -82,7 +82,7 @@ class LiveView:
 
 def encode_jpeg(rgb: np.ndarray, quality: int = 85) -> bytes:
     """uint8 RGB -> JPEG bytes."""
-    ok, buf = cv2.imencode(".jpg", np.ascontiguousarray(rgb[:, :, ::-1]), [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    ok, buf = cv2.imencode(".jpg", swap_red_blue(rgb), [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
     if not ok:
         raise ValueError(f"image: OpenCV could not encode a JPEG of shape {rgb.shape}")
     return buf.tobytes()

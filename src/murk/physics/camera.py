@@ -25,6 +25,8 @@ from typing import TYPE_CHECKING, Any
 import cv2
 import numpy as np
 
+from murk.io.images import swap_red_blue
+
 if TYPE_CHECKING:
     import torch
 
@@ -36,13 +38,13 @@ def noise_field(seed: int, shape: tuple[int, ...]) -> np.ndarray:
 
 def jpeg_round_trip(image_u8: np.ndarray, quality: int) -> np.ndarray:
     """Encode RGB uint8 ``image_u8`` as JPEG at ``quality`` (1-100) and decode it (RGB uint8)."""
-    ok, buf = cv2.imencode(".jpg", np.ascontiguousarray(image_u8[..., ::-1]), [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    ok, buf = cv2.imencode(".jpg", swap_red_blue(image_u8), [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
     if not ok:
         raise RuntimeError("jpeg_round_trip: OpenCV could not encode the image")
     out = cv2.imdecode(buf, cv2.IMREAD_COLOR)
     if out is None:
         raise RuntimeError("jpeg_round_trip: OpenCV could not decode its own JPEG")
-    return np.ascontiguousarray(out[..., ::-1])
+    return swap_red_blue(out)
 
 
 def _quantise(x: np.ndarray, quality: int) -> np.ndarray:

@@ -60,10 +60,13 @@ def distance_map(
 
 def transmission(dist_m: np.ndarray, beta_per_m: np.ndarray) -> np.ndarray:
     """Per-channel transmission ``T_c = exp(-beta_c * d)``, float32 (H, W, 3). Implements T of Eq. (1)."""
-    # cv2.transform of a 1-channel map with a 3x1 matrix gives the 3 scaled copies interleaved, without
-    # numpy's slow length-3 inner loops.
-    m = (-np.asarray(beta_per_m, np.float64)).reshape(3, 1).astype(np.float32)
-    t = cv2.transform(np.ascontiguousarray(dist_m, dtype=np.float32), m)
+    # Three interleaved copies of the map scaled per channel by OpenCV (a per-channel scalar), then one exp:
+    # bit-identical to cv2.transform with a 3x1 matrix and 3.5x faster (its 1 -> 3 channel path is not vectorised),
+    # and without numpy's slow length-3 inner loops.
+    d = np.ascontiguousarray(dist_m, dtype=np.float32)
+    scale = (*(float(v) for v in (-np.asarray(beta_per_m, np.float64)).astype(np.float32)), 0.0)
+    t = cv2.merge([d, d, d])
+    cv2.multiply(t, scale, t)  # type: ignore[call-overload]  # a 4-tuple is a per-channel scalar
     return cv2.exp(t, t)
 
 

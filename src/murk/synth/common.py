@@ -135,16 +135,17 @@ def manifest_record(
     return rec
 
 
-def variant_info(res: Any, w: int, h: int, valid: np.ndarray, note: str | None) -> dict[str, Any]:
+def variant_info(res: Any, w: int, h: int, valid_fraction: float, note: str | None) -> dict[str, Any]:
     """The manifest's per-variant figures: size, distance range, largest blur, valid depth fraction and the
-    depth warning (if any); the same for loose files and shards."""
+    depth warning (if any); the same for loose files and shards. ``valid_fraction``: the share of valid depth
+    pixels, ``valid.mean()`` (the same for every variant of an image: computed once)."""
     info: dict[str, Any] = {
         "width": w,
         "height": h,
         "dist_min_m": float(res.dist_m.min()),
         "dist_max_m": float(res.dist_m.max()),
         "sigma_max": res.sigma_max_px,
-        "valid_depth_fraction": float(valid.mean()),
+        "valid_depth_fraction": float(valid_fraction),
     }
     if note:
         info["depth_warning"] = note

@@ -157,6 +157,7 @@ def process_source(
         snow_sampler = snow_sampler_for(config, bank) if "marine_snow" in config.stages else None
         records = []
         h, w = depth.shape
+        valid_fraction = float(valid.mean())
         for k in variants:
             stop_if_orphaned()  # a worker whose parent died stops here (see murk._workers)
             seed = derive_seed(config.seed, source.stem, k)
@@ -176,7 +177,7 @@ def process_source(
             # last: its presence marks the variant done
             group.append(partial(write_rgb, out / files["degraded"], res.degraded, png_compression=png))
             writer.submit(*group)
-            info = variant_info(res, w, h, valid, note)
+            info = variant_info(res, w, h, valid_fraction, note)
             records.append(manifest_record(source, k, seed, params, info, keep))
     except BaseException:
         with contextlib.suppress(Exception):  # the first error wins; the queued writes still finish

@@ -188,6 +188,7 @@ def render_source_samples(
     depth_png = _depth_png(depth, valid)
     snow_sampler = snow_sampler_for(config, bank) if "marine_snow" in config.stages else None
     h, w = depth.shape
+    valid_fraction = float(valid.mean())
     samples = []
     for k in variants:
         key = sample_key(source.stem, k)
@@ -206,7 +207,7 @@ def render_source_samples(
             sample["basic.png"] = _png(to_uint(res.basic, 8), level)  # type: ignore[arg-type]
             sample["transmission.png"] = _png(to_uint(res.transmission, 8), level)  # type: ignore[arg-type]
         files = {m: f"{key}.{m}.png" for m in MEMBERS if f"{m}.png" in sample}
-        info = variant_info(res, w, h, valid, note)
+        info = variant_info(res, w, h, valid_fraction, note)
         record = manifest_record(source, k, seed, params, info, files)
         sample["json"] = json.dumps(record, sort_keys=True, separators=(",", ":")).encode("utf-8")
         samples.append(sample)
