@@ -8,6 +8,7 @@ from murk.physics.medium import (
     ambient_light,
     apply_medium,
     distance_map,
+    distance_range,
     transmission,
 )
 
@@ -68,3 +69,18 @@ def test_distance_map_modes() -> None:
     np.testing.assert_allclose(distance_map(np.array([[0.1, 20.0]], np.float32), mode="metric"), [[0.3, 15.0]])
     with pytest.raises(ValueError, match="distance_mode: expected"):
         distance_map(depth, mode="log")  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("mode", ["normalized", "metric"])
+def test_distance_range_is_the_exact_min_and_max_of_the_map(rng: np.random.Generator, mode: str) -> None:
+    """The runner reports the distance range of every variant from the depth's range (issue 29: two passes over
+    the map less per variant); float32 rounding keeps every step monotonic, so it is exact, not close."""
+    for _ in range(200):
+        h, w = (int(v) for v in rng.integers(1, 60, 2))
+        depth = (rng.random((h, w)) ** rng.uniform(0.2, 5.0) * rng.uniform(0.01, 40.0) + 1e-3).astype(np.float32)
+        near, far = float(rng.uniform(0.05, 2.0)), float(rng.uniform(2.5, 20.0))
+        dist = distance_map(depth, mode=mode, near_m=near, far_m=far)  # type: ignore[arg-type]
+        given = distance_map(depth, mode=mode, near_m=near, far_m=far, depth_max_m=float(depth.max()))  # type: ignore[arg-type]
+        np.testing.assert_array_equal(given, dist)
+        lo, hi = distance_range(float(depth.min()), float(depth.max()), mode=mode, near_m=near, far_m=far)  # type: ignore[arg-type]
+        assert (lo, hi) == (float(dist.min()), float(dist.max()))

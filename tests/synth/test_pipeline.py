@@ -11,7 +11,7 @@ from murk.snow.bank import load_bank
 from murk.snow.composite import sample_snow
 from murk.synth.config import SynthConfig
 from murk.synth.params import sample_variant
-from murk.synth.pipeline import render, render_batch_torch
+from murk.synth.pipeline import depth_range, render, render_batch_torch
 
 
 @pytest.fixture(scope="module")
@@ -63,6 +63,24 @@ def test_render_errors(scene: tuple[np.ndarray, np.ndarray]) -> None:
         render(clean, bad, p)
     with pytest.raises(TypeError, match="clean: expected a float image"):
         render((clean * 255).astype(np.uint8), depth, p)
+
+
+def test_a_depth_range_given_once_renders_the_same_bits(scene: tuple[np.ndarray, np.ndarray]) -> None:
+    """The runner checks an image's depth once and passes its range to every variant (issue 29)."""
+    clean, depth = scene
+    span = depth_range(depth)
+    assert span == (float(depth.min()), float(depth.max()))
+    for seed in range(6):
+        for mode in ("normalized", "metric"):
+            p = sample_variant(seed, merge(SynthConfig(), {"medium": {"distance_mode": mode}}))
+            a, b = render(clean, depth, p), render(clean, depth, p, depth_range_m=span)
+            assert a.degraded.tobytes() == b.degraded.tobytes() and a.dist_m.tobytes() == b.dist_m.tobytes()
+            assert a.dist_range_m == b.dist_range_m == (float(a.dist_m.min()), float(a.dist_m.max()))
+    for bad in (0.0, -1.0, np.nan, np.inf):
+        broken = depth.copy()
+        broken[3, 4] = bad
+        with pytest.raises(ValueError, match="depth_m: expected finite depth > 0 everywhere"):
+            depth_range(broken)
 
 
 @pytest.mark.parametrize("stages", [("basic", "forward_scatter"), ("basic", "forward_scatter", "marine_snow")])

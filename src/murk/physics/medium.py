@@ -40,6 +40,7 @@ def distance_map(
     mode: DistanceMode = "normalized",
     near_m: float = 0.3,
     far_m: float = 15.0,
+    depth_max_m: float | None = None,
 ) -> np.ndarray:
     """Line-of-sight distance in metres used by Eq. (1), from a clean depth map.
 
@@ -47,15 +48,35 @@ def distance_map(
     its farthest point is ``far_m`` away (relative or indoor depth becomes an underwater range).
     ``metric``: the true depth clipped to [near_m, far_m].
 
-    ``depth_m`` must already be valid everywhere (see :func:`murk.io.resolve_invalid`).
+    ``depth_m`` must already be valid everywhere (see :func:`murk.io.resolve_invalid`). ``depth_max_m``: its
+    maximum when the caller knows it (every variant of an image shares it), else it is computed.
+
+    Every step is monotonic in the depth, also after float32 rounding, so the map's minimum and maximum are
+    this function of the depth's minimum and maximum, exactly (:func:`distance_range`).
     """
     d = np.asarray(depth_m, dtype=np.float32)
     if mode == "metric":
         return np.clip(d, np.float32(near_m), np.float32(far_m))
     if mode != "normalized":
         raise ValueError(f"distance_mode: expected 'normalized' or 'metric', got {mode!r}")
-    u = d * np.float32(1.0 / float(d.max()))
+    peak = float(d.max()) if depth_max_m is None else float(np.float32(depth_max_m))
+    u = d * np.float32(1.0 / peak)
     return u * np.float32(far_m - near_m) + np.float32(near_m)
+
+
+def distance_range(
+    depth_min_m: float,
+    depth_max_m: float,
+    *,
+    mode: DistanceMode = "normalized",
+    near_m: float = 0.3,
+    far_m: float = 15.0,
+) -> tuple[float, float]:
+    """(min, max) of :func:`distance_map` of a depth map with this minimum and maximum, without the map: the same
+    float32 steps applied to the two values (exact, as every step is monotonic)."""
+    ends = np.array([depth_min_m, depth_max_m], np.float32)
+    dist = distance_map(ends, mode=mode, near_m=near_m, far_m=far_m, depth_max_m=depth_max_m)
+    return float(dist[0]), float(dist[1])
 
 
 def transmission(dist_m: np.ndarray, beta_per_m: np.ndarray) -> np.ndarray:

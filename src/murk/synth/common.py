@@ -139,11 +139,12 @@ def variant_info(res: Any, w: int, h: int, valid_fraction: float, note: str | No
     """The manifest's per-variant figures: size, distance range, largest blur, valid depth fraction and the
     depth warning (if any); the same for loose files and shards. ``valid_fraction``: the share of valid depth
     pixels, ``valid.mean()`` (the same for every variant of an image: computed once)."""
+    lo, hi = res.dist_range_m or (float(res.dist_m.min()), float(res.dist_m.max()))
     info: dict[str, Any] = {
         "width": w,
         "height": h,
-        "dist_min_m": float(res.dist_m.min()),
-        "dist_max_m": float(res.dist_m.max()),
+        "dist_min_m": lo,
+        "dist_max_m": hi,
         "sigma_max": res.sigma_max_px,
         "valid_depth_fraction": float(valid_fraction),
     }

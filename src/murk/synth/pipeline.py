@@ -20,7 +20,7 @@ import numpy as np
 from murk._checks import check_map, check_rgb
 from murk.errors import ShapeError
 from murk.physics.forward_scatter import forward_scatter, forward_scatter_torch
-from murk.physics.medium import apply_medium, apply_medium_torch, distance_map, distance_map_torch
+from murk.physics.medium import apply_medium, apply_medium_torch, distance_map, distance_map_torch, distance_range
 from murk.rng import RngLike
 from murk.synth.config import SynthConfig
 from murk.synth.params import VariantParams, sample_variant, snow_sampler_for
@@ -47,6 +47,8 @@ class SynthResult:
     """a_ms of Eq. (8), (H, W) in [0, 1] (marine snow on)."""
     params: VariantParams | None = None
     """The parameters this variant was rendered with."""
+    dist_range_m: tuple[float, float] | None = None
+    """(min, max) of ``dist_m``, exact (:func:`murk.physics.medium.distance_range`)."""
 
 
 def synthesize(
@@ -92,6 +94,7 @@ def render(
     *,
     bank: Any = None,
     keep_intermediate: bool = False,
+    depth_range_m: tuple[float, float] | None = None,
 ) -> SynthResult:
     """Render one synthetic underwater variant of a clean RGB-D pair.
 
@@ -101,6 +104,8 @@ def render(
         params: from :func:`murk.synth.params.sample_variant` (or a manifest line).
         bank: the particle bank (:class:`murk.snow.bank.ParticleBank`) when ``params.snow`` is set.
         keep_intermediate: also return the Eq. (1) image and the transmission.
+        depth_range_m: :func:`depth_range` of ``depth_m`` when the caller renders several variants of one image
+            (it checks the depth once instead of at every variant).
 
     Raises:
         ShapeError: ``clean`` and ``depth_m`` sizes differ.
@@ -108,12 +113,13 @@ def render(
     """
     clean = check_rgb("clean", clean)
     depth_m = check_map("depth_m", depth_m, clean.shape[:2])
-    if not (np.isfinite(depth_m).all() and depth_m.min() > 0):
-        raise ValueError("depth_m: expected finite depth > 0 everywhere (resolve invalid pixels first)")
+    lo, hi = depth_range(depth_m) if depth_range_m is None else depth_range_m
     m = params.medium
     if m is None:
         raise ValueError("params.medium: the distance range is always needed, got None")
-    dist = distance_map(depth_m, mode=m.distance_mode, near_m=m.near_m, far_m=m.far_m)  # type: ignore[arg-type]
+    mode = m.distance_mode
+    dist = distance_map(depth_m, mode=mode, near_m=m.near_m, far_m=m.far_m, depth_max_m=hi)  # type: ignore[arg-type]
+    dist_range = distance_range(lo, hi, mode=mode, near_m=m.near_m, far_m=m.far_m)  # type: ignore[arg-type]
     trans = None
     if "basic" in params.stages:
         image, trans = apply_medium(clean, dist, np.asarray(m.beta_per_m), np.asarray(m.b_inf))
@@ -155,7 +161,22 @@ def render(
         transmission=trans if keep_intermediate else None,
         snow_alpha=alpha,
         params=params,
+        dist_range_m=dist_range,
     )
+
+
+def depth_range(depth_m: np.ndarray) -> tuple[float, float]:
+    """(min, max) of a depth map in metres, checked to be finite and > 0 everywhere.
+
+    Raises:
+        ValueError: a pixel is not finite or not > 0.
+    """
+    if not np.isfinite(depth_m).all() or not depth_m.size:
+        raise ValueError("depth_m: expected finite depth > 0 everywhere (resolve invalid pixels first)")
+    lo, hi = float(depth_m.min()), float(depth_m.max())
+    if not lo > 0:
+        raise ValueError("depth_m: expected finite depth > 0 everywhere (resolve invalid pixels first)")
+    return lo, hi
 
 
 # ----------------------------------------------------------------------------------------------- torch twin

@@ -63,7 +63,7 @@ from murk.synth.common import (
 )
 from murk.synth.config import SynthConfig
 from murk.synth.params import sample_variant, snow_sampler_for
-from murk.synth.pipeline import render
+from murk.synth.pipeline import depth_range, render
 
 DataFormat = Literal["files", "webdataset"]
 """``murk synth --format``: loose PNG folders or tar shards (:mod:`murk.synth.shards`)."""
@@ -158,11 +158,14 @@ def process_source(
         records = []
         h, w = depth.shape
         valid_fraction = float(valid.mean())
+        span = depth_range(depth)  # checked once for all variants
         for k in variants:
             stop_if_orphaned()  # a worker whose parent died stops here (see murk._workers)
             seed = derive_seed(config.seed, source.stem, k)
             params = sample_variant(np.random.default_rng(seed), config, snow_sampler=snow_sampler)
-            res = render(rgb, depth, params, bank=bank, keep_intermediate=config.output.save_intermediate)
+            res = render(
+                rgb, depth, params, bank=bank, keep_intermediate=config.output.save_intermediate, depth_range_m=span
+            )
             files = paths_for(source.stem, k)
             keep = {"degraded": files["degraded"], "clean": files["clean"], "depth": files["depth"]}
             group = []  # one variant's files, written in this order on one writer thread

@@ -173,7 +173,7 @@ def render_source_samples(
     depth-range note).
     """
     from murk.synth.params import sample_variant, snow_sampler_for
-    from murk.synth.pipeline import render
+    from murk.synth.pipeline import depth_range, render
 
     inp = config.input
     opts = DepthOptions(inp.depth_scale, inp.depth_relative, inp.invalid_depth, inp.crop_px, inp.depth_encoding)
@@ -189,12 +189,15 @@ def render_source_samples(
     snow_sampler = snow_sampler_for(config, bank) if "marine_snow" in config.stages else None
     h, w = depth.shape
     valid_fraction = float(valid.mean())
+    span = depth_range(depth)  # checked once for all variants
     samples = []
     for k in variants:
         key = sample_key(source.stem, k)
         seed = derive_seed(config.seed, source.stem, k)
         params = sample_variant(np.random.default_rng(seed), config, snow_sampler=snow_sampler)
-        res = render(rgb, depth, params, bank=bank, keep_intermediate=config.output.save_intermediate)
+        res = render(
+            rgb, depth, params, bank=bank, keep_intermediate=config.output.save_intermediate, depth_range_m=span
+        )
         sample: dict[str, Any] = {
             "__key__": key,
             "degraded.png": _png(to_uint(res.degraded, 8), level),
