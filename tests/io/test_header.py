@@ -3,15 +3,17 @@
 from __future__ import annotations
 
 import io
+import struct
 import subprocess
 import sys
+import zlib
 from pathlib import Path
 
 import numpy as np
 import pytest
 from PIL import Image
 
-from murk.io.header import Header, parse_header, read_header
+from murk.io.header import PNG_SIGNATURE, Header, parse_header, read_header
 
 from ._bombs import jpeg_bomb, png_bomb
 
@@ -79,10 +81,49 @@ def test_jpeg_header_equals_pillow(mode: str, params: dict[str, object]) -> None
     assert parse_header(data) == _pillow(data) == Header(123, 45, mode)
 
 
-def test_jpeg_with_fill_bytes_and_a_restart_interval() -> None:
+def _segment(marker: int, payload: bytes) -> bytes:
+    return bytes([0xFF, marker]) + struct.pack(">H", len(payload) + 2) + payload
+
+
+def test_jpeg_fill_bytes_restart_interval_comment_and_standalone_markers() -> None:
+    """T.81 B.1.1.2 fill bytes, a DRI and a COM segment, and markers without a length (TEM, RST0) before the
+    frame header: the walk steps over each."""
     data = _saved(_image("RGB", 64, 32), "JPEG")
-    filled = data[:2] + b"\xff\xff\xff" + data[2:]  # fill bytes before the first marker segment (T.81 B.1.1.2)
-    assert parse_header(filled) == Header(64, 32, "RGB")
+    extra = b"\xff\xff\xff" + _segment(0xDD, b"\x00\x08") + _segment(0xFE, b"murk") + b"\xff\x01\xff\xd0"
+    changed = data[:2] + extra + data[2:]
+    assert parse_header(changed) == Header(64, 32, "RGB")
+    with Image.open(io.BytesIO(data[:2] + _segment(0xDD, b"\x00\x08") + data[2:])) as im:
+        assert im.size == (64, 32)  # Pillow reads the DRI variant too
+
+
+def _chunk(kind: bytes, payload: bytes) -> bytes:
+    return struct.pack(">I", len(payload)) + kind + payload + struct.pack(">I", zlib.crc32(kind + payload))
+
+
+def _png_file(width: int, height: int, bits: int, colour: int) -> bytes:
+    """A minimal PNG of zero pixels with this bit depth and colour type (with a palette for type 3)."""
+    channels = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}[colour]
+    rows = b"".join(b"\x00" + bytes((width * bits * channels + 7) // 8) for _ in range(height))
+    ihdr = _chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, bits, colour, 0, 0, 0))
+    palette = _chunk(b"PLTE", bytes(range(6))) if colour == 3 else b""
+    return PNG_SIGNATURE + ihdr + palette + _chunk(b"IDAT", zlib.compress(rows)) + _chunk(b"IEND", b"")
+
+
+ALLOWED = {0: (1, 2, 4, 8, 16), 2: (8, 16), 3: (1, 2, 4, 8), 4: (8, 16), 6: (8, 16)}
+
+
+@pytest.mark.parametrize("colour", [0, 2, 3, 4, 6])
+def test_every_png_depth_and_colour_type_reads_as_pillow_reads_it(colour: int) -> None:
+    """Every bit depth and colour type PNG allows gives Pillow's mode; the combinations PNG forbids give None (then
+    Pillow decides, and refuses them)."""
+    for bits in (1, 2, 4, 8, 16):
+        data = _png_file(7, 5, bits, colour)
+        if bits in ALLOWED[colour]:
+            with Image.open(io.BytesIO(data)) as im:
+                expected = Header(im.size[0], im.size[1], im.mode)
+            assert parse_header(data) == expected == Header(7, 5, expected.mode), (bits, colour)
+        else:
+            assert parse_header(data) is None, (bits, colour)
 
 
 def test_bombs_are_read_from_their_header(tmp_path: Path) -> None:
@@ -103,7 +144,15 @@ def test_bombs_are_read_from_their_header(tmp_path: Path) -> None:
         b"\xff\xd8\xff\xe0\x00\x01",  # a segment length below 2
         b"\xff\xd8\xff\xda\x00\x08" + b"\x00" * 8,  # scan before any frame header
         b"\xff\xd8\xff\xc0\x00\x11\x08\x00\x00\x00\x10\x03" + b"\x00" * 9,  # height 0 (DNL)
-        b"\xff\xd8\xff\xe0\x00\x10" + b"\x00" * 14 + b"\x12\x34",  # garbage where a marker should be
+        # garbage where a marker should be, followed by a frame header that must not be reached
+        b"\xff\xd8\xff\xe0\x00\x10"
+        + b"\x00" * 14
+        + b"\x12\x34"
+        + b"\xff\xc0\x00\x11\x08\x00\x10\x00\x10\x03"
+        + b"\x00" * 9,
+        b"\x89PNG\r\n\x1a\n"
+        + b"\x00\x00\x00\x0eIHDR\x00\x00\x00\x01\x00\x00\x00\x01\x08\x02"
+        + b"\x00" * 8,  # IHDR length 14
         b"GIF89a",
     ],
 )

@@ -147,3 +147,12 @@ def test_swap_red_blue_equals_the_reversed_channels(dtype: type) -> None:
     assert swap_red_blue(np.zeros((0, 4, 3), dtype)).shape == (0, 4, 3)
     with pytest.raises(ValueError, match=r"expected shape \(H, W, 3\)"):
         swap_red_blue(np.zeros((4, 4, 4), dtype))
+
+
+def test_rgba_written_to_tiff_keeps_its_alpha_last(tmp_path: Path) -> None:
+    from murk.io.images import write_uint
+
+    rgba = np.dstack([np.full((3, 4), v, np.uint8) for v in (10, 20, 30, 200)])
+    write_uint(tmp_path / "a.tif", rgba)
+    bgra = cv2.imread(str(tmp_path / "a.tif"), cv2.IMREAD_UNCHANGED)
+    np.testing.assert_array_equal(bgra, rgba[:, :, [2, 1, 0, 3]])

@@ -84,3 +84,9 @@ def test_distance_range_is_the_exact_min_and_max_of_the_map(rng: np.random.Gener
         np.testing.assert_array_equal(given, dist)
         lo, hi = distance_range(float(depth.min()), float(depth.max()), mode=mode, near_m=near, far_m=far)  # type: ignore[arg-type]
         assert (lo, hi) == (float(dist.min()), float(dist.max()))
+
+
+def test_distance_range_of_a_reversed_range_is_still_min_then_max() -> None:
+    lo, hi = distance_range(1.0, 4.0, near_m=4.0, far_m=1.0)
+    dist = distance_map(np.array([[1.0, 2.0, 4.0]], np.float32), near_m=4.0, far_m=1.0)
+    assert (lo, hi) == (float(dist.min()), float(dist.max())) and lo < hi

@@ -76,6 +76,10 @@ def test_a_depth_range_given_once_renders_the_same_bits(scene: tuple[np.ndarray,
             a, b = render(clean, depth, p), render(clean, depth, p, depth_range_m=span)
             assert a.degraded.tobytes() == b.degraded.tobytes() and a.dist_m.tobytes() == b.dist_m.tobytes()
             assert a.dist_range_m == b.dist_range_m == (float(a.dist_m.min()), float(a.dist_m.max()))
+    p = sample_variant(0, SynthConfig())
+    for span_bad in ((0.0, 2.0), (3.0, 2.0), (1.0, np.inf), (np.nan, 2.0)):
+        with pytest.raises(ValueError, match="depth_range_m: expected 0 < min <= max < inf"):
+            render(clean, depth, p, depth_range_m=span_bad)
     for bad in (0.0, -1.0, np.nan, np.inf):
         broken = depth.copy()
         broken[3, 4] = bad

@@ -15,8 +15,19 @@ from typing import NamedTuple
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
-# PNG colour type -> Pillow's mode (bit depth 16 changes only the grey one).
-_PNG_MODES = {0: "L", 2: "RGB", 3: "P", 4: "LA", 6: "RGBA"}
+# (bit depth, colour type) -> Pillow's mode, for every combination PNG allows (ISO/IEC 15948 table 11.1).
+_PNG_MODES = {
+    (1, 0): "1",
+    **{(bits, 0): "L" for bits in (2, 4, 8)},
+    (16, 0): "I;16",
+    (8, 2): "RGB",
+    (16, 2): "RGB",
+    **{(bits, 3): "P" for bits in (1, 2, 4, 8)},
+    (8, 4): "LA",
+    (16, 4): "RGBA",  # Pillow widens 16-bit grey + alpha
+    (8, 6): "RGBA",
+    (16, 6): "RGBA",
+}
 _JPEG_MODES = {1: "L", 3: "RGB", 4: "CMYK"}
 # Start-of-frame markers: 0xC0-0xCF except DHT (C4), JPG (C8) and DAC (CC).
 _JPEG_SOF = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
@@ -33,16 +44,12 @@ class Header(NamedTuple):
 
 
 def _png(data: bytes | memoryview) -> Header | None:
-    if len(data) < 33 or bytes(data[12:16]) != b"IHDR":
+    if len(data) < 33 or bytes(data[8:16]) != b"\x00\x00\x00\x0dIHDR":  # the first chunk: IHDR, 13 bytes
         return None
     width, height, bits, colour = struct.unpack(">IIBB", data[16:26])
-    mode = _PNG_MODES.get(colour)
-    if mode is None or width == 0 or height == 0:
+    mode = _PNG_MODES.get((bits, colour))
+    if mode is None or width == 0 or height == 0:  # a combination PNG does not allow: Pillow decides
         return None
-    if colour == 0 and bits == 1:
-        mode = "1"
-    elif colour == 0 and bits == 16:
-        mode = "I;16"
     return Header(width, height, mode)
 
 

@@ -73,10 +73,11 @@ def distance_range(
     far_m: float = 15.0,
 ) -> tuple[float, float]:
     """(min, max) of :func:`distance_map` of a depth map with this minimum and maximum, without the map: the same
-    float32 steps applied to the two values (exact, as every step is monotonic)."""
+    float32 steps applied to the two values (exact, as every step is monotonic; decreasing if ``far_m < near_m``)."""
     ends = np.array([depth_min_m, depth_max_m], np.float32)
     dist = distance_map(ends, mode=mode, near_m=near_m, far_m=far_m, depth_max_m=depth_max_m)
-    return float(dist[0]), float(dist[1])
+    lo, hi = sorted((float(dist[0]), float(dist[1])))
+    return lo, hi
 
 
 def transmission(dist_m: np.ndarray, beta_per_m: np.ndarray) -> np.ndarray:

@@ -104,16 +104,20 @@ def render(
         params: from :func:`murk.synth.params.sample_variant` (or a manifest line).
         bank: the particle bank (:class:`murk.snow.bank.ParticleBank`) when ``params.snow`` is set.
         keep_intermediate: also return the Eq. (1) image and the transmission.
-        depth_range_m: :func:`depth_range` of ``depth_m`` when the caller renders several variants of one image
-            (it checks the depth once instead of at every variant).
+        depth_range_m: :func:`depth_range` of ``depth_m`` when the caller renders several variants of one image:
+            the depth is then checked once, by that call, instead of at every variant. It is trusted, not compared
+            with the map (a range from another map gives wrong distances).
 
     Raises:
         ShapeError: ``clean`` and ``depth_m`` sizes differ.
-        ValueError: depth not positive and finite everywhere, or snow requested without a bank.
+        ValueError: depth not positive and finite everywhere (checked here unless ``depth_range_m`` is given; then
+            only the range is checked), or snow requested without a bank.
     """
     clean = check_rgb("clean", clean)
     depth_m = check_map("depth_m", depth_m, clean.shape[:2])
     lo, hi = depth_range(depth_m) if depth_range_m is None else depth_range_m
+    if not (0 < lo <= hi < np.inf):
+        raise ValueError(f"depth_range_m: expected 0 < min <= max < inf metres, got ({lo}, {hi})")
     m = params.medium
     if m is None:
         raise ValueError("params.medium: the distance range is always needed, got None")
