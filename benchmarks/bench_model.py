@@ -145,9 +145,10 @@ def main() -> None:
             "PSNR after the best per-channel affine fit to the reference: "
             + ", ".join(f"{k} {v:.2f} dB" for k, v in fits.items())
         )
-    gain = scores["model"]["psnr"] - scores["input"]["psnr"]
+    gain, half = scores["model"]["psnr_gain"], scores["model"]["psnr_gain_ci95"]
     print(
-        f"PSNR gain {gain:+.2f} dB (the real-water floor: >= +5), SSIM {scores['input']['ssim']:.3f} -> "
+        f"PSNR gain {gain:+.2f} dB, 95 % CI {gain - half:+.2f} to {gain + half:+.2f} (paired over the scenes; "
+        f"the real-water floor: >= +5), SSIM {scores['input']['ssim']:.3f} -> "
         f"{scores['model']['ssim']:.3f} (target: higher), "
         f"depth AbsRel {scores['model'].get('abs_rel', float('nan')):.3f} (target <= 0.25)"
     )

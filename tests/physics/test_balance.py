@@ -44,3 +44,20 @@ def test_a_flat_channel_is_not_blown_up() -> None:
     out = color_balance(img)
     assert np.ptp(out[..., 0]) <= 0.5 + 1e-6  # stretched by at most 1 / FLAT_RANGE
     assert np.all(np.isfinite(out)) and np.all(out[..., 1:] == 0.0)
+
+
+def test_the_numpy_levels_equal_the_torch_twins_bit_for_bit() -> None:
+    """``lite`` takes the levels on the CPU from the numpy twin and elsewhere from the torch twin: the same
+    values, for frames of any layout (NCHW or channels-last views) and sizes on both sides of the sampling stride."""
+    import torch
+
+    from murk.physics.balance import balance_levels, balance_levels_torch
+
+    rng = np.random.default_rng(8)
+    for h, w in ((1, 1), (7, 5), (97, 131), (480, 640), (720, 1280)):
+        hwc = rng.random((2, h, w, 3), dtype=np.float32) ** rng.uniform(0.3, 3.0)
+        for x in (torch.from_numpy(hwc).permute(0, 3, 1, 2), torch.from_numpy(hwc).permute(0, 3, 1, 2).contiguous()):
+            for pct in (0.5, 1.0, 2.5):
+                ref = balance_levels_torch(x, pct, pct).numpy()
+                got = np.stack([balance_levels(f.permute(1, 2, 0).numpy(), pct, pct) for f in x])
+                np.testing.assert_array_equal(got, ref)

@@ -49,7 +49,7 @@ from murk.models.lite.network import (
     work_size,
 )
 from murk.models.padding import pad_to_multiple
-from murk.physics.balance import apply_levels, apply_levels_torch, balance_levels_torch
+from murk.physics.balance import apply_levels, apply_levels_torch, balance_levels, balance_levels_torch
 
 
 class LiteRestorer(Restorer):
@@ -143,7 +143,7 @@ class LiteRestorer(Restorer):
         with torch.inference_mode():
             x = images.to(self.device, torch.float32)
             if self.input_balance_pct is not None:  # the input the network was trained on
-                levels = balance_levels_torch(x, self.input_balance_pct, self.input_balance_pct)
+                levels = _balance_levels(x, self.input_balance_pct)
                 if self.levels_state is not None and self.temporal_hook() is not None:
                     levels = self.levels_state(levels)
                 x = _apply_levels(x, levels)
@@ -222,6 +222,15 @@ def _forward_cpu(model: nn.Module, x: Tensor, work: Tensor, ema: FrameEMA | None
 
 _LUMA_ROW = np.array([LUMA], np.float32)
 """The guide's luma weights as OpenCV's 1x3 colour transform."""
+
+
+def _balance_levels(x: Tensor, pct: float) -> Tensor:
+    """The levels (B, 2, 3) of the simplest colour balance of a batch (B, 3, H, W): on the CPU with the numpy twin
+    per frame (numpy's sort of the strided sample against torch's ``topk``), elsewhere with the torch twin; equal
+    (tests/twins.py)."""
+    if x.device.type != "cpu":
+        return balance_levels_torch(x, pct, pct)
+    return torch.stack([torch.from_numpy(balance_levels(f.permute(1, 2, 0).numpy(), pct, pct)) for f in x])
 
 
 def _apply_levels(x: Tensor, levels: Tensor) -> Tensor:

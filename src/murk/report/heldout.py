@@ -81,6 +81,7 @@ def score_heldout(
     """
     from murk.metrics import depth_errors, psnr, ssim
 
+    base = [psnr(a, b, data_range=1.0) for a, b in zip(data.degraded, data.clean, strict=True)]
     out: dict[str, dict[str, float]] = {"input": _image_scores(data.degraded, data.clean, psnr, ssim)}
     for label, rest in restorers.items():
         if on_method:
@@ -93,7 +94,7 @@ def score_heldout(
             images.append(np.clip(r.images, 0.0, 1.0))
             depths.append(r.depth_m)
         enhanced = np.concatenate(images)
-        row = _image_scores(enhanced, data.clean, psnr, ssim)
+        row = _image_scores(enhanced, data.clean, psnr, ssim, base=base)
         if all(d is not None for d in depths):
             pred = np.concatenate(depths)
             errs = [
@@ -107,16 +108,30 @@ def score_heldout(
     return out
 
 
-def _image_scores(images: np.ndarray, refs: np.ndarray, psnr: Any, ssim: Any) -> dict[str, float]:
+def _image_scores(
+    images: np.ndarray, refs: np.ndarray, psnr: Any, ssim: Any, *, base: Sequence[float] | None = None
+) -> dict[str, float]:
+    """Means and standard deviations over the images; with ``base`` (the input's PSNR per image) also the paired
+    PSNR gain: its mean, standard deviation and the half-width of its 95 % confidence interval (normal
+    approximation, ``1.96 * std / sqrt(n)``, with the sample standard deviation)."""
     ps = [psnr(a, b, data_range=1.0) for a, b in zip(images, refs, strict=True)]
     ss = [ssim(a, b, data_range=1.0) for a, b in zip(images, refs, strict=True)]
-    return {
+    row = {
         "psnr": float(np.mean(ps)),
         "psnr_std": float(np.std(ps)),
         "ssim": float(np.mean(ss)),
         "ssim_std": float(np.std(ss)),
         "n": float(len(ps)),
     }
+    if base is not None:
+        gain = np.asarray(ps, np.float64) - np.asarray(base, np.float64)
+        spread = float(np.std(gain, ddof=1)) if gain.size > 1 else 0.0
+        row.update(
+            psnr_gain=float(gain.mean()),
+            psnr_gain_std=spread,
+            psnr_gain_ci95=1.96 * spread / float(np.sqrt(gain.size)),
+        )
+    return row
 
 
 def heldout_table(scores: Mapping[str, Mapping[str, float]], order: Sequence[str] | None = None) -> str:
