@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable, Sequence
-from concurrent.futures import as_completed
+from concurrent.futures import Future, ThreadPoolExecutor, as_completed
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -131,17 +131,31 @@ def _init_pool_worker(bank_path: str | None) -> None:
     _init_worker(bank_path)
 
 
-def process_source(
-    source: RGBDSource, variants: Sequence[int], config: SynthConfig, out_dir: str, bank: Any = None
-) -> tuple[list[dict[str, Any]], list[ErrorRecord]]:
-    """Load one RGB-D pair and write the requested variants; returns their manifest records (or a problem)."""
-    bank = _WORKER_BANK if bank is None else bank
-    out = Path(out_dir)
+def load_source(source: RGBDSource, config: SynthConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One RGB-D pair as the run renders it: (clean RGB, depth in metres, valid mask), cropped and resized as
+    configured (see :func:`murk.io.pairs.load_pair`; its errors propagate)."""
     inp = config.input
     opts = DepthOptions(inp.depth_scale, inp.depth_relative, inp.invalid_depth, inp.crop_px, inp.depth_encoding)
+    rgb, depth, valid = load_pair(source, opts)
+    return fit_size(rgb, depth, valid, inp.size)
+
+
+def process_source(
+    source: RGBDSource,
+    variants: Sequence[int],
+    config: SynthConfig,
+    out_dir: str,
+    bank: Any = None,
+    loaded: Future[tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None,
+) -> tuple[list[dict[str, Any]], list[ErrorRecord]]:
+    """Load one RGB-D pair and write the requested variants; returns their manifest records (or a problem).
+
+    ``loaded``: :func:`load_source` of ``source`` already submitted to a reader thread (the one-process run
+    reads the next pair while this one renders); its errors are reported as a failed read, as here."""
+    bank = _WORKER_BANK if bank is None else bank
+    out = Path(out_dir)
     try:
-        rgb, depth, valid = load_pair(source, opts)
-        rgb, depth, valid = fit_size(rgb, depth, valid, inp.size)
+        rgb, depth, valid = load_source(source, config) if loaded is None else loaded.result()
     except (ValueError, OSError) as exc:
         return [], [ErrorRecord(source.rgb_path, "read", str(exc))]
     note = depth_range_note(source, depth[valid])
@@ -306,8 +320,13 @@ def run_synthesis(
 
     if config.workers <= 1 or len(todo) <= 1:
         _init_worker(bank_path)
-        for s, ks in todo:
-            collect(*process_source(s, ks, config, str(out)), len(ks))
+        # One reader thread decodes the next pair while this one renders (OpenCV's decoders release the GIL).
+        with ThreadPoolExecutor(1, thread_name_prefix="murk-reader") as reader:
+            ahead = [reader.submit(load_source, s, config) for s, _ in todo[:1]]
+            for i, (s, ks) in enumerate(todo):
+                if i + 1 < len(todo):
+                    ahead.append(reader.submit(load_source, todo[i + 1][0], config))
+                collect(*process_source(s, ks, config, str(out), loaded=ahead.pop(0)), len(ks))
     else:
         import multiprocessing as mp
 
