@@ -41,6 +41,16 @@ def swap_red_blue(image: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(image[:, :, ::-1])
 
 
+def to_opencv_order(image: np.ndarray) -> np.ndarray:
+    """An image in OpenCV's channel order for its encoders: RGB -> BGR (:func:`swap_red_blue`), RGBA -> BGRA
+    (alpha stays last), grey (and grey + alpha) unchanged."""
+    if image.ndim == 3 and image.shape[2] == 3:
+        return swap_red_blue(image)
+    if image.ndim == 3 and image.shape[2] == 4:
+        return np.ascontiguousarray(image[:, :, [2, 1, 0, 3]])
+    return image
+
+
 def _check_declared(path: Path, header: Header | None) -> None:
     limit = max_pixels()
     if header is not None and header.width * header.height > limit:
@@ -191,10 +201,7 @@ def write_uint(path: str | Path, image: np.ndarray, *, jpeg_quality: int = 95, p
     if path.suffix.lower() == ".png":
         write_bytes_atomic(path, encode_png(image, png_compression, path=path), fsync=False)
         return path
-    if image.ndim == 3 and image.shape[2] == 3:
-        image = swap_red_blue(image)
-    elif image.ndim == 3 and image.shape[2] == 4:  # RGBA -> OpenCV's BGRA (alpha stays last)
-        image = np.ascontiguousarray(image[:, :, [2, 1, 0, 3]])
+    image = to_opencv_order(image)
     params: list[int] = []
     if path.suffix.lower() in (".jpg", ".jpeg"):
         params = [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)]
@@ -246,10 +253,7 @@ def encode_png(image: np.ndarray, level: int = 3, *, path: str | Path = "image.p
         raise ValueError(f"{path}: PNG takes uint8 or uint16 pixels, got {image.dtype}")
     if int(level) in FAST_PNG_LEVELS and isal_available():
         return encode_png_isal(image, int(level))
-    if image.ndim == 3 and image.shape[2] in (3, 4):
-        order = [2, 1, 0, 3][: image.shape[2]]
-        image = np.ascontiguousarray(image[:, :, order])  # OpenCV takes BGR(A)
-    return encode_image(path, image, params)
+    return encode_image(path, to_opencv_order(image), params)
 
 
 def encode_image(path: str | Path, image: np.ndarray, params: Sequence[int] = ()) -> bytes:

@@ -26,7 +26,7 @@ import zlib
 
 import numpy as np
 
-SIGNATURE = b"\x89PNG\r\n\x1a\n"
+from murk.io.header import PNG_SIGNATURE as SIGNATURE  # the one definition (murk.io.header reads it)
 
 COLOUR_TYPE = {1: 0, 2: 4, 3: 2, 4: 6}
 """PNG colour type by channel count: grey, grey + alpha, RGB, RGBA."""

@@ -170,7 +170,7 @@ def encode_pixels(rgb: np.ndarray, msgtype: str, encoding: str, *, jpeg_quality:
     if order == "mono":
         px = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)[:, :, None]
     elif order == "bgr":
-        px = rgb[:, :, ::-1]
+        px = swap_red_blue(rgb)
     else:
         px = rgb
     px = np.ascontiguousarray(px.astype("<u2" if size == 2 else np.uint8))

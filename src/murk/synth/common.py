@@ -2,7 +2,8 @@
 tar-shard writer (:mod:`murk.synth.shards`, also run by :mod:`murk.synth.ray_backend`'s tasks).
 
 - :class:`Shard`: which part of the sorted inputs a process takes (``--shard i/N``, SLURM array variables);
-- the per-variant pieces, so that both writers produce the same samples: :func:`fit_size` (``--size``),
+- the per-variant pieces, so that both writers produce the same samples: :func:`load_source` (a pair as the run
+  renders it) with :func:`fit_size` (``--size``),
   :func:`depth_range_note`, :func:`variant_info` and :func:`manifest_record` (one manifest line);
 - the checks of the output folder: :func:`input_locations` with :data:`OVERLAP_WHY` (the output may not overlap
   the inputs) and :func:`check_config_compatible` (no mixing of two configurations in one folder).
@@ -23,7 +24,7 @@ import cv2
 import numpy as np
 
 from murk._config import read_yaml, to_dict
-from murk.io.pairs import RGBDSource
+from murk.io.pairs import DepthOptions, RGBDSource, load_pair
 from murk.synth.config import SynthConfig
 from murk.synth.params import VariantParams, variant_to_dict
 
@@ -71,6 +72,15 @@ class Shard:
             except ValueError as exc:
                 raise ValueError(f"SLURM array variables: {exc}") from None
         return Shard()
+
+
+def load_source(source: RGBDSource, config: SynthConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One RGB-D pair as the run renders it: (clean RGB, depth in metres, valid mask), cropped and resized as
+    configured (see :func:`murk.io.pairs.load_pair`; its errors propagate)."""
+    inp = config.input
+    opts = DepthOptions(inp.depth_scale, inp.depth_relative, inp.invalid_depth, inp.crop_px, inp.depth_encoding)
+    rgb, depth, valid = load_pair(source, opts)
+    return fit_size(rgb, depth, valid, inp.size)
 
 
 def fit_size(

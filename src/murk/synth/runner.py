@@ -46,7 +46,7 @@ from murk.io.depth import write_depth_png
 from murk.io.images import to_uint, write_rgb, write_uint
 from murk.io.jobs import ErrorRecord, JobSummary
 from murk.io.jsonl import append_jsonl, read_jsonl, write_jsonl
-from murk.io.pairs import DepthOptions, RGBDSource, load_pair
+from murk.io.pairs import RGBDSource
 from murk.io.paths import check_output_location
 from murk.io.writer import BackgroundWriter
 from murk.rng import derive_seed
@@ -56,8 +56,8 @@ from murk.synth.common import (
     Shard,
     check_config_compatible,
     depth_range_note,
-    fit_size,
     input_locations,
+    load_source,
     manifest_record,
     variant_info,
 )
@@ -129,15 +129,6 @@ def _init_pool_worker(bank_path: str | None) -> None:
 
     die_with_parent()
     _init_worker(bank_path)
-
-
-def load_source(source: RGBDSource, config: SynthConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """One RGB-D pair as the run renders it: (clean RGB, depth in metres, valid mask), cropped and resized as
-    configured (see :func:`murk.io.pairs.load_pair`; its errors propagate)."""
-    inp = config.input
-    opts = DepthOptions(inp.depth_scale, inp.depth_relative, inp.invalid_depth, inp.crop_px, inp.depth_encoding)
-    rgb, depth, valid = load_pair(source, opts)
-    return fit_size(rgb, depth, valid, inp.size)
 
 
 def process_source(

@@ -45,7 +45,7 @@ from murk.io.atomic import atomic_path, make_output_folder, remove_stale_tempora
 from murk.io.images import encode_png, to_uint
 from murk.io.jobs import ErrorRecord, JobSummary
 from murk.io.jsonl import append_jsonl, read_jsonl
-from murk.io.pairs import DepthOptions, RGBDSource, load_pair
+from murk.io.pairs import RGBDSource
 from murk.rng import derive_seed
 from murk.synth.common import (
     DEPTH_SCALE_OUT,
@@ -53,8 +53,8 @@ from murk.synth.common import (
     Shard,
     check_config_compatible,
     depth_range_note,
-    fit_size,
     input_locations,
+    load_source,
     manifest_record,
     variant_info,
 )
@@ -175,11 +175,8 @@ def render_source_samples(
     from murk.synth.params import sample_variant, snow_sampler_for
     from murk.synth.pipeline import depth_range, render
 
-    inp = config.input
-    opts = DepthOptions(inp.depth_scale, inp.depth_relative, inp.invalid_depth, inp.crop_px, inp.depth_encoding)
     try:
-        rgb, depth, valid = load_pair(source, opts)
-        rgb, depth, valid = fit_size(rgb, depth, valid, inp.size)
+        rgb, depth, valid = load_source(source, config)
     except (ValueError, OSError) as exc:
         return [], [ErrorRecord(source.rgb_path, "read", str(exc), variant=int(k)) for k in variants], None
     note = depth_range_note(source, depth[valid])
