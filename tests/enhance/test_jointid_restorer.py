@@ -149,7 +149,9 @@ def test_onnx_backend_matches_torch(tmp_path, tiny, tiny_ckpt):
     rgb = np.random.default_rng(3).random((2, 45, 70, 3), dtype=np.float32)
     for options in ({}, {"tile": 64, "overlap": 32}):
         ref = JointIDRestorer(tiny, **options).restore(rgb)  # the network alone (refine 0)
-        out = create("jointid", checkpoint=path, refine=0.0, **options).restore(rgb)  # .onnx -> ONNX Runtime
+        out = create("jointid", checkpoint=path, refine=0.0, lite_blend=0, **options).restore(
+            rgb
+        )  # .onnx -> ONNX Runtime
         np.testing.assert_allclose(out.images, ref.images, rtol=0, atol=2e-5)
         np.testing.assert_allclose(out.depth_m, ref.depth_m, rtol=0, atol=1e-4)
     assert "OnnxJointID" in repr(create("jointid", onnx=path))
@@ -249,15 +251,17 @@ def test_refine_transfers_the_restoration_onto_the_input_and_leaves_depth(tiny_c
     )
 
     x = underwater[None].astype(np.float32)
-    plain = create("jointid", checkpoint=tiny_ckpt, refine=0.0).restore(x)  # the network alone
-    default = create("jointid", checkpoint=tiny_ckpt).restore(x)
+    plain = create("jointid", checkpoint=tiny_ckpt, refine=0.0, lite_blend=0).restore(x)  # the network alone
+    default = create("jointid", checkpoint=tiny_ckpt, lite_blend=0).restore(x)  # lite's blend: the next test
     radius = transfer_radius_px(240, 300, 0.125)
     assert (radius, transfer_step(radius)) == (38, 3)  # the fast guided filter's subsample: every third pixel
     transfer = affine_transfer(x[0], plain.images[0], radius, 1e-4, step=3)
     guarded = guard_particle_removal(x[0], transfer, plain.images[0], 0.04, guard_size_px(240, 300))
     # The default: refine=0.125 with the particle guard at 0.04.
     np.testing.assert_allclose(default.images[0], np.clip(guarded, 0, 1), atol=1e-6)
-    refined = create(f"jointid?refine=0.125,refine_eps=0.001,refine_guard=0,checkpoint={tiny_ckpt}").restore(x)
+    refined = create(
+        f"jointid?refine=0.125,refine_eps=0.001,refine_guard=0,lite_blend=0,checkpoint={tiny_ckpt}"
+    ).restore(x)
     expected = np.clip(affine_transfer(x[0], plain.images[0], radius, 1e-3, step=3), 0, 1)
     np.testing.assert_allclose(refined.images[0], expected, atol=1e-6)
     assert np.abs(refined.images - plain.images).max() > 0.01  # it does change the output
@@ -268,6 +272,30 @@ def test_refine_transfers_the_restoration_onto_the_input_and_leaves_depth(tiny_c
         create("jointid", checkpoint=tiny_ckpt, refine=0.1, refine_eps=0.0)
     with pytest.raises(ValueError, match=r"refine_guard: expected a top-hat luma in \[0, 1\)"):
         create("jointid", checkpoint=tiny_ckpt, refine_guard=-0.1)
+
+
+def test_lite_blend_averages_the_shipped_lite_in_and_leaves_depth(tiny, tiny_ckpt, underwater):
+    x = np.stack([underwater, 0.6 * underwater]).astype(np.float32)
+    alone = create("jointid", checkpoint=tiny_ckpt, lite_blend=0).restore(x)
+    lite = create("lite").restore(x).images  # the shipped lite, as the default blends it
+    default = create("jointid", checkpoint=tiny_ckpt).restore(x)  # lite_blend 0.5
+    np.testing.assert_allclose(default.images, 0.5 * alone.images + 0.5 * lite, atol=1e-6)
+    assert np.abs(default.images - alone.images).max() > 0.01  # it does change the output
+    assert np.array_equal(default.depth_m, alone.depth_m)  # depth is Joint-ID's alone
+    quarter = create(f"jointid?lite_blend=0.25,checkpoint={tiny_ckpt}").restore(x).images
+    np.testing.assert_allclose(quarter, 0.75 * alone.images + 0.25 * lite, atol=1e-6)
+    np.testing.assert_allclose(create("jointid", checkpoint=tiny_ckpt, lite_blend=1).restore(x).images, lite, atol=1e-6)
+    for bad in (-0.1, 1.5):
+        with pytest.raises(ValueError, match=r"lite_blend: expected a weight in \[0, 1\]"):
+            create("jointid", checkpoint=tiny_ckpt, lite_blend=bad)
+    with pytest.raises(ValueError, match=r"lite_blend: expected a weight in \[0, 1\]"):
+        JointIDRestorer(copy.deepcopy(tiny), lite_blend=True)
+    with pytest.raises(ValueError, match=r"option lite_blend: expected float, got True"):
+        create("jointid", checkpoint=tiny_ckpt, lite_blend=True)
+    direct = JointIDRestorer(copy.deepcopy(tiny))  # built around a network: Joint-ID alone
+    assert direct.lite_blend == 0.0 and direct.lite is None
+    with pytest.raises(ValueError, match=r"lite_blend: needs the lite restorer"):
+        JointIDRestorer(copy.deepcopy(tiny), lite_blend=0.5)
 
 
 def test_refine_on_a_batch_equals_frame_by_frame_and_leaves_the_inputs_alone(tiny_ckpt, underwater):

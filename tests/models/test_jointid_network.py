@@ -325,7 +325,31 @@ def test_smooth_shuffled_equals_the_separable_triangle_convolution(r: int) -> No
     ref = F.pad(x, (r - 1, r - 1, r - 1, r - 1), mode="replicate")
     ref = F.conv2d(ref, k.view(1, 1, 1, -1).expand(3, 1, 1, -1), groups=3)
     ref = F.conv2d(ref, k.view(1, 1, -1, 1).expand(3, 1, -1, 1), groups=3)
-    torch.testing.assert_close(smooth_shuffled(x, r), ref, rtol=0, atol=1e-6)
+    torch.testing.assert_close(smooth_shuffled(x, r), ref, rtol=0, atol=1e-6)  # OpenCV (plain CPU inference)
+    y = x.clone().requires_grad_(True)  # torch's pooling: a gradient follows
+    out = smooth_shuffled(y, r)
+    assert out.grad_fn is not None
+    torch.testing.assert_close(out.detach(), ref, rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize(("shape", "r"), [((1, 2, 37, 53), 4), ((2, 4, 16, 24), 8), ((1, 8, 9, 11), 2)])
+def test_smooth_shuffled_twins_agree_on_odd_sizes_and_layouts(shape: tuple[int, ...], r: int) -> None:
+    """The OpenCV twin (float32 CPU inference) equals torch's pooling on any size and memory layout; bf16, a
+    gradient or a trace keep torch's path."""
+    from murk.models.jointid.decoder import _plain_cpu_inference, _smooth_shuffled_opencv, smooth_shuffled
+
+    x = torch.rand(shape, generator=torch.Generator().manual_seed(sum(shape)))
+    torch_path = smooth_shuffled(x.clone().requires_grad_(True), r).detach()
+    for layout in (torch.contiguous_format, torch.channels_last):
+        got = _smooth_shuffled_opencv(x.contiguous(memory_format=layout), r)
+        torch.testing.assert_close(got, torch_path, rtol=0, atol=5e-7)
+    assert _plain_cpu_inference(x)
+    assert not _plain_cpu_inference(x.bfloat16())
+    assert not _plain_cpu_inference(x.clone().requires_grad_(True))
+    with torch.no_grad():
+        assert _plain_cpu_inference(x.clone().requires_grad_(True))
+    traced = torch.jit.trace(lambda t: smooth_shuffled(t, r), x)  # the torch ops are recorded, not OpenCV's
+    torch.testing.assert_close(traced(x + 1), smooth_shuffled(x + 1, r), rtol=0, atol=1e-6)
 
 
 def test_global_colour_head_starts_at_identity_and_maps_each_channel() -> None:

@@ -59,8 +59,8 @@ def test_a_jointid_checkpoint_carries_the_balance_and_its_restorer_applies_it(tm
     imgs = _murky(1, 32, 64)
     pre = np.stack([color_balance(im, 2.0, 2.0) for im in imgs])
     # refine=0: the network's output (the transfer after it takes the raw input as its guide, not the balanced one)
-    want = create("jointid", checkpoint=str(plain), refine=0.0).restore(pre)
-    got = create("jointid", checkpoint=str(balanced), refine=0.0).restore(imgs)
+    want = create("jointid", checkpoint=str(plain), refine=0.0, lite_blend=0).restore(pre)
+    got = create("jointid", checkpoint=str(balanced), refine=0.0, lite_blend=0).restore(imgs)
     np.testing.assert_allclose(got.images, want.images, atol=1e-3)  # the slim copy holds fp16 weights
     assert got.depth_m is not None
 

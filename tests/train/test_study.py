@@ -229,14 +229,19 @@ def test_final_recipe_studies_differ_only_in_stages() -> None:
             assert arm_config(base, arm, "X") == expected
 
 
-def test_jointid_arms_are_scored_as_trained_without_the_affine_transfer() -> None:
+def test_jointid_arms_are_scored_as_trained_without_the_affine_transfer_or_lite() -> None:
     from murk.enhance.restorer import create
     from murk.report.methods import parse_method
     from murk.report.study import arm_spec
 
     spec = parse_method(arm_spec("jointid", "full=jointid:runs/a/latest.pt"))
-    assert (spec.label, spec.checkpoint, dict(spec.options)) == ("full", "runs/a/latest.pt", {"refine": 0})
+    assert (spec.label, spec.checkpoint, dict(spec.options)) == (
+        "full",
+        "runs/a/latest.pt",
+        {"refine": 0, "lite_blend": 0},
+    )
     chained = parse_method(arm_spec("jointid", "full+post=jointid+post:x.pt", "preset=paper", "lam=0.5"))
-    assert dict(chained.options) == {"preset": "paper", "lam": 0.5, "refine": 0}
+    assert dict(chained.options) == {"preset": "paper", "lam": 0.5, "refine": 0, "lite_blend": 0}
     assert arm_spec("lite", "a=lite:x.pt") == "a=lite:x.pt"
-    assert create(arm_spec("jointid", "jointid")).refine_settings.radius == 0.0  # the option reaches the restorer
+    restorer = create(arm_spec("jointid", "jointid"))
+    assert restorer.refine_settings.radius == 0.0 and restorer.lite is None  # the options reach the restorer

@@ -33,6 +33,9 @@ DEFAULT_OVERLAP = 64
 """Tile overlap in pixels of the network restorers (``jointid``, ``udaformer``, ``ursct``) unless set."""
 DEFAULT_REFINE = 0.125
 """Default ``refine`` of ``jointid``: the affine transfer's window radius as a fraction of the long side."""
+DEFAULT_LITE_BLEND = 0.5
+"""Default ``lite_blend`` of ``jointid``: the weight of the shipped ``lite``'s restoration in the output (the rest
+is Joint-ID's own; docs/enhance.md, "jointid?lite_blend")."""
 DEFAULT_REFINE_GUARD = 0.04
 """Default ``refine_guard`` of ``jointid`` and ``lite``: the top-hat luma from which the input counts as a particle
 (about 10 of 255)."""

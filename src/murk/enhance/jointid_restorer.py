@@ -15,7 +15,8 @@ path, alternative to ``checkpoint``), ``device`` ("cpu", "cuda", "cuda:N"), ``pr
 ``batch`` (max frames or tiles per forward pass), ``compile`` and ``cuda_graph`` (bool, default False),
 ``refine`` (0 = the network's output alone; the ``jointid`` method's default is
 :data:`murk.enhance.choices.DEFAULT_REFINE`, while a :class:`JointIDRestorer` built directly around a network
-defaults to 0), ``refine_eps`` and ``refine_guard``.
+defaults to 0), ``refine_eps``, ``refine_guard`` and ``lite_blend`` (the ``jointid`` method's default is
+:data:`murk.enhance.choices.DEFAULT_LITE_BLEND`; 0 for a :class:`JointIDRestorer` built directly).
 
 ``refine`` re-expresses the network's restoration as a locally affine map of the input
 (:mod:`murk.physics.affine_transfer`). The window radius is ``refine`` times the frame's long side. The output
@@ -23,6 +24,11 @@ then has the restoration's colours and the input's structure: what Eq. (1)'s inv
 deblurring. ``refine_guard`` (a top-hat luma threshold, 0 = off) keeps the network's own output where it took a
 small bright particle out of the input, so that the transfer does not bring marine snow back. Figures and the
 trade-off: docs/enhance.md, "jointid?refine".
+
+``lite_blend`` averages the shipped ``lite``'s restoration of the same frame into the output with that weight
+(``(1 - w) * jointid + w * lite``, after ``refine``): two restorers of different design, both trained on murk's
+water, err differently on real water, and their mean is closer to the references than either (figures:
+docs/enhance.md, "jointid?lite_blend"). Depth is Joint-ID's alone.
 
 Reference: Yang, Kang, Lee, Cho, "Transformer-Based Joint Image Enhancement and Depth Estimation for
 Underwater Environments", IEEE Sensors Journal 23(24), 2023, doi:10.1109/JSEN.2023.3338730.
@@ -38,7 +44,7 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
-from murk.enhance.choices import DEFAULT_OVERLAP, DEFAULT_REFINE, DEFAULT_REFINE_GUARD, Precision
+from murk.enhance.choices import DEFAULT_LITE_BLEND, DEFAULT_OVERLAP, DEFAULT_REFINE, DEFAULT_REFINE_GUARD, Precision
 from murk.enhance.refine import RefineSettings, refine_restoration
 from murk.enhance.restorer import RestoredTensor, Restorer
 from murk.enhance.tiling import pad_to_multiple, tiled_apply
@@ -108,10 +114,15 @@ class JointIDRestorer(Restorer):
         refine_eps: the transfer's regulariser.
         refine_guard: top-hat luma from which the network's particle removal is kept against the transfer
             (0: off).
+        lite_blend: weight in [0, 1] of ``lite``'s restoration in the output (0, the default here: Joint-ID's
+            alone). The ``jointid`` method (:func:`create_jointid`) sets
+            :data:`murk.enhance.choices.DEFAULT_LITE_BLEND` with the shipped ``lite``.
+        lite: the ``lite`` restorer whose output is blended in; required when ``lite_blend`` > 0.
 
     Raises:
         TypeError: ``model`` is neither a JointID nor an ONNX runner.
-        ValueError: bad precision/tile/overlap/batch, CUDA-only options on the CPU, or CUDA not available.
+        ValueError: bad precision/tile/overlap/batch/lite_blend, CUDA-only options on the CPU, or CUDA not
+            available.
     """
 
     name = "jointid"
@@ -131,6 +142,8 @@ class JointIDRestorer(Restorer):
         refine: float = 0.0,
         refine_eps: float = 1e-4,
         refine_guard: float = DEFAULT_REFINE_GUARD,
+        lite_blend: float = 0.0,
+        lite: Restorer | None = None,
     ) -> None:
         from murk.models.jointid.checkpoint import unwrap
         from murk.models.jointid.onnx_export import OnnxJointID
@@ -149,6 +162,14 @@ class JointIDRestorer(Restorer):
             raise ValueError(f"batch: expected None or a positive integer, got {batch!r}")
         self.refine_settings = RefineSettings(refine, refine_eps, refine_guard)
         """The ``refine`` step after the network (:mod:`murk.enhance.refine`)."""
+        if isinstance(lite_blend, bool) or not 0.0 <= float(lite_blend) <= 1.0:
+            raise ValueError(f"lite_blend: expected a weight in [0, 1] (0 = Joint-ID alone), got {lite_blend!r}")
+        if lite_blend > 0 and lite is None:
+            raise ValueError("lite_blend: needs the lite restorer to blend in (lite=...)")
+        self.lite_blend = float(lite_blend)
+        """Weight of :attr:`lite`'s restoration in the output (0: Joint-ID's alone)."""
+        self.lite = lite if self.lite_blend > 0 else None
+        """The ``lite`` restorer blended in (None when ``lite_blend`` is 0)."""
         self.precision = precision
         self.weights: str | None = None
         """The weights file this restorer was loaded from (set by the ``jointid`` factory)."""
@@ -237,13 +258,17 @@ class JointIDRestorer(Restorer):
             depth = pad.crop(depth).contiguous()
             enhanced = pad.crop(enhanced).clamp(0.0, 1.0).contiguous()
             enhanced = refine_restoration(images, enhanced, self.refine_settings)
+            if self.lite is not None:  # (1 - w) * jointid + w * lite
+                other = self.lite.restore_tensor(images).images.to(enhanced.device)
+                enhanced = torch.lerp(enhanced, other, self.lite_blend)
         return RestoredTensor(enhanced, depth)
 
     def __repr__(self) -> str:
         backend = self._backend if self.model is None else type(self.model).__name__
         return (
             f"JointIDRestorer({backend}, device={self.device}, precision={self.precision}, tile={self.tile}, "
-            f"overlap={self.overlap}, batch={self.batch}, refine={self.refine_settings.radius})"
+            f"overlap={self.overlap}, batch={self.batch}, refine={self.refine_settings.radius}, "
+            f"lite_blend={self.lite_blend})"
         )
 
 
@@ -262,6 +287,7 @@ def create_jointid(
     refine: float = DEFAULT_REFINE,
     refine_eps: float = 1e-4,
     refine_guard: float = DEFAULT_REFINE_GUARD,
+    lite_blend: float = DEFAULT_LITE_BLEND,
 ) -> JointIDRestorer:
     """Factory of ``jointid`` (registered lazily by :mod:`murk.enhance.methods`): load ``checkpoint`` (or the
     ``onnx`` file) and wrap it.
@@ -308,6 +334,18 @@ def create_jointid(
         refine=refine,
         refine_eps=refine_eps,
         refine_guard=refine_guard,
+        lite_blend=lite_blend,
+        lite=_shipped_lite(lite_blend, dev),
     )
     restorer.weights = str(path)
     return restorer
+
+
+def _shipped_lite(lite_blend: float, device: torch.device) -> Restorer | None:
+    """The shipped ``lite`` on ``device`` when ``lite_blend`` asks for it (None at 0; a bad weight is left to
+    :class:`JointIDRestorer` to name)."""
+    if isinstance(lite_blend, bool) or not isinstance(lite_blend, (int, float)) or not 0.0 < lite_blend <= 1.0:
+        return None
+    from murk.enhance.lite_restorer import create_lite
+
+    return create_lite(device=device)

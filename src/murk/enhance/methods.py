@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from murk.enhance.choices import (
+    DEFAULT_LITE_BLEND,
     DEFAULT_OVERLAP,
     DEFAULT_REFINE,
     DEFAULT_REFINE_GUARD,
@@ -86,6 +87,7 @@ def jointid(
     refine: float = DEFAULT_REFINE,
     refine_eps: float = 1e-4,
     refine_guard: float = DEFAULT_REFINE_GUARD,
+    lite_blend: float = DEFAULT_LITE_BLEND,
 ) -> Restorer:
     """``jointid`` (the network restores and estimates depth): :func:`murk.enhance.jointid_restorer.create_jointid`."""
     options = dict(locals())

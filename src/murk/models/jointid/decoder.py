@@ -94,13 +94,44 @@ def smooth_shuffled(x: Tensor, r: int) -> Tensor:
     (triangle) so that it is symmetric. Computed as box averages of ``r`` taps, twice along each axis (the
     triangle is the box convolved with itself): on CPUs a depthwise convolution with the triangle is up to 15x
     slower (162 ms against 11 ms on a 2-channel 640x480 map, 2 threads); both agree within float rounding
-    (tested)."""
+    (tested). Plain float32 inference on the CPU takes OpenCV's separable filter instead (its twin,
+    :func:`_smooth_shuffled_opencv`: 0.42 against 7.0 ms on the same map; equal within 5e-7, tested)."""
     if r == 1:
         return x
+    if _plain_cpu_inference(x):
+        return _smooth_shuffled_opencv(x, r)
     x = F.pad(x, (r - 1, r - 1, r - 1, r - 1), mode="replicate")
     for k in ((1, r), (1, r), (r, 1), (r, 1)):  # separable: 4r taps per pixel instead of 2r^2
         x = F.avg_pool2d(x, k, stride=1)
     return x
+
+
+def _plain_cpu_inference(x: Tensor) -> bool:
+    """True when ``x`` is a float32 CPU map that no gradient, trace, compilation or export follows (OpenCV may
+    compute on it)."""
+    return (
+        x.device.type == "cpu"
+        and x.dtype == torch.float32
+        and not (x.requires_grad and torch.is_grad_enabled())
+        and not torch.jit.is_tracing()
+        and not torch.jit.is_scripting()
+        and not torch.compiler.is_compiling()
+    )
+
+
+def _smooth_shuffled_opencv(x: Tensor, r: int) -> Tensor:
+    """The twin of :func:`smooth_shuffled` by ``cv2.sepFilter2D`` per plane (the triangle along each axis,
+    replicated border); float32 (B, C, H, W) in contiguous memory."""
+    import cv2
+    import numpy as np
+
+    k = triangle_kernel(r).numpy()
+    src = x.contiguous().numpy()
+    out = np.empty_like(src)
+    for b in range(src.shape[0]):
+        for c in range(src.shape[1]):
+            cv2.sepFilter2D(src[b, c], -1, k, k, dst=out[b, c], borderType=cv2.BORDER_REPLICATE)
+    return torch.from_numpy(out)
 
 
 class Decoder(nn.Module):
