@@ -332,6 +332,7 @@ def test_smooth_shuffled_equals_the_separable_triangle_convolution(r: int) -> No
     torch.testing.assert_close(out.detach(), ref, rtol=0, atol=1e-6)
 
 
+@pytest.mark.filterwarnings("ignore:`torch.jit.trace` is deprecated:DeprecationWarning")  # the ONNX exporter traces
 @pytest.mark.parametrize(("shape", "r"), [((1, 2, 37, 53), 4), ((2, 4, 16, 24), 8), ((1, 8, 9, 11), 2)])
 def test_smooth_shuffled_twins_agree_on_odd_sizes_and_layouts(shape: tuple[int, ...], r: int) -> None:
     """The OpenCV twin (float32 CPU inference) equals torch's pooling on any size and memory layout; bf16, a

@@ -77,7 +77,8 @@ def enhance(
             "jointid+post); method options after '?' "
             "(e.g. post?lam=0.5,he=rgb; a misspelt one is an error). post?preset=paper is Eq. 9 exactly; the "
             "default preset 'real' applies 30 % of the equalisation. jointid re-expresses the network's output as a "
-            "local affine map of the input by default (jointid?refine=0: the network alone; docs/enhance.md).",
+            "local affine map of the input and averages lite's restoration in by default "
+            "(jointid?refine=0,lite_blend=0: the network alone; docs/enhance.md).",
         ),
     ] = "lite",
     recursive: Annotated[bool, typer.Option("--recursive", "-r", help="Include subfolders of a folder.")] = False,
