@@ -4,9 +4,11 @@ that take no balance and with the shipped ones, side by side in one process.
 
 Until 2026-12-04 :func:`murk.enhance.lite_restorer._forward_cpu` upsampled the 12 coefficient maps with one
 12-channel ``cv2.resize``, computed the guide's luma with torch ops per strip and copied each strip's result into
-the output. Now it resizes four 3-channel groups (OpenCV's 12-channel path is about 2x slower), takes the luma
-from one ``cv2.transform`` per strip and writes the result in place. The old step is reproduced below (it is no
-longer in murk) and swapped in for alternate calls; outputs agree within 2e-7.
+the output, and the restorer then clamped the whole frame. Now it resizes four 3-channel groups (OpenCV's
+12-channel path is about 2x slower), takes the luma from one ``cv2.transform`` per strip, writes the result in
+place and clamps each strip there (since the later 2026-12-04 run; the restorer no longer clamps the frame on
+the CPU). The old step is reproduced below, with its clamp of the whole frame (it is no longer in murk), and
+swapped in for alternate calls; outputs agree within 2e-7.
 
 Four arms per frame size, in alternating rounds, torch and OpenCV at 2 threads, the allocator tuned as the
 ``murk`` command does: previous weights with the old step (the speed BENCHMARKS.md recorded before the balance),
@@ -48,7 +50,7 @@ def old_forward_cpu(model, x, work, ema=None):  # type: ignore[no-untyped-def]
             rows = slice(r0, r0 + lite_restorer.STRIP_ROWS)
             m = up[rows]
             out[i, rows] = apply_maps_hwc(m[..., 0:3], m[..., 3:6], m[..., 6:9], m[..., 9:12], frame[rows])
-    return out.permute(0, 3, 1, 2)
+    return out.clamp_(0.0, 1.0).permute(0, 3, 1, 2)  # the restorer clamped the whole frame after it
 
 
 def main() -> None:

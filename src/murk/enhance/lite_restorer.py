@@ -171,7 +171,8 @@ class LiteRestorer(Restorer):
                 else:
                     outs.append(model(chunk, work))
             out = outs[0] if len(outs) == 1 else torch.cat(outs)
-            out = out.clamp_(0.0, 1.0)
+            if self.device.type != "cpu":  # the CPU step clamps strip by strip
+                out = out.clamp_(0.0, 1.0)
             enhanced = pad.crop(out) if native else out
             enhanced = refine_restoration(images, enhanced, self.refine_settings)
         return RestoredTensor(enhanced, None)
@@ -192,10 +193,11 @@ class LiteRestorer(Restorer):
 
 
 def _forward_cpu(model: nn.Module, x: Tensor, work: Tensor, ema: FrameEMA | None = None) -> Tensor:
-    """The network's forward on the CPU with the full-resolution upsampling done by OpenCV: the same result as
-    ``model(x, work)`` (bilinear with half-pixel centres, as torch's; equal within 5e-5, pinned by tests) and
-    about 9x faster for the 12 maps of a 1280x720 frame than ``F.interpolate`` on 2 threads. The maps are applied
-    in strips of :data:`STRIP_ROWS` rows so that the temporaries stay in the cache (2x faster at 1280x720).
+    """The network's forward on the CPU with the full-resolution upsampling done by OpenCV, clamped to [0, 1]: the
+    same result as ``model(x, work).clamp(0, 1)`` (bilinear with half-pixel centres, as torch's; equal within 5e-5,
+    pinned by tests) and about 9x faster for the 12 maps of a 1280x720 frame than ``F.interpolate`` on 2 threads.
+    The maps are applied and the result clamped in strips of :data:`STRIP_ROWS` rows, so that the temporaries stay
+    in the cache (2x faster at 1280x720; the clamp saves a pass over the frame).
     ``ema`` averages the low-resolution maps over consecutive frames first."""
     import cv2
 
@@ -216,7 +218,7 @@ def _forward_cpu(model: nn.Module, x: Tensor, work: Tensor, ema: FrameEMA | None
             rows = slice(r0, r0 + STRIP_ROWS)
             luma = torch.from_numpy(cv2.transform(frame_np[rows], _LUMA_ROW))[..., None]  # one SIMD pass
             maps_at = (a_gain[rows], a_offset[rows], b_gain[rows], b_offset[rows])
-            apply_maps_hwc(*maps_at, frame[rows], luma=luma, out=out[i, rows])
+            apply_maps_hwc(*maps_at, frame[rows], luma=luma, out=out[i, rows]).clamp_(0.0, 1.0)
     return out.permute(0, 3, 1, 2)  # (B, 3, H, W) in channels-last memory
 
 
