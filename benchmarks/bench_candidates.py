@@ -8,9 +8,9 @@ Every row gives:
 - the periodic-artefact ratio on the 13 shipped real images.
 
 These are the figures of the candidate tables in docs/train.md. Candidates are scored as networks, as `murk study`
-scores its arms: `jointid` without its `refine` step (``murk.report.study.ARM_OPTIONS``). The first candidate is the
-baseline, e.g. the shipped weights. Keep it first, so that the paired column reads "this candidate minus the shipped
-one".
+scores its arms: `jointid` without its `refine` step and `lite` blend (``murk.report.study.ARM_OPTIONS``). The
+first candidate is the baseline, e.g. the shipped weights. Keep it first, so that the paired column reads "this
+candidate minus the shipped one".
 
 Run: PYTHONPATH=src python benchmarks/bench_candidates.py --method jointid --pairs DIR [--snow-pairs DIR]
      [--scenes 64] [--threads 1] [--json FILE] shipped=SHIPPED run7=runs/x/latest.pt ...
@@ -75,7 +75,7 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     cands = candidates(args.candidates, args.method)
     labels = list(cands)
-    # Candidates are networks: scored as trained, as the study scores its arms (jointid without its refine step)
+    # Candidates are networks: scored as trained, as the study scores its arms (jointid without refine or lite blend)
     methods = [parse_method(arm_spec(args.method, f"{lab}={args.method}:{path}")) for lab, path in cands.items()]
     figures: dict[str, dict[str, object]] = {lab: {"checkpoint": path} for lab, path in cands.items()}
 

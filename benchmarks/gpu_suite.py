@@ -373,8 +373,8 @@ def part_jointid_lite(ctx: Ctx) -> None:
         print(f"create('lite'): {exc}", flush=True)
         ctx.rec.note("no shipped lite weights: random weights (seed 0), which run at the trained network's speed")
     ctx.rec.note("the lite network's training step is not measured (bench_train measures Joint-ID)")
-    # The shipped small Joint-ID network, fp32, without the refine step after it: the baseline network
-    small = create("jointid", device=str(ctx.device), refine=0.0)
+    # The shipped small Joint-ID network, fp32, without the refine step or the lite blend after it: the network
+    small = create("jointid", device=str(ctx.device), refine=0.0, lite_blend=0.0)
     for (h, w), batch in ((sizes["hw"], 1), (sizes["hw"], sizes["batches"][0]), (sizes["large_hw"], 1)):
         x = torch.rand(batch, 3, h, w, device=ctx.device, generator=torch.Generator(ctx.device).manual_seed(batch))
         t_small = ctx.rec.attempt(
