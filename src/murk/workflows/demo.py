@@ -103,6 +103,7 @@ def run_demo(
     from murk.io.pairs import discover
     from murk.report.compare import run_compare
     from murk.report.methods import parse_method
+    from murk.report.study import arm_spec
     from murk.scenes.dataset import write_scenes
     from murk.synth.config import SynthConfig
     from murk.synth.runner import run_synthesis
@@ -189,7 +190,8 @@ def run_demo(
         parse_method("jointid"),
         parse_method("jointid+post"),
         parse_method("lite"),  # what murk recommends for real footage (README), the default of `murk enhance`
-        parse_method(f"train-illustration=jointid:{ckpt}"),
+        # the network the illustration run trained, as trained (as murk study scores its arms: no refine, no lite)
+        parse_method(arm_spec("jointid", f"train-illustration=jointid:{ckpt}")),
     ]
     done("real")
     log("[5/5] compare: UIQM (Eq. 10) and UCIQE per image and method, grids with zoomed boxes, report.html")
