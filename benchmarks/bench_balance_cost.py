@@ -36,7 +36,10 @@ def main() -> None:
     pairs = {
         "lite": (create("lite", checkpoint=args.previous_lite), create("lite")),
         "lite+post": (create("lite+post", checkpoint=args.previous_lite), create("lite+post")),
-        "jointid": (create("jointid", checkpoint=args.previous_jointid), create("jointid")),
+        "jointid": (  # without the lite blend, which takes its own balance
+            create("jointid", checkpoint=args.previous_jointid, lite_blend=0.0),
+            create("jointid", lite_blend=0.0),
+        ),
     }
     for name, (old, new) in pairs.items():
         sizes = [(480, 640)] if name == "jointid" else [(480, 640), (720, 1280)]

@@ -7,8 +7,8 @@ Measured per size (one frame at a time, numpy RGB float32 in, restored frame out
 restorer; median over interleaved rounds so that machine noise hits every method alike):
 - ``lite`` network only (the folded torch module on a padded tensor);
 - ``lite`` restorer with torch, and with its ONNX export under ONNX Runtime (2 intra-op threads);
-- ``lite+post``, ``post`` (Eq. 9, OpenCV) and the small Joint-ID restorer (``jointid``, shipped weights): the
-  baseline of the speed-ups.
+- ``lite+post``, ``post`` (Eq. 9, OpenCV) and the small Joint-ID restorer (``jointid?lite_blend=0``, shipped
+  weights, with ``refine`` but without the ``lite`` blend of the ``jointid`` method): the baseline of the speed-ups.
 Weights: ``--checkpoint``, else the shipped ``lite.pt``, else random weights with trained-like statistics (the
 speed of a convolutional network does not depend on the values). MACs: convolutions, linear layers and attention
 products counted by ``torch.utils.flop_counter`` (FLOPs / 2; the lite network's convolutions run on the working
@@ -106,7 +106,7 @@ def main() -> None:
         "lite (torch)": create("lite", checkpoint=str(ckpt)),
         "lite+post": create("lite+post", checkpoint=str(ckpt)),
         "post": create("post"),
-        "jointid small": create("jointid"),
+        "jointid small": create("jointid", lite_blend=0.0),
     }
     if have_ort:
         onnx_path = export_lite_onnx(folded, tmp / "lite.onnx")

@@ -2,7 +2,8 @@
 
 Pairs, each restored alternately on one 640x480 frame (a shipped real image, resized) after 2 warm-up calls, torch
 and OpenCV at ``--threads``, median of ``--rounds``:
-- ``jointid`` (refine 0.125 with the particle guard, the default) against ``jointid?refine=0`` (the network alone);
+- ``jointid?lite_blend=0`` (refine 0.125 with the particle guard, the default) against
+  ``jointid?refine=0,lite_blend=0`` (the network alone): without the ``lite`` blend, which runs after the step;
 - ``lite?refine=0.125`` against ``lite``.
 Then the step itself on the same frame: the transfer with the fast guided filter (``transfer_step``), the exact
 filter it replaces, and the particle guard, each median of ``--rounds`` calls. The ratios are the speed claims.
@@ -27,7 +28,7 @@ from murk.enhance.restorer import create
 from murk.io.images import read_image, to_float
 from murk.physics import affine_transfer as at
 
-PAIRS = (("jointid", "jointid?refine=0"), ("lite?refine=0.125", "lite"))
+PAIRS = (("jointid?lite_blend=0", "jointid?refine=0,lite_blend=0"), ("lite?refine=0.125", "lite"))
 
 
 def median_ms(fn: Callable[[], object], rounds: int) -> float:
@@ -68,7 +69,7 @@ def main() -> None:
         on, off = (statistics.median(samples[s]) * 1e3 for s in (spec_on, spec_off))
         print(f"| `{spec_on}` | `{spec_off}` | {on:.1f} | {off:.1f} | {on / off:.3f}x |")
     image = frame[0]
-    restored = create("jointid?refine=0").restore(frame).images[0]
+    restored = create("jointid?refine=0,lite_blend=0").restore(frame).images[0]
     radius = at.transfer_radius_px(h, w, 0.125)
     step = at.transfer_step(radius)
     fast = at.affine_transfer(image, restored, radius, 1e-4, step)

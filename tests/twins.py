@@ -145,6 +145,7 @@ def _table() -> dict[str, Twin]:
     from murk.metrics import reference
     from murk.metrics.uciqe import uciqe, uciqe_torch
     from murk.metrics.uiqm import uiqm, uiqm_torch
+    from murk.models.jointid import decoder
     from murk.physics import affine_transfer as at
     from murk.physics import balance, camera, medium
     from murk.physics import forward_scatter as fs
@@ -362,6 +363,15 @@ def _table() -> dict[str, Twin]:
         lambda x: {"out": lookup_torch(torch.from_numpy(np.array(noise_tile())), t(x["x"]), t(x["y"])).numpy()},
         atol=2e-6,
     )
+    for r in (2, 4, 8):  # Joint-ID's shuffle smoothing: OpenCV's separable filter in CPU inference, else pooling
+        twins[f"models.jointid.smooth_shuffled (r={r})"] = Twin(
+            lambda rng: {"maps": rng.random((3, 37, 53, 2)).astype(np.float32)},
+            lambda x, r=r: {
+                "out": np.stack([nhwc(decoder._smooth_shuffled_opencv(nchw(m[None]), r))[0] for m in x["maps"]])
+            },
+            lambda x, r=r: {"out": nhwc(decoder._smooth_shuffled_torch(nchw(x["maps"]), r))},
+            atol=5e-7,  # the same triangle, summed in another order
+        )
     uiqm_tolerance = {"uicm": 1e-4, "uism": 1e-5, "uiconm": 1e-6}
     for preset in ("panetta2016", "funie", "jointid"):
         for part, rtol in uiqm_tolerance.items():

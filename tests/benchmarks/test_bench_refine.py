@@ -16,7 +16,7 @@ def test_every_pair_and_step_is_timed() -> None:
     proc = subprocess.run([*cmd, "--size", "96x64"], cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     rows = [line for line in proc.stdout.splitlines() if line.startswith("| `")]
-    assert [r.split("`")[1] for r in rows] == ["jointid", "lite?refine=0.125"]
+    assert [r.split("`")[1] for r in rows] == ["jointid?lite_blend=0", "lite?refine=0.125"]
     assert all(float(r.split(" | ")[-1].rstrip(" x|")) > 0 for r in rows)
     for name in ("transfer, fast guided filter (step 1)", "transfer, exact guided filter", "particle guard"):
         assert f"{name}: " in proc.stdout

@@ -159,6 +159,24 @@ def test_onnx_backend_matches_torch(tmp_path, tiny, tiny_ckpt):
         create("jointid", checkpoint=path, precision="bf16")
 
 
+def test_onnx_backend_of_balanced_weights_matches_torch_at_any_size(tmp_path, tiny):
+    """Weights trained on balanced input: the export balances each whole frame inside its graph, before padding,
+    as the torch restorer does (the restorer used to pad first, so the graph took its levels from the padding
+    too: 0.011 off at 50x70 with the shipped weights)."""
+    pytest.importorskip("onnxruntime")
+    from murk.models.jointid.onnx_export import export_onnx
+
+    balanced = copy.deepcopy(tiny)
+    balanced.input_balance_pct = 0.5
+    path = export_onnx(balanced, tmp_path / "balanced.onnx")
+    for hw in ((45, 70), (64, 96)):  # padded and not
+        rgb = (0.2 + 0.5 * np.random.default_rng(hw[0]).random((2, *hw, 3))).astype(np.float32)
+        ref = JointIDRestorer(balanced).restore(rgb)
+        out = create("jointid", checkpoint=path, refine=0.0, lite_blend=0).restore(rgb)
+        np.testing.assert_allclose(out.images, ref.images, rtol=0, atol=2e-5)
+        np.testing.assert_allclose(out.depth_m, ref.depth_m, rtol=0, atol=1e-4)
+
+
 def test_invalid_options_are_rejected(tiny):
     with pytest.raises(ValueError, match="precision"):
         JointIDRestorer(tiny, precision="int8")
@@ -231,6 +249,19 @@ def test_refine_on_cuda_runs_the_torch_twins_on_the_device(tiny, underwater):
 
 @pytest.mark.gpu
 @needs_cuda
+def test_lite_blend_on_cuda_runs_lite_on_the_device(tiny_ckpt, underwater):
+    x = torch.from_numpy(underwater).permute(2, 0, 1)[None].cuda()
+    blended = create("jointid", checkpoint=tiny_ckpt, device="cuda")
+    assert blended.lite is not None and blended.lite.device.type == "cuda"
+    alone = create("jointid", checkpoint=tiny_ckpt, device="cuda", lite_blend=0).restore_tensor(x).images
+    lite = blended.lite.restore_tensor(x).images
+    out = blended.restore_tensor(x).images
+    assert out.device.type == "cuda"
+    torch.testing.assert_close(out, 0.5 * alone + 0.5 * lite, rtol=0, atol=1e-5)
+
+
+@pytest.mark.gpu
+@needs_cuda
 def test_bf16_base_model_stays_within_40_db_of_fp32(underwater):
     torch.manual_seed(0)
     model = build_jointid("base").eval()
@@ -275,10 +306,24 @@ def test_refine_transfers_the_restoration_onto_the_input_and_leaves_depth(tiny_c
 
 
 def test_lite_blend_averages_the_shipped_lite_in_and_leaves_depth(tiny, tiny_ckpt, underwater):
+    from murk.data import shipped_lite_weights
+    from murk.enhance.restorer import weights_of
+    from murk.enhance.run import weights_line
+
     x = np.stack([underwater, 0.6 * underwater]).astype(np.float32)
-    alone = create("jointid", checkpoint=tiny_ckpt, lite_blend=0).restore(x)
+    alone_restorer, blended = (
+        create("jointid", checkpoint=tiny_ckpt, lite_blend=0),
+        create("jointid", checkpoint=tiny_ckpt),
+    )
+    alone = alone_restorer.restore(x)
     lite = create("lite").restore(x).images  # the shipped lite, as the default blends it
-    default = create("jointid", checkpoint=tiny_ckpt).restore(x)  # lite_blend 0.5
+    default = blended.restore(x)  # lite_blend 0.5
+    # The weights an output came from: Joint-ID's file, and the lite blended in
+    assert weights_of(alone_restorer) == str(tiny_ckpt)
+    assert weights_of(blended) == str(tiny_ckpt) and blended.lite.weights == str(shipped_lite_weights())
+    assert weights_line(blended, shipped=False) == (
+        f"jointid weights: {tiny_ckpt}; with lite's restoration blended in (lite_blend 0.5): {shipped_lite_weights()}"
+    )
     np.testing.assert_allclose(default.images, 0.5 * alone.images + 0.5 * lite, atol=1e-6)
     assert np.abs(default.images - alone.images).max() > 0.01  # it does change the output
     assert np.array_equal(default.depth_m, alone.depth_m)  # depth is Joint-ID's alone
@@ -288,8 +333,9 @@ def test_lite_blend_averages_the_shipped_lite_in_and_leaves_depth(tiny, tiny_ckp
     for bad in (-0.1, 1.5):
         with pytest.raises(ValueError, match=r"lite_blend: expected a weight in \[0, 1\]"):
             create("jointid", checkpoint=tiny_ckpt, lite_blend=bad)
-    with pytest.raises(ValueError, match=r"lite_blend: expected a weight in \[0, 1\]"):
-        JointIDRestorer(copy.deepcopy(tiny), lite_blend=True)
+    for bad in (True, "0.5", float("nan")):
+        with pytest.raises(ValueError, match=r"lite_blend: expected a weight in \[0, 1\]"):
+            JointIDRestorer(copy.deepcopy(tiny), lite_blend=bad)
     with pytest.raises(ValueError, match=r"option lite_blend: expected float, got True"):
         create("jointid", checkpoint=tiny_ckpt, lite_blend=True)
     direct = JointIDRestorer(copy.deepcopy(tiny))  # built around a network: Joint-ID alone

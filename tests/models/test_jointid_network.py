@@ -332,6 +332,31 @@ def test_smooth_shuffled_equals_the_separable_triangle_convolution(r: int) -> No
     torch.testing.assert_close(out.detach(), ref, rtol=0, atol=1e-6)
 
 
+def test_smooth_shuffled_takes_opencv_only_in_plain_cpu_inference(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The dispatch: OpenCV's twin for float32 CPU inference; torch's pooling with a gradient and under
+    ``torch.compile`` (a call to OpenCV there would break the graph)."""
+    import murk.models.jointid.decoder as decoder
+
+    calls: list[int] = []
+    twin = decoder._smooth_shuffled_opencv
+
+    def spy(x: torch.Tensor, r: int) -> torch.Tensor:
+        calls.append(r)
+        return twin(x, r)
+
+    monkeypatch.setattr(decoder, "_smooth_shuffled_opencv", spy)
+    x = torch.rand(1, 2, 16, 24, generator=torch.Generator().manual_seed(0))
+    with torch.no_grad():
+        plain = decoder.smooth_shuffled(x, 4)
+    assert calls == [4]
+    out = decoder.smooth_shuffled(x.clone().requires_grad_(True), 4)
+    assert calls == [4] and out.grad_fn is not None
+    compiled = torch.compile(lambda t: decoder.smooth_shuffled(t, 4), backend="eager", fullgraph=True)
+    with torch.no_grad():
+        torch.testing.assert_close(compiled(x), plain, rtol=0, atol=1e-6)
+    assert calls == [4]
+
+
 @pytest.mark.filterwarnings("ignore:`torch.jit.trace` is deprecated:DeprecationWarning")  # the ONNX exporter traces
 @pytest.mark.parametrize(("shape", "r"), [((1, 2, 37, 53), 4), ((2, 4, 16, 24), 8), ((1, 8, 9, 11), 2)])
 def test_smooth_shuffled_twins_agree_on_odd_sizes_and_layouts(shape: tuple[int, ...], r: int) -> None:

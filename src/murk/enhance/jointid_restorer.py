@@ -13,7 +13,7 @@ Registry options (``murk.enhance.create("jointid", **options)``; any other optio
 path, alternative to ``checkpoint``), ``device`` ("cpu", "cuda", "cuda:N"), ``precision`` ("fp32", "bf16",
 "fp16"), ``tile`` (pixels or None), ``overlap`` (pixels, default 64), ``trust_checkpoint`` (bool),
 ``batch`` (max frames or tiles per forward pass), ``compile`` and ``cuda_graph`` (bool, default False),
-``refine`` (0 = the network's output alone; the ``jointid`` method's default is
+``refine`` (0 = no transfer; with ``lite_blend`` 0 too, the network's output alone; the ``jointid`` method's default is
 :data:`murk.enhance.choices.DEFAULT_REFINE`, while a :class:`JointIDRestorer` built directly around a network
 defaults to 0), ``refine_eps``, ``refine_guard`` and ``lite_blend`` (the ``jointid`` method's default is
 :data:`murk.enhance.choices.DEFAULT_LITE_BLEND`; 0 for a :class:`JointIDRestorer` built directly).
@@ -162,7 +162,7 @@ class JointIDRestorer(Restorer):
             raise ValueError(f"batch: expected None or a positive integer, got {batch!r}")
         self.refine_settings = RefineSettings(refine, refine_eps, refine_guard)
         """The ``refine`` step after the network (:mod:`murk.enhance.refine`)."""
-        if isinstance(lite_blend, bool) or not 0.0 <= float(lite_blend) <= 1.0:
+        if isinstance(lite_blend, bool) or not isinstance(lite_blend, (int, float)) or not 0.0 <= lite_blend <= 1.0:
             raise ValueError(f"lite_blend: expected a weight in [0, 1] (0 = Joint-ID alone), got {lite_blend!r}")
         if lite_blend > 0 and lite is None:
             raise ValueError("lite_blend: needs the lite restorer to blend in (lite=...)")
@@ -225,9 +225,13 @@ class JointIDRestorer(Restorer):
             self._std = torch.tensor(INPUT_STD, device=images.device).view(1, 3, 1, 1)
         return (images - self._mean) / self._std
 
+    def _tiled(self, x: Tensor) -> bool:
+        """Whether a batch of this size runs in tiles."""
+        return self.tile is not None and (x.shape[2] > self.tile or x.shape[3] > self.tile)
+
     def _forward_padded(self, x: Tensor) -> tuple[Tensor, Tensor]:
         """Normalised, padded batch -> (depth_m, enhanced), whole or tiled, in chunks of ``batch``."""
-        if self.tile is not None and (x.shape[2] > self.tile or x.shape[3] > self.tile):
+        if self.tile is not None and self._tiled(x):
             depth, enhanced = tiled_apply(self._backend, x, tile=self.tile, overlap=self.overlap, max_batch=self.batch)
             return depth, enhanced
         step = self.batch or x.shape[0]
@@ -251,7 +255,10 @@ class JointIDRestorer(Restorer):
                 x = color_balance_torch(x, self.input_balance_pct, self.input_balance_pct)
             if self.model is not None:  # an ONNX export normalises inside its graph
                 x = self._normalize(x)
-            x, pad = pad_to_multiple(x, SIZE_MULTIPLE, "reflect")
+            # An ONNX export takes whole frames of any size and balances, normalises and pads them itself: padded
+            # here first, its balance would take its levels from the padding too. Tiles are padded here.
+            whole_onnx = self.model is None and not self._tiled(x)
+            x, pad = pad_to_multiple(x, 1 if whole_onnx else SIZE_MULTIPLE, "reflect")
             if self.channels_last:
                 x = x.contiguous(memory_format=torch.channels_last)
             depth, enhanced = self._forward_padded(x)

@@ -140,11 +140,14 @@ def _run_bag(
 
 def weights_line(restorer: Restorer, *, shipped: bool) -> str | None:
     """``<stage> weights: <file>`` for a method with learned weights (and, for the weights shipped with murk,
-    which network they are); None for a method without weights."""
-    weights = weights_of(restorer)
-    if not weights:
+    which network they are; for ``jointid``, the ``lite`` weights blended in); None for a method without
+    weights."""
+    if not weights_of(restorer):
         return None
-    stage = next(s.name for s in getattr(restorer, "stages", [restorer]) if getattr(s, "weights", None))
-    what = {"jointid": "the 'small' Joint-ID murk trained", "lite": "the 'lite' network murk trained"}.get(stage)
+    stage = next(s for s in getattr(restorer, "stages", [restorer]) if getattr(s, "weights", None))
+    what = {"jointid": "the 'small' Joint-ID murk trained", "lite": "the 'lite' network murk trained"}.get(stage.name)
     note = f" (shipped with murk: {what}, docs/models.md)" if shipped and what else ""
-    return f"{stage} weights: {weights}{note}"
+    blended = getattr(stage, "lite", None)
+    if blended is not None:  # jointid?lite_blend: the shipped lite's restoration averaged in
+        note += f"; with lite's restoration blended in (lite_blend {stage.lite_blend:g}): {blended.weights}"
+    return f"{stage.name} weights: {stage.weights}{note}"
