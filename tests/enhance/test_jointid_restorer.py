@@ -307,7 +307,7 @@ def test_refine_transfers_the_restoration_onto_the_input_and_leaves_depth(tiny_c
 
 def test_lite_blend_averages_the_shipped_lite_in_and_leaves_depth(tiny, tiny_ckpt, underwater):
     from murk.data import shipped_lite_weights
-    from murk.enhance.restorer import weights_of
+    from murk.enhance.restorer import blended_weights_of, weights_of
     from murk.enhance.run import weights_line
 
     x = np.stack([underwater, 0.6 * underwater]).astype(np.float32)
@@ -320,7 +320,8 @@ def test_lite_blend_averages_the_shipped_lite_in_and_leaves_depth(tiny, tiny_ckp
     default = blended.restore(x)  # lite_blend 0.5
     # The weights an output came from: Joint-ID's file, and the lite blended in
     assert weights_of(alone_restorer) == str(tiny_ckpt)
-    assert weights_of(blended) == str(tiny_ckpt) and blended.lite.weights == str(shipped_lite_weights())
+    assert weights_of(blended) == str(tiny_ckpt) and blended_weights_of(blended) == str(shipped_lite_weights())
+    assert blended_weights_of(alone_restorer) is None
     assert weights_line(blended, shipped=False) == (
         f"jointid weights: {tiny_ckpt}; with lite's restoration blended in (lite_blend 0.5): {shipped_lite_weights()}"
     )

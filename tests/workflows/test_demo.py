@@ -26,7 +26,9 @@ def test_demo_quick_runs_the_whole_pipeline(tmp_path: Path) -> None:
     assert [m["label"] for m in doc["methods"]] == labels
     assert doc["methods"][2]["checkpoint"] is None  # the shipped weights, named in "weights"
     assert doc["methods"][2]["weights"].endswith("jointid-small.pt") and doc["methods"][0]["weights"] is None
-    assert doc["methods"][4]["weights"].endswith("lite.pt")
+    assert doc["methods"][4]["weights"].endswith("lite.pt") and doc["methods"][4]["blended_weights"] is None
+    assert doc["methods"][2]["blended_weights"].endswith("lite.pt")  # jointid blends the shipped lite in
+    assert doc["methods"][5]["blended_weights"] is None  # the illustration run: the network as trained
     assert len(doc["rows"]) == 3 * 6 and not doc["errors"]
     assert "report.html" in r.output and "jointid+post" in r.output and "shipped" in r.output
     # rerunning resumes: nothing is trained again

@@ -215,6 +215,16 @@ def weights_of(restorer: Any) -> str | None:
     return None
 
 
+def blended_weights_of(restorer: Any) -> str | None:
+    """The weights file of the restorer blended into the output of the stage that :func:`weights_of` names (the
+    shipped ``lite`` of ``jointid?lite_blend``); None when nothing is blended in."""
+    for stage in getattr(restorer, "stages", [restorer]):
+        if getattr(stage, "weights", None):
+            blended = getattr(getattr(stage, "lite", None), "weights", None)
+            return None if blended is None else str(blended)
+    return None
+
+
 def options_of(name: str) -> dict[str, Option]:
     """The options the method ``name`` declares (name, type, default), by name.
 

@@ -14,7 +14,7 @@ from murk.enhance.frame_job import enhance_frames
 from murk.enhance.image_job import enhance_images
 from murk.enhance.inputs import EnhanceInput, plan_images, resolve_input
 from murk.enhance.job import EnhanceReport, OutputOptions, StopFn
-from murk.enhance.restorer import Restorer, weights_of
+from murk.enhance.restorer import Restorer, blended_weights_of, weights_of
 
 
 class ProgressDisplay(Protocol):
@@ -147,7 +147,7 @@ def weights_line(restorer: Restorer, *, shipped: bool) -> str | None:
     stage = next(s for s in getattr(restorer, "stages", [restorer]) if getattr(s, "weights", None))
     what = {"jointid": "the 'small' Joint-ID murk trained", "lite": "the 'lite' network murk trained"}.get(stage.name)
     note = f" (shipped with murk: {what}, docs/models.md)" if shipped and what else ""
-    blended = getattr(stage, "lite", None)
-    if blended is not None:  # jointid?lite_blend: the shipped lite's restoration averaged in
-        note += f"; with lite's restoration blended in (lite_blend {stage.lite_blend:g}): {blended.weights}"
+    blended = blended_weights_of(restorer)
+    if blended:  # jointid?lite_blend: the shipped lite's restoration averaged in
+        note += f"; with lite's restoration blended in (lite_blend {stage.lite_blend:g}): {blended}"
     return f"{stage.name} weights: {stage.weights}{note}"

@@ -398,11 +398,20 @@ def _run_compare(
             {"name": path.name, "grid_u8": _shrink(grid), "rows": rows, "boxes": [b.__dict__ for b in chosen]}
         )
     result.summary = summarise(result.rows, labels, reference=refs is not None)
-    from murk.enhance.restorer import weights_of
+    from murk.enhance.restorer import blended_weights_of, weights_of
 
     weights = {m.label: weights_of(r) for m, r in zip(methods, restorers, strict=True)}
+    blended = {m.label: blended_weights_of(r) for m, r in zip(methods, restorers, strict=True)}
     _write_tables(
-        out, result, methods, uiqm_preset, uciqe_preset, weights, reference=refs is not None, snow=snow is not None
+        out,
+        result,
+        methods,
+        uiqm_preset,
+        uciqe_preset,
+        weights,
+        blended,
+        reference=refs is not None,
+        snow=snow is not None,
     )
     notes = [
         f"UIQM preset '{uiqm_preset}', UCIQE preset '{uciqe_preset}' (docs/metrics.md says which published code "
@@ -435,7 +444,11 @@ def _run_compare(
             "input on the same image (mean +- std over images)."
             + (f" Images and references were downscaled to a long side of {max_side} px first." if max_side else "")
         )
-    notes += [f"Weights of {lab}: {w}" for lab, w in weights.items() if w]
+    notes += [
+        f"Weights of {lab}: {w}" + (f" (with lite's restoration blended in: {blended[lab]})" if blended[lab] else "")
+        for lab, w in weights.items()
+        if w
+    ]
     if resized:
         notes.append(
             f"Outputs at another size than their input: {', '.join(sorted(resized))} (e.g. a baseline's official "
@@ -496,6 +509,7 @@ def _write_tables(
     uiqm_preset: str,
     uciqe_preset: str,
     weights: dict[str, str | None],
+    blended: dict[str, str | None],
     *,
     reference: bool = False,
     snow: bool = False,
@@ -519,6 +533,7 @@ def _write_tables(
                 "method": m.method,
                 "checkpoint": m.checkpoint,
                 "weights": weights.get(m.label),
+                "blended_weights": blended.get(m.label),
             }
             for m in methods
         ],
