@@ -332,10 +332,12 @@ def test_lite_blend_averages_the_shipped_lite_in_and_leaves_depth(tiny, tiny_ckp
     np.testing.assert_allclose(quarter, 0.75 * alone.images + 0.25 * lite, atol=1e-6)
     np.testing.assert_allclose(create("jointid", checkpoint=tiny_ckpt, lite_blend=1).restore(x).images, lite, atol=1e-6)
     for bad in (-0.1, 1.5):
-        with pytest.raises(ValueError, match=r"lite_blend: expected a weight in \[0, 1\]"):
+        with pytest.raises(ValueError, match=r"lite_blend: expected a number in \[0.0, 1.0\], got"):
             create("jointid", checkpoint=tiny_ckpt, lite_blend=bad)
-    for bad in (True, "0.5", float("nan")):
-        with pytest.raises(ValueError, match=r"lite_blend: expected a weight in \[0, 1\]"):
+    with pytest.raises(ValueError, match=r"lite_blend: expected a number in \[0.0, 1.0\], got nan"):
+        JointIDRestorer(copy.deepcopy(tiny), lite_blend=float("nan"))
+    for bad in (True, "0.5"):
+        with pytest.raises(TypeError, match=r"lite_blend: expected a number"):
             JointIDRestorer(copy.deepcopy(tiny), lite_blend=bad)
     with pytest.raises(ValueError, match=r"option lite_blend: expected float, got True"):
         create("jointid", checkpoint=tiny_ckpt, lite_blend=True)

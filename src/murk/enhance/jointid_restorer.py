@@ -44,6 +44,7 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
+from murk._checks import check_range
 from murk.enhance.choices import DEFAULT_LITE_BLEND, DEFAULT_OVERLAP, DEFAULT_REFINE, DEFAULT_REFINE_GUARD, Precision
 from murk.enhance.refine import RefineSettings, refine_restoration
 from murk.enhance.restorer import RestoredTensor, Restorer
@@ -121,8 +122,9 @@ class JointIDRestorer(Restorer):
 
     Raises:
         TypeError: ``model`` is neither a JointID nor an ONNX runner.
-        ValueError: bad precision/tile/overlap/batch/lite_blend, CUDA-only options on the CPU, or CUDA not
-            available.
+        ValueError: bad precision/tile/overlap/batch, ``lite_blend`` outside [0, 1] or without ``lite``,
+            CUDA-only options on the CPU, or CUDA not available.
+        TypeError: ``lite_blend`` is not a number.
     """
 
     name = "jointid"
@@ -162,11 +164,9 @@ class JointIDRestorer(Restorer):
             raise ValueError(f"batch: expected None or a positive integer, got {batch!r}")
         self.refine_settings = RefineSettings(refine, refine_eps, refine_guard)
         """The ``refine`` step after the network (:mod:`murk.enhance.refine`)."""
-        if isinstance(lite_blend, bool) or not isinstance(lite_blend, (int, float)) or not 0.0 <= lite_blend <= 1.0:
-            raise ValueError(f"lite_blend: expected a weight in [0, 1] (0 = Joint-ID alone), got {lite_blend!r}")
-        if lite_blend > 0 and lite is None:
+        self.lite_blend = check_range("lite_blend", lite_blend, 0.0, 1.0)
+        if self.lite_blend > 0 and lite is None:
             raise ValueError("lite_blend: needs the lite restorer to blend in (lite=...)")
-        self.lite_blend = float(lite_blend)
         """Weight of :attr:`lite`'s restoration in the output (0: Joint-ID's alone)."""
         self.lite = lite if self.lite_blend > 0 else None
         """The ``lite`` restorer blended in (None when ``lite_blend`` is 0)."""
@@ -308,6 +308,7 @@ def create_jointid(
         ValueError: no checkpoint given, or bad options.
         InputFileError: the checkpoint cannot be loaded (see ``murk.models.jointid.load_checkpoint``).
     """
+    from murk.enhance.lite_restorer import create_lite
     from murk.models.jointid.checkpoint import load_checkpoint
     from murk.models.jointid.onnx_export import OnnxJointID
 
@@ -342,17 +343,7 @@ def create_jointid(
         refine_eps=refine_eps,
         refine_guard=refine_guard,
         lite_blend=lite_blend,
-        lite=_shipped_lite(lite_blend, dev),
+        lite=create_lite(device=dev) if check_range("lite_blend", lite_blend, 0.0, 1.0) > 0 else None,
     )
     restorer.weights = str(path)
     return restorer
-
-
-def _shipped_lite(lite_blend: float, device: torch.device) -> Restorer | None:
-    """The shipped ``lite`` on ``device`` when ``lite_blend`` asks for it (None at 0; a bad weight is left to
-    :class:`JointIDRestorer` to name)."""
-    if isinstance(lite_blend, bool) or not isinstance(lite_blend, (int, float)) or not 0.0 < lite_blend <= 1.0:
-        return None
-    from murk.enhance.lite_restorer import create_lite
-
-    return create_lite(device=device)

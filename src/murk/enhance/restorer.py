@@ -206,23 +206,23 @@ def available() -> list[str]:
     return sorted(_REGISTRY)
 
 
+def weighted_stage(restorer: Any) -> Any | None:
+    """The first stage of a restorer (itself, or a stage of a chain) that loaded weights; None without one."""
+    return next((s for s in getattr(restorer, "stages", [restorer]) if getattr(s, "weights", None)), None)
+
+
 def weights_of(restorer: Any) -> str | None:
-    """The weights file a restorer (or any stage of a chain) loaded, e.g. the shipped Joint-ID when no checkpoint
-    was given; None for methods without weights."""
-    for stage in getattr(restorer, "stages", [restorer]):
-        if getattr(stage, "weights", None):
-            return str(stage.weights)
-    return None
+    """The weights file a restorer (or the first stage of a chain that has one) loaded, e.g. the shipped Joint-ID
+    when no checkpoint was given; None for methods without weights."""
+    stage = weighted_stage(restorer)
+    return None if stage is None else str(stage.weights)
 
 
 def blended_weights_of(restorer: Any) -> str | None:
     """The weights file of the restorer blended into the output of the stage that :func:`weights_of` names (the
     shipped ``lite`` of ``jointid?lite_blend``); None when nothing is blended in."""
-    for stage in getattr(restorer, "stages", [restorer]):
-        if getattr(stage, "weights", None):
-            blended = getattr(getattr(stage, "lite", None), "weights", None)
-            return None if blended is None else str(blended)
-    return None
+    blended = getattr(getattr(weighted_stage(restorer), "lite", None), "weights", None)
+    return None if blended is None else str(blended)
 
 
 def options_of(name: str) -> dict[str, Option]:

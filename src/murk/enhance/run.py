@@ -14,7 +14,7 @@ from murk.enhance.frame_job import enhance_frames
 from murk.enhance.image_job import enhance_images
 from murk.enhance.inputs import EnhanceInput, plan_images, resolve_input
 from murk.enhance.job import EnhanceReport, OutputOptions, StopFn
-from murk.enhance.restorer import Restorer, blended_weights_of, weights_of
+from murk.enhance.restorer import Restorer, blended_weights_of, weighted_stage
 
 
 class ProgressDisplay(Protocol):
@@ -142,9 +142,9 @@ def weights_line(restorer: Restorer, *, shipped: bool) -> str | None:
     """``<stage> weights: <file>`` for a method with learned weights (and, for the weights shipped with murk,
     which network they are; for ``jointid``, the ``lite`` weights blended in); None for a method without
     weights."""
-    if not weights_of(restorer):
+    stage = weighted_stage(restorer)
+    if stage is None:
         return None
-    stage = next(s for s in getattr(restorer, "stages", [restorer]) if getattr(s, "weights", None))
     what = {"jointid": "the 'small' Joint-ID murk trained", "lite": "the 'lite' network murk trained"}.get(stage.name)
     note = f" (shipped with murk: {what}, docs/models.md)" if shipped and what else ""
     blended = blended_weights_of(restorer)
