@@ -1,9 +1,12 @@
-"""ReadAhead: decode in a background thread; finite sources lose nothing, live sources keep the newest frame."""
+"""ReadAhead: decode in a background thread; finite sources lose nothing, live sources keep the newest frame.
+
+No test depends on the machine's speed: the order of reads and takes is set with events, and a wait on an event
+that must come has a generous limit only so that a fault fails instead of hanging.
+"""
 
 from __future__ import annotations
 
 import threading
-import time
 
 import numpy as np
 import pytest
@@ -11,10 +14,16 @@ import pytest
 from murk.io.readahead import ReadAhead
 from murk.io.video import Frame, FrameSource
 
+WAIT_S = 60.0
+"""Limit of a wait for something that must happen (only a fault reaches it)."""
+NOT_HAPPENING_S = 0.2
+"""How long a test watches for something that must not happen (a busy machine can hide a fault, never fake one)."""
+
 
 class _Counter(FrameSource):
     """Frames 0..n-1 (broken where listed); optionally raises after ``fail_after`` frames; records the reader
-    thread and whether it was closed."""
+    thread and whether it was closed. ``asked[i]`` (when given) is set when the read of frame ``i`` starts
+    (``i == n``: the read that finds the end); the read of frame ``i`` waits for ``hold[i]`` (when given)."""
 
     def __init__(self, n: int, *, live: bool = False, broken: tuple[int, ...] = (), fail_after: int | None = None):
         self.n, self.live, self.broken, self.fail_after = n, live, broken, fail_after
@@ -22,12 +31,15 @@ class _Counter(FrameSource):
         self.i = 0
         self.closed = False
         self.threads: set[str] = set()
-        self.gate = threading.Event()
-        self.gate.set()
+        self.asked: dict[int, threading.Event] = {}
+        self.hold: dict[int, threading.Event] = {}
 
     def read(self) -> Frame | None:
         self.threads.add(threading.current_thread().name)
-        self.gate.wait()
+        if self.i in self.asked:
+            self.asked[self.i].set()
+        if self.i in self.hold:
+            assert self.hold[self.i].wait(WAIT_S), f"frame {self.i} was never released"
         if self.fail_after is not None and self.i >= self.fail_after:
             raise OSError("camera unplugged")
         if self.i >= self.n:
@@ -56,41 +68,51 @@ def test_finite_source_gives_every_frame_in_order_from_another_thread() -> None:
 
 def test_finite_source_waits_when_the_queue_is_full() -> None:
     src = _Counter(100)
+    src.asked = {1: threading.Event(), 2: threading.Event()}
     ra = ReadAhead(src, depth=2)
-    deadline = time.monotonic() + 5
-    while src.i < 2 and time.monotonic() < deadline:
-        time.sleep(0.01)
-    time.sleep(0.1)
-    assert src.i <= 3  # two frames buffered plus at most one decoded and waiting for room
-    assert [ra.read().index for _ in range(5)] == [0, 1, 2, 3, 4]  # type: ignore[union-attr]
+    assert src.asked[1].wait(WAIT_S)  # the queue fills with frames 0 and 1 ...
+    assert not src.asked[2].wait(NOT_HAPPENING_S)  # ... and the reader waits instead of reading a third
+    assert ra.read().index == 0  # type: ignore[union-attr]
+    assert src.asked[2].wait(WAIT_S)  # room for one: the third is read
+    assert [ra.read().index for _ in range(5)] == [1, 2, 3, 4, 5]  # type: ignore[union-attr]
     ra.close()
 
 
 def test_live_source_keeps_the_newest_frame_and_counts_the_rest() -> None:
     src = _Counter(200, live=True)
-    src.gate.clear()
+    src.hold = {1: threading.Event()}  # frame 0 alone, until the consumer holds it
+    src.asked = {200: threading.Event()}  # the read that finds the source's end
     ra = ReadAhead(src)
     assert ra.drop_late
-    got = []
-    src.gate.set()
-    while (f := ra.read()) is not None:
-        got.append(f.index)
-        time.sleep(0.002)  # a consumer slower than the source
+    first = ra.read()
+    assert first is not None and first.index == 0
+    src.hold[1].set()
+    assert src.asked[200].wait(WAIT_S)  # the source delivered frames 1..199 while the consumer was busy
+    got = [first.index] + [f.index for f in ra]
     ra.close()
-    assert got == sorted(got) and len(set(got)) == len(got)
-    assert got[-1] == 199  # the last frame is never dropped
-    assert ra.dropped + len(got) == 200  # every decoded frame was either returned or counted as dropped
-    assert ra.dropped > 0
+    assert got == [0, 199]  # only the newest frame waited; the last frame is never dropped
+    assert ra.dropped == 198 and ra.dropped + len(got) == 200  # every frame was either returned or counted
 
 
 def test_live_source_slower_than_the_consumer_loses_nothing() -> None:
     class Slow(_Counter):
+        """Delivers frame i + 1 only once the consumer has taken frame i (slower than the consumer by
+        construction, however busy the machine is)."""
+
+        def __init__(self, n: int) -> None:
+            super().__init__(n, live=True)
+            self.taken = threading.Semaphore(1)
+
         def read(self) -> Frame | None:
-            time.sleep(0.003)
+            assert self.taken.acquire(timeout=WAIT_S), "the consumer never took the previous frame"
             return super().read()
 
-    ra = ReadAhead(Slow(30, live=True))
-    got = [f.index for f in ra]
+    src = Slow(30)
+    ra = ReadAhead(src)
+    got = []
+    for f in ra:
+        got.append(f.index)
+        src.taken.release()
     ra.close()
     assert got == list(range(30)) and ra.dropped == 0
 
