@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import http.server
+import itertools
 import socketserver
 import threading
 import time
@@ -50,13 +51,14 @@ def read_video(path: Path) -> list[np.ndarray]:
 class _MJPEGHandler(http.server.BaseHTTPRequestHandler):
     frames: ClassVar[list[np.ndarray]] = []
     delay_s: ClassVar[float] = 0.005
+    loop: ClassVar[bool] = False
 
     def do_GET(self) -> None:
         self.send_response(200)
         self.send_header("Content-Type", "multipart/x-mixed-replace; boundary=frame")
         self.end_headers()
         try:
-            for f in self.frames:
+            for f in itertools.cycle(self.frames) if self.loop else self.frames:
                 _, buf = cv2.imencode(".jpg", np.ascontiguousarray(f[:, :, ::-1]))
                 b = buf.tobytes()
                 head = b"--frame\r\nContent-Type: image/jpeg\r\nContent-Length: %d\r\n\r\n" % len(b)
@@ -72,9 +74,10 @@ class _MJPEGHandler(http.server.BaseHTTPRequestHandler):
 
 
 @contextlib.contextmanager
-def mjpeg_camera(frames: list[np.ndarray], delay_s: float = 0.005) -> Iterator[str]:
-    """An MJPEG-over-HTTP camera on localhost: yields its URL; it serves ``frames`` to a client, then disconnects."""
-    handler = type("H", (_MJPEGHandler,), {"frames": frames, "delay_s": delay_s})
+def mjpeg_camera(frames: list[np.ndarray], delay_s: float = 0.005, *, loop: bool = False) -> Iterator[str]:
+    """An MJPEG-over-HTTP camera on localhost: yields its URL; it serves ``frames`` to a client, then disconnects
+    (with ``loop``: serves them over and over until the client goes away)."""
+    handler = type("H", (_MJPEGHandler,), {"frames": frames, "delay_s": delay_s, "loop": loop})
     server = socketserver.ThreadingTCPServer(("127.0.0.1", 0), handler)
     server.daemon_threads = True
     threading.Thread(target=server.serve_forever, daemon=True).start()

@@ -55,10 +55,10 @@ def small_rgbd(tmp_path: Path) -> Path:
 
 @pytest.fixture
 def mjpeg_server() -> Iterator[Callable[..., str]]:
-    """Start MJPEG-over-HTTP cameras on localhost: ``start(frames, delay_s=0.005) -> url``; each serves its
-    frames to a client, then disconnects."""
+    """Start MJPEG-over-HTTP cameras on localhost: ``start(frames, delay_s=0.005, loop=False) -> url``; each
+    serves its frames to a client, then disconnects (``loop``: serves them until the client goes away)."""
     with contextlib.ExitStack() as stack:
-        yield lambda frames, delay_s=0.005: stack.enter_context(mjpeg_camera(frames, delay_s))
+        yield lambda frames, delay_s=0.005, loop=False: stack.enter_context(mjpeg_camera(frames, delay_s, loop=loop))
 
 
 @pytest.fixture

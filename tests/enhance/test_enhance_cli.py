@@ -122,30 +122,31 @@ def test_usage_errors_exit_2(folder: Path, tmp_path: Path) -> None:
         assert res.exit_code == 2 and "CUDA is not available" in _out(res)
 
 
-def test_sigterm_closes_a_live_recording_cleanly(
-    mjpeg_server: Callable[[list[np.ndarray], float], str], tmp_path: Path
-) -> None:
-    # A long stream (about 20 s); the recording is stopped with SIGTERM as a service manager would. OpenCV's MP4
-    # writer only produces a playable file when it is released, so a readable file proves the clean close.
-    url = mjpeg_server(make_frames(30) * 70, 0.01)
+def test_sigterm_closes_a_live_recording_cleanly(mjpeg_server: Callable[..., str], tmp_path: Path) -> None:
+    # An endless stream; the recording is stopped with SIGTERM as a service manager would. OpenCV's MP4 writer
+    # only produces a playable file when it is released, so a readable file proves the clean close. The output
+    # appears with its first frame, and a stop writes every frame already restored: however slowly the machine
+    # starts murk, the video holds at least that frame.
+    url = mjpeg_server(make_frames(30), 0.01, loop=True)
     out = tmp_path / "rov.mp4"
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src")}
     cmd = [sys.executable, "-m", "murk", "enhance", url, "--out", str(out), "--video-backend", "opencv"]
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
-        deadline = time.monotonic() + 60
-        while not out.exists() and time.monotonic() < deadline and proc.poll() is None:
+        deadline = time.monotonic() + 600  # only a fault reaches it
+        while not out.exists() and proc.poll() is None and time.monotonic() < deadline:
             time.sleep(0.1)
-        time.sleep(0.5)
+        assert out.exists() and proc.poll() is None, "the recording never started"
         proc.send_signal(signal.SIGTERM)
-        output, _ = proc.communicate(timeout=60)
+        output, _ = proc.communicate(timeout=120)
     finally:
         if proc.poll() is None:
             proc.kill()
+            proc.communicate()
     assert proc.returncode == 0, output
-    assert "processed" in output
+    assert "processed" in output and "disconnected" not in output  # stopped by the signal, not by the stream
     frames = read_video(out)
-    assert 1 <= len(frames) < 2100 and frames[0].shape == (48, 64, 3)
+    assert len(frames) >= 1 and frames[0].shape == (48, 64, 3)
 
 
 def test_video_with_a_broken_frame_continues_and_exits_1(tmp_path: Path) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 import time
 from pathlib import Path
 
@@ -21,7 +22,7 @@ from murk.enhance.restorer import Restored, Restorer
 from murk.errors import InputFileError
 from murk.io import read_image, read_jsonl, read_rgb, to_uint
 from murk.io.atomic import TMP_PREFIX
-from murk.io.video import CaptureSource
+from murk.io.video import CaptureSource, Frame
 
 from ._enhance_helpers import FakeDepth, FakeSource, make_frames, make_video, read_video
 
@@ -327,20 +328,52 @@ def test_frame_pipeline_refuses_unwritable_video_suffix(tmp_path: Path) -> None:
 
 
 class _SlowPost(PostRestorer):
-    """``post`` that takes at least 20 ms per call: slower than the bursting fake camera."""
+    """``post`` that takes at least 20 ms per call: restoration is the slow stage (for a file source, whose
+    reader waits for room, so no outcome depends on how long it takes)."""
 
     def restore(self, images: np.ndarray):  # type: ignore[no-untyped-def]
         time.sleep(0.02)
         return super().restore(images)
 
 
+class _BurstingCamera(FakeSource):
+    """A live source that holds frame 1 until ``consumer_busy`` is set and sets ``ended`` at its end."""
+
+    def __init__(self, frames: list[np.ndarray]) -> None:
+        super().__init__(frames, live=True)
+        self.consumer_busy, self.ended = threading.Event(), threading.Event()
+
+    def read(self) -> Frame | None:
+        if self._i == 1:
+            assert self.consumer_busy.wait(60), "restoration never started"
+        frame = super().read()
+        if frame is None:
+            self.ended.set()
+        return frame
+
+
+class _PostAfterTheBurst(PostRestorer):
+    """``post`` whose first call waits until the camera has sent everything: restoration slower than the source
+    by construction, however busy the machine is."""
+
+    def __init__(self, camera: _BurstingCamera) -> None:
+        super().__init__()
+        self.camera = camera
+
+    def restore(self, images: np.ndarray):  # type: ignore[no-untyped-def]
+        self.camera.consumer_busy.set()
+        assert self.camera.ended.wait(60), "the camera never reached its end"
+        return super().restore(images)
+
+
 def test_a_live_source_faster_than_restoration_drops_frames_and_says_how_many(tmp_path: Path) -> None:
-    frames = make_frames(40)
-    report = enhance_frames(FakeSource(frames, live=True), _SlowPost(), tmp_path / "live", OutputOptions("png"))
-    written = sorted(tmp_path.joinpath("live").glob("fake_*.png"))
-    assert report.dropped > 0 and report.processed + report.dropped == 40
-    assert len(written) == report.processed and written[-1].name == "fake_000039.png"  # the newest is kept
-    assert any(f"{report.dropped} frame(s) dropped" in n for n in report.notes)
+    camera = _BurstingCamera(make_frames(40))
+    report = enhance_frames(camera, _PostAfterTheBurst(camera), tmp_path / "live", OutputOptions("png"))
+    written = sorted(p.name for p in tmp_path.joinpath("live").glob("fake_*.png"))
+    # frame 0 is restored; 1..38 arrive while it is, each replacing the one waiting; 39, the newest, is kept
+    assert (report.processed, report.dropped) == (2, 38)
+    assert written == ["fake_000000.png", "fake_000039.png"]
+    assert any("38 frame(s) dropped" in n for n in report.notes)
 
 
 def test_a_file_source_loses_nothing_with_read_ahead(tmp_path: Path) -> None:
