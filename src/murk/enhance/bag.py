@@ -41,6 +41,7 @@ from murk.io.atomic import make_output_folder
 from murk.io.images import IMAGE_SUFFIXES, to_float, to_uint
 from murk.io.jobs import ErrorLog, ErrorRecord
 from murk.io.jsonl import write_jsonl
+from murk.io.listing import real_path
 from murk.io.ros_image import CAMERA_INFO_MSG, COMPRESSED_MSG, output_bits
 from murk.io.rosbag import STORAGES, BagFrame, BagSource, Storage
 from murk.io.rosbag_writer import BagSink, remove_stale_bags
@@ -178,7 +179,7 @@ def enhance_bag_to_bag(
         raise ValueError(
             f"output topics {out_topic}, {depth_topic} must differ from each other and from {source.topic}"
         )
-    if out.resolve() == source.path.resolve():
+    if real_path(out) == real_path(source.path):
         raise ValueError(f"--out {out}: is the input bag")
     copies = resolve_copy_topics(source, bag.copy_topics, skip=(out_topic, depth_topic))
     report = EnhanceReport(

@@ -35,6 +35,7 @@ from murk.errors import OutputError
 from murk.io.atomic import make_output_folder, remove_stale_temporaries
 from murk.io.images import read_image, to_float, to_uint, write_uint
 from murk.io.jobs import ErrorLog, ErrorRecord
+from murk.io.listing import real_path
 
 
 @dataclass
@@ -87,7 +88,7 @@ def enhance_images(
         if should_stop and should_stop():
             report.stopped = True
             break
-        key = job.dst.resolve()
+        key = real_path(job.dst)
         if key in claimed:
             errors.add(ErrorRecord(str(job.src), "plan", f"output {job.dst} is already written from {claimed[key]}"))
             continue

@@ -15,8 +15,8 @@ from typing import Literal
 
 from murk.enhance.choices import ImageFormat
 from murk.errors import InputFileError
-from murk.io.images import IMAGE_SUFFIXES, list_images
-from murk.io.listing import glob_files
+from murk.io.images import IMAGE_SUFFIXES, glob_images, list_images
+from murk.io.listing import real_path
 from murk.io.paths import check_output_location, output_names
 from murk.io.video import VIDEO_SUFFIXES, is_stream_url, redact_url
 
@@ -59,9 +59,8 @@ def resolve_input(spec: str, *, recursive: bool = False, exclude: Path | None = 
     if is_stream_url(spec):
         return EnhanceInput("stream", redact_url(spec), target=spec.strip())
     if _GLOB_CHARS & set(spec):
-        images = [p for p in glob_files(spec) if p.suffix.lower() in IMAGE_SUFFIXES]  # survives symlink loops
         root = _glob_root(spec)
-        images = _exclude([p for p in images if not p.name.startswith(".")], exclude, root)
+        images = _exclude(glob_images(spec, unusable=True), exclude, root)  # never follows a symlink loop
         if not images:
             raise InputFileError(spec, "the pattern matches no image file")
         return EnhanceInput("images", spec, tuple(images), root=root)
@@ -76,10 +75,10 @@ def _exclude(images: list[Path], folder: Path | None, root: Path) -> list[Path]:
     equal to the input, or above it with outputs landing inside it, is refused by :func:`plan_images`."""
     if folder is None:
         return images
-    out = folder.resolve()
-    if root.resolve().is_relative_to(out):
+    out = real_path(folder)
+    if real_path(root).is_relative_to(out):
         return images
-    return [p for p in images if not p.resolve().is_relative_to(out)]
+    return [p for p in images if not real_path(p).is_relative_to(out)]
 
 
 def _glob_root(spec: str) -> Path:
@@ -138,17 +137,17 @@ def plan_images(inp: EnhanceInput, out: Path, fmt: ImageFormat | None = None) ->
             dst = out / (f"{names[src]}.{fmt}" if fmt else rel)  # without fmt the suffix keeps rel distinct
             jobs.append(ImageJob(src, dst, names[src]))
         out_dir = out
-        root, out_real = inp.root.resolve(), out.resolve()
+        root, out_real = real_path(inp.root), real_path(out)
         if not out_real.is_relative_to(root):  # (an --out inside the input folder is left out of the listing)
             for job in jobs:  # an --out above the input folder: outputs must not land inside the input folder
-                if job.dst.resolve().is_relative_to(root):
+                if real_path(job.dst).is_relative_to(root):
                     raise ValueError(
                         f"--out {out}: the output {job.dst} would land inside the input folder {inp.root} (and be "
                         "read back as an input on a rerun); choose another folder"
                     )
-    sources = {job.src.resolve(): job.src for job in jobs}
+    sources = {real_path(job.src): job.src for job in jobs}
     for job in jobs:
-        hit = sources.get(job.dst.resolve())
+        hit = sources.get(real_path(job.dst))
         if hit is not None:
             what = "its input" if hit == job.src else f"the input {hit}"
             raise ValueError(f"--out {out}: the output {job.dst} would overwrite {what}")

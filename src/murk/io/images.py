@@ -22,7 +22,7 @@ from murk._limits import set_max_pixels as set_max_pixels
 from murk.errors import InputFileError
 from murk.io.atomic import write_bytes_atomic
 from murk.io.header import Header, read_header
-from murk.io.listing import can_list, describe_unusable, walk_files
+from murk.io.listing import can_list, describe_unusable, glob_files, is_folder_loop, walk_files
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".ppm", ".webp")
 """File suffixes treated as images when scanning folders."""
@@ -274,12 +274,14 @@ def encode_image(path: str | Path, image: np.ndarray, params: Sequence[int] = ()
 def list_images(folder: str | Path, *, recursive: bool = False, unusable: bool = False) -> list[Path]:
     """Image files in ``folder`` (sorted), by suffix; hidden files and murk temporaries are skipped.
 
-    ``recursive=True`` follows directory symlinks but enters each real folder once and lists each real file
-    once (see :func:`murk.io.listing.walk_files`), so a symlink loop neither hangs nor repeats files.
+    ``recursive=True`` follows directory symlinks but enters each real folder once, never follows a link back to
+    its own folder or an ancestor, and lists each real file once (see :func:`murk.io.listing.walk_files`), so a
+    symlink loop neither hangs nor repeats files.
 
     ``unusable=True`` (batch commands that record one error per input) also lists the entries with an image
-    suffix that cannot be read as files (broken symlinks, FIFOs, devices) and the subfolders a recursive walk
-    cannot list: :func:`read_image` refuses each with a message saying what it is.
+    suffix that cannot be read as files (broken symlinks, symlink loops, FIFOs, devices), and the folder loops
+    and subfolders a recursive walk did not enter: :func:`read_image` refuses each with a message saying what it
+    is and what to do.
 
     Raises:
         InputFileError: ``folder`` is not a folder or cannot be listed.
@@ -291,16 +293,24 @@ def list_images(folder: str | Path, *, recursive: bool = False, unusable: bool =
         files = walk_files(folder, recursive=recursive, unusable=unusable)
     except OSError as exc:
         raise InputFileError(folder, f"cannot list this input folder ({_reason(exc)})") from None
-    return [
-        p
-        for p in files
-        if not p.name.startswith(".") and (p.suffix.lower() in IMAGE_SUFFIXES or (unusable and _unlisted(p)))
-    ]
+    return [p for p in files if _is_image_entry(p, unusable)]
 
 
-def _unlisted(path: Path) -> bool:
-    """A subfolder that a listing could not enter (kept so that it is reported, not silently skipped)."""
-    return path.is_dir() and not can_list(path)
+def glob_images(pattern: str, *, unusable: bool = False) -> list[Path]:
+    """Image files matching a glob pattern (sorted, each real file once; ``**`` walks never follow a loop), by
+    suffix, hidden files skipped; ``unusable`` as in :func:`list_images` (see
+    :func:`murk.io.listing.glob_files`)."""
+    return [p for p in glob_files(pattern, unusable=unusable) if _is_image_entry(p, unusable)]
+
+
+def _is_image_entry(path: Path, unusable: bool) -> bool:
+    """An entry of a listing that a batch command takes: a non-hidden image by suffix or, with ``unusable``, a
+    folder the walk did not enter (kept so that it is reported, not silently skipped)."""
+    if path.name.startswith("."):
+        return False
+    if path.suffix.lower() in IMAGE_SUFFIXES:
+        return True
+    return unusable and path.is_dir() and (is_folder_loop(path) or not can_list(path))
 
 
 def _reason(exc: OSError) -> str:

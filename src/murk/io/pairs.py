@@ -15,7 +15,7 @@ from murk.errors import InputFileError
 from murk.io.depth import DepthEncoding, InvalidDepthMode, nyu_mat_count, read_depth, read_nyu_mat, resolve_invalid
 from murk.io.images import IMAGE_SUFFIXES, read_image, to_float
 from murk.io.jobs import ErrorRecord
-from murk.io.listing import walk_files
+from murk.io.listing import describe_unusable, walk_files
 
 DEPTH_SUFFIXES = (*IMAGE_SUFFIXES, ".pgm", ".npy")
 
@@ -78,11 +78,18 @@ def discover(path: str | Path) -> tuple[list[RGBDSource], list[ErrorRecord]]:
         elif stem in depths:
             sources.append(RGBDSource(stem, str(rgbs[stem]), str(depths[stem])))
         else:
-            problems.append(ErrorRecord(str(rgbs[stem]), "pair", f"no depth file with stem '{stem}' in {depth_dir}"))
+            problems.append(_unpaired(rgbs[stem], f"no depth file with stem '{stem}' in {depth_dir}"))
     for stem in sorted((set(depths) | set(depth_clash)) - set(rgbs) - set(rgb_clash)):
         path = depths[stem] if stem in depths else depth_clash[stem][0]
-        problems.append(ErrorRecord(str(path), "pair", f"no RGB image with stem '{stem}' in {rgb_dir}"))
+        problems.append(_unpaired(path, f"no RGB image with stem '{stem}' in {rgb_dir}"))
     return sources, problems
+
+
+def _unpaired(path: Path, missing: str) -> ErrorRecord:
+    """The record of a file without its other half; an entry that is no file (a broken link, a symlink loop, a
+    FIFO) is recorded as what it is, since that, not the missing half, is what the user has to fix."""
+    why = describe_unusable(path)
+    return ErrorRecord(str(path), "read", why) if why else ErrorRecord(str(path), "pair", missing)
 
 
 def read_list(list_file: str | Path) -> list[RGBDSource]:

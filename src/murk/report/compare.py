@@ -139,6 +139,7 @@ def real_images(real_dir: Path, out: Path, *, recursive: bool = False) -> list[P
         ValueError: ``out`` is the input folder (or would mix with it); no image found.
     """
     from murk.io.images import list_images
+    from murk.io.listing import real_path
     from murk.io.paths import check_output_location
     from murk.io.rosbag import is_bag
 
@@ -146,17 +147,19 @@ def real_images(real_dir: Path, out: Path, *, recursive: bool = False) -> list[P
         return [real_dir]
     check_output_location(out, [real_dir], inside="allow")  # an --out inside REAL_DIR is left out below
     listed = list_images(real_dir, recursive=recursive, unusable=True)
-    images = [p for p in listed if out.resolve() not in p.resolve().parents]
+    out_real = real_path(out)
+    images = [p for p in listed if out_real not in real_path(p).parents]
     if not images:
         raise ValueError(f"{real_dir}: no images found")
     return images
 
 
 def _listable(path: Path) -> bool:
-    """A folder whose images are listed (a folder that cannot be entered stays one input its reader refuses)."""
-    from murk.io.listing import can_list
+    """A folder whose images are listed (a folder that cannot be entered, or a link that loops back to its own
+    folder, stays one input its reader refuses)."""
+    from murk.io.listing import can_list, is_folder_loop
 
-    return path.is_dir() and can_list(path)
+    return path.is_dir() and can_list(path) and not is_folder_loop(path)
 
 
 def run_compare(

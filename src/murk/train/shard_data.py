@@ -41,6 +41,7 @@ import torch
 from torch.utils.data import DataLoader, Dataset, IterableDataset, get_worker_info
 
 from murk.errors import InputFileError
+from murk.io.listing import real_path
 from murk.rng import derive_seed
 from murk.train.augment import centre_crop
 from murk.train.sources import INDEX_NAME, is_shard_source
@@ -132,13 +133,13 @@ def resolve_shards(source: str) -> ShardSet:
         if not Path(u).is_file():
             raise InputFileError(u, "shard not found")
     known: dict[str, tuple[str, ...]] = {}
-    for folder in {Path(u).resolve().parent for u in urls}:
+    for folder in {real_path(u).parent for u in urls}:
         for cand in (folder / INDEX_NAME, folder.parent / INDEX_NAME):
             if cand.is_file():
                 index = _read_index(cand)
                 for e in index["shards"]:
-                    known[str((cand.parent / e["url"]).resolve())] = tuple(e["keys"])
-    keys = tuple(known.get(str(Path(u).resolve())) or _tar_keys(u) for u in urls)
+                    known[str(real_path(cand.parent / e["url"]))] = tuple(e["keys"])
+    keys = tuple(known.get(str(real_path(u))) or _tar_keys(u) for u in urls)
     return ShardSet(tuple(urls), keys)
 
 

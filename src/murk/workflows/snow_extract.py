@@ -61,6 +61,8 @@ def list_footage(inputs: Sequence[Path], exclude: Sequence[Path] = ()) -> list[P
             real = os.path.realpath(f)
             if f is not inp and any(real.startswith(e) for e in skip):
                 continue
+            if not os.path.isfile(f):  # a broken or looping link, a FIFO: each is recorded under its own name
+                real = os.path.abspath(f)
             if real not in seen:
                 seen.add(real)
                 files.append(f)
