@@ -1,15 +1,17 @@
-"""Shared pieces of the live tests: a synthetic clip, a pipeline over it, restorers that are slow or fail."""
+"""Shared pieces of the live tests: a synthetic clip, a pipeline over it, restorers that are slow or fail, and a
+source whose reads the test orders with events (no outcome of a test may depend on the machine's speed)."""
 
 from __future__ import annotations
 
+import threading
 import time
 from pathlib import Path
 
 import numpy as np
 
 from murk.enhance.restorer import Restored, Restorer, create
-from murk.live.pipeline import LivePipeline
-from murk.live.source import PacedSource, open_live_source, reopener
+from murk.live.pipeline import LivePipeline, LiveView
+from murk.live.source import LiveFrame, PacedSource, open_live_source, reopener
 from tests._video import make_video
 
 
@@ -79,3 +81,61 @@ def make_restorer(spec: str) -> Restorer:
 def pipeline(path: Path, out: Path, method: str = "post", *, loop: bool = False, hooks=None) -> LivePipeline:
     source = PacedSource(open_live_source(str(path)), reopen=reopener(str(path), None), loop=loop)
     return LivePipeline(source, make_restorer, method, out, hooks=hooks)
+
+
+WAIT_S = 60.0
+"""Limit of a wait for something that must happen (only a fault reaches it)."""
+
+
+class WatchedSource(PacedSource):
+    """A paced clip whose reads the test orders: reading frame ``i`` waits for ``hold[i]`` (when given);
+    ``ended`` is set when the clip's end is read. With ``lockstep``, frame ``i + 1`` is read only after frame
+    ``i`` was restored, recorded and published: pass :meth:`restored` as the pipeline's last hook."""
+
+    def __init__(self, path: Path, *, lockstep: bool = False) -> None:
+        super().__init__(open_live_source(str(path)))
+        self.hold: dict[int, threading.Event] = {}
+        self.ended = threading.Event()
+        self._turn = threading.Semaphore(1) if lockstep else None
+
+    def _wait(self, event: threading.Event | threading.Semaphore, what: str) -> bool:
+        """Wait for ``event`` (False: stopped meanwhile)."""
+        deadline = time.monotonic() + WAIT_S
+        while not (event.wait(0.05) if isinstance(event, threading.Event) else event.acquire(timeout=0.05)):
+            if self._stop.is_set():
+                return False
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"{what} never came")
+        return True
+
+    def read(self) -> LiveFrame | None:
+        i = self._index
+        if self._turn is not None and not self._wait(self._turn, f"the restoration of frame {i - 1}"):
+            return None
+        if i in self.hold and not self._wait(self.hold[i], f"the release of frame {i}"):
+            return None
+        frame = super().read()
+        if frame is None:
+            self.ended.set()
+        return frame
+
+    def restored(self, view: LiveView) -> None:
+        if self._turn is not None:
+            self._turn.release()
+
+
+class BurstRestorer(SlowRestorer):
+    """Inverts the image; its first call sets ``started`` and waits until ``source`` has delivered everything:
+    restoration slower than the source by construction."""
+
+    name = "burst"
+
+    def __init__(self, source: WatchedSource, started: threading.Event) -> None:
+        super().__init__(0.0)
+        self.source, self.started = source, started
+
+    def restore(self, images: np.ndarray) -> Restored:
+        self.started.set()
+        if not self.source.ended.wait(WAIT_S):
+            raise TimeoutError("the source never reached its end")
+        return super().restore(images)

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import http.client
+import json
 import os
 import signal
 import subprocess
 import sys
 import time
 from pathlib import Path
+from urllib.parse import urlsplit
 
 from typer.testing import CliRunner
 
@@ -55,19 +58,43 @@ def test_ctrl_c_finishes_the_recording_and_exits_130(tmp_path: Path) -> None:
     env = os.environ | {"PYTHONPATH": os.pathsep.join([str(Path(__file__).parents[2] / "src"), *sys.path])}
     cmd = [sys.executable, "-m", "murk", "live", str(path), "-m", "post", "--port", "0", "--loop", "--record"]
     proc = subprocess.Popen([*cmd, "--out", str(out)], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    head = b""
     try:
-        deadline = time.monotonic() + 120
-        while not list(out.glob("recording_*")) and time.monotonic() < deadline:
-            time.sleep(0.2)
-        time.sleep(1.5)  # a second or so of recording
-        proc.send_signal(signal.SIGINT)
-        output, _ = proc.communicate(timeout=60)
+        assert proc.stdout is not None
+        while b"live view: " not in head and (line := proc.stdout.readline()):
+            head += line
+        assert b"live view: " in head, head.decode()
+        port = urlsplit(head.split(b"live view: ")[1].split()[0].decode()).port
+        assert port, head.decode()
+        # Five frames restored after the recording's first (its file appears with it) are five frames recorded:
+        # the restore thread records each frame it restores, and Ctrl+C finishes the one in progress.
+        deadline = time.monotonic() + 600  # only a fault reaches it
+        while not list(out.glob("recording_*")):
+            assert time.monotonic() < deadline and proc.poll() is None, head.decode()
+            time.sleep(0.05)
+        first = _status(port)["restored"]
+        while _status(port)["restored"] < first + 5:
+            assert time.monotonic() < deadline and proc.poll() is None, head.decode()
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGINT)  # murk live handles SIGINT itself, whatever it inherited
+        output, _ = proc.communicate(timeout=120)
     finally:
         if proc.poll() is None:
             proc.kill()
+            proc.communicate()
+    output = head + output
     text = output.decode()
     assert proc.returncode == 130, text
     (recording,) = out.glob("recording_*")
     assert f"recording saved: {recording}" in text
     frames = read_video(recording)
     assert len(frames) >= 5 and frames[0].shape == (48, 64, 3)  # finished and playable
+
+
+def _status(port: int) -> dict:
+    conn = http.client.HTTPConnection("127.0.0.1", port, timeout=60)
+    try:
+        conn.request("GET", "/api/status")
+        return json.loads(conn.getresponse().read())
+    finally:
+        conn.close()

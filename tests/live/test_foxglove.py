@@ -21,7 +21,7 @@ from murk.live.pipeline import LivePipeline
 from murk.live.source import PacedSource, open_live_source
 from tests._rosbags import BagBuilder, frames, stamp_ns
 from tests._ws import WebSocket
-from tests.live._live import make_restorer
+from tests.live._live import WAIT_S, make_restorer
 
 
 def _fields(buf: bytes) -> dict[int, list[object]]:
@@ -65,10 +65,10 @@ def test_protobuf_reader_matches_the_sdk_encoding() -> None:
 def test_foxglove_client_receives_images_with_the_bag_stamps(tmp_path: Path) -> None:
     bag = BagBuilder(tmp_path / "dive.bag", "ros1").image("/cam/image", frames(6), "rgb8", frame_id="cam0").close()
     publisher = FoxglovePublisher("127.0.0.1", 0)
-    ws = WebSocket(f"ws://127.0.0.1:{publisher.port}/", subprotocol="foxglove.sdk.v1")
+    ws = WebSocket(f"ws://127.0.0.1:{publisher.port}/", subprotocol="foxglove.sdk.v1", timeout_s=WAIT_S)
     try:
         channels: dict[str, int] = {}
-        deadline = time.monotonic() + 20
+        deadline = time.monotonic() + WAIT_S  # only a fault reaches it
         while len(channels) < 3 and time.monotonic() < deadline:
             opcode, payload = ws.recv()
             if opcode == 1:
@@ -78,13 +78,16 @@ def test_foxglove_client_receives_images_with_the_bag_stamps(tmp_path: Path) -> 
                         assert ch["schemaName"] == "foxglove.CompressedImage"
                         channels[ch["topic"]] = ch["id"]
         assert set(channels) == set(TOPICS.values())
+        assert publisher.subscribed() == set()
         subs = {i: topic for i, topic in enumerate(sorted(channels), start=1)}
         ws.send_text(
             json.dumps(
                 {"op": "subscribe", "subscriptions": [{"id": i, "channelId": channels[t]} for i, t in subs.items()]}
             )
         )
-        time.sleep(0.5)  # the subscription reaches the server before the first frame
+        while publisher.subscribed() != set(channels):  # the subscriptions reach the server before the first frame
+            assert time.monotonic() < deadline, f"subscribed: {publisher.subscribed()}"
+            time.sleep(0.01)
         source = PacedSource(open_live_source(str(bag), topic="/cam/image"))
         pipeline = LivePipeline(source, make_restorer, "depth", tmp_path / "out", hooks=[publisher]).start()
         got: dict[str, list[tuple[int, int, dict]]] = {t: [] for t in channels}

@@ -14,15 +14,18 @@ import pytest
 
 from murk.live.page import ASSETS, asset
 from murk.live.server import PAGE_REFUSED_OPTIONS, LiveServer, RequestError, method_table, spec_from_page
-from tests.live._live import clip, pipeline
+from tests.live._live import WAIT_S, clip, pipeline
 
 
 @pytest.fixture
 def served(tmp_path: Path) -> Iterator[tuple[LiveServer, Path]]:
+    """A server over a looping clip whose first frame is restored: a request never waits for the first frame
+    (``/api/frame`` answers 204 after 2 s, which a busy machine can take to restore it)."""
     out = tmp_path / "out"
     p = pipeline(clip(tmp_path, n=20, fps=30.0), out, "post", loop=True).start()
     server = LiveServer(p, "127.0.0.1", 0, methods=method_table()).start()
     try:
+        assert p.wait_view(-1, WAIT_S) is not None, p.status()
         yield server, out
     finally:
         server.stop()
@@ -143,7 +146,9 @@ def test_snapshot_and_record_from_requests(served) -> None:
     assert r.status == 200 and name.startswith("recording_")
     for _ in range(3):
         request(server, "GET", "/api/frame?after=-1")
-    server.pipeline.wait_view(server.pipeline.latest().index + 2, 5.0)
+    # two views after the switch: the restore thread records a view before it publishes the next one
+    first = server.pipeline.wait_view(server.pipeline.latest().index, WAIT_S)
+    assert first is not None and server.pipeline.wait_view(first.index, WAIT_S) is not None
     r, body = request(server, "POST", "/api/record", {"on": False})
     assert r.status == 200 and json.loads(body)["saved"] == name
     assert (out / name).stat().st_size > 0

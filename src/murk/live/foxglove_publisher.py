@@ -55,6 +55,10 @@ class FoxglovePublisher:
     def url(self) -> str:
         return f"ws://{self.host}:{self.port}"
 
+    def subscribed(self) -> set[str]:
+        """The topics some client is subscribed to now (a message on any other topic goes nowhere)."""
+        return {TOPICS[key] for key, channel in self._channels.items() if channel.has_sinks()}
+
     def __call__(self, view: LiveView) -> None:
         from foxglove.messages import CompressedImage, Timestamp
 
