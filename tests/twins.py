@@ -141,8 +141,8 @@ def _flat_in_batch(rng: np.random.Generator) -> Arrays:
 
 def _table() -> dict[str, Twin]:
     from murk.enhance import post
+    from murk.metrics import affine_psnr, reference
     from murk.metrics import depth as depth_metrics
-    from murk.metrics import reference
     from murk.metrics.uciqe import uciqe, uciqe_torch
     from murk.metrics.uiqm import uiqm, uiqm_torch
     from murk.models.jointid import decoder
@@ -266,6 +266,22 @@ def _table() -> dict[str, Twin]:
             lambda x: {"out": reference.psnr_torch(nchw(x["pred"]), nchw(x["ref"]), data_range=1.0).numpy()},
             atol=0.0,
             rtol=1e-12,
+        ),
+        "metrics.affine_fit_psnr": Twin(
+            _pairs(3, 9, 11, 0.05),
+            lambda x: {
+                "out": np.array(
+                    [
+                        affine_psnr.affine_fit_psnr(p, r, data_range=1.0)
+                        for p, r in zip(x["pred"], x["ref"], strict=True)
+                    ]
+                )
+            },
+            lambda x: {
+                "out": affine_psnr.affine_fit_psnr_torch(nchw(x["pred"]), nchw(x["ref"]), data_range=1.0).numpy()
+            },
+            atol=0.0,
+            rtol=1e-10,
         ),
         "metrics.depth_errors": Twin(
             _depth_inputs,

@@ -51,7 +51,7 @@ def test_clipping_and_validity() -> None:
 def test_perfect_prediction() -> None:
     gt = np.linspace(0.5, 14.0, 30).reshape(5, 6)
     e = depth_errors(gt.copy(), gt)
-    assert e == DepthErrors(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0)
+    assert e == DepthErrors(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0)
 
 
 def test_silog_is_scale_invariant_and_rmse_is_not() -> None:
@@ -61,14 +61,39 @@ def test_silog_is_scale_invariant_and_rmse_is_not() -> None:
     assert e.rmse > 1.0
 
 
+def test_median_scaled_abs_rel_forgives_the_scale_only() -> None:
+    gt = np.linspace(1.0, 10.0, 20).reshape(4, 5)
+    e = depth_errors(0.6 * gt, gt)  # the right shape at the wrong scale
+    assert e.abs_rel == pytest.approx(0.4)
+    assert e.abs_rel_median == pytest.approx(0.0, abs=1e-12)
+
+
+def test_median_scaled_abs_rel_by_hand() -> None:
+    gt = np.array([[1.0, 2.0, 4.0, 8.0]])
+    pred = np.array([[1.0, 1.0, 2.0, 4.0]])
+    # lower medians ((n - 1) // 2 = index 1 of the sorted values): gt 2, pred 1 -> scale 2 -> pred 2, 2, 4, 8
+    e = depth_errors(pred, gt)
+    assert e.abs_rel_median == pytest.approx((1.0 / 1.0 + 0 + 0 + 0) / 4)
+    assert e.abs_rel == pytest.approx((0 + 1 / 2 + 2 / 4 + 4 / 8) / 4)
+    t = depth_errors_torch(torch.from_numpy(pred)[None], torch.from_numpy(gt)[None])
+    assert float(t.abs_rel_median[0]) == pytest.approx(e.abs_rel_median, rel=1e-12)
+
+
+def test_median_scaled_prediction_is_clipped_again() -> None:
+    gt = np.array([[1.0, 14.0, 14.5]])
+    pred = np.array([[0.5, 7.0, 14.0]])  # scale 14 / 7 = 2: 1, 14, 28 -> 15 after the clip
+    e = depth_errors(pred, gt)
+    assert e.abs_rel_median == pytest.approx((0 + 0 + 0.5 / 14.5) / 3)
+
+
 def test_channel_axis_is_accepted() -> None:
     gt = np.linspace(1.0, 10.0, 20).reshape(4, 5)
     assert depth_errors(gt[..., None] * 1.1, gt[None]) == depth_errors(gt * 1.1, gt)
 
 
 def test_mean_over_images() -> None:
-    a = DepthErrors(*range(9))
-    b = DepthErrors(*range(2, 20, 2))
+    a = DepthErrors(*range(10))
+    b = DepthErrors(*range(2, 22, 2))
     m = mean_depth_errors([a, b])
     assert m.as_dict() == {
         k: (va + vb) / 2 for (k, va), vb in zip(a.as_dict().items(), b.as_dict().values(), strict=True)

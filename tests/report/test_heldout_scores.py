@@ -41,3 +41,24 @@ def test_the_paired_gain_is_the_mean_per_scene_difference_with_its_interval() ->
     # halving the error everywhere gains 20 log10(2) = 6.02 dB wherever nothing was clipped
     assert 5.0 < row["psnr_gain"] < 6.1 and row["psnr_gain_ci95"] > 0
     assert "psnr_gain" not in scores["input"]
+
+
+class _Global:
+    """A stand-in restorer that only applies one gain and offset per channel (what the affine fit forgives)."""
+
+    def restore(self, batch: np.ndarray) -> SimpleNamespace:
+        return SimpleNamespace(images=batch * np.float32(0.8) + np.float32(0.05), depth_m=None)
+
+
+def test_the_affine_fit_gain_credits_local_restoration_only() -> None:
+    rng = np.random.default_rng(12)
+    clean = (0.2 + 0.6 * rng.random((6, 16, 20, 3))).astype(np.float32)
+    haze = np.linspace(0.1, 0.7, 20, dtype=np.float32)[None, None, :, None]  # grows across the frame
+    degraded = (clean * (1 - haze) + 0.4 * haze).astype(np.float32)
+    data = HeldoutSet(degraded, clean, np.full(clean.shape[:3], np.nan, np.float32), seed=0)
+    scores = score_heldout(data, {"global": _Global(), "half": _Towards(clean, 0.5)}, batch=4)
+    assert abs(scores["global"]["affine_psnr_gain"]) < 1e-4  # a global map changes nothing once fitted
+    assert abs(scores["global"]["psnr_gain"]) > 0.1  # while the plain PSNR moves
+    assert scores["half"]["affine_psnr_gain"] > 3.0  # halving the local error is credited
+    assert scores["input"]["affine_psnr"] > scores["input"]["psnr"]
+    assert "affine_psnr_gain" not in scores["input"]

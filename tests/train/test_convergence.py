@@ -56,6 +56,8 @@ def test_short_small_run_lowers_val_loss_and_beats_the_input(tmp_path: Path) -> 
     before = evaluate(build_jointid("small"), data, cfg, torch.device("cpu"), 0)
     after = train(cfg).last_eval
     assert after["val_input_psnr"] == before["val_input_psnr"]  # the same fixed validation batches
+    assert after["val_input_affine_psnr"] == before["val_input_affine_psnr"]
+    assert {"val_affine_psnr", "val_abs_rel", "val_abs_rel_median"} <= set(after)
     assert after["val_loss"] < LOSS_RATIO_MAX * before["val_loss"], (before, after)
     assert after["val_psnr"] > after["val_input_psnr"] + PSNR_GAIN_MIN_DB, after
     assert after["val_psnr"] > before["val_psnr"] + 1.0, (before, after)

@@ -16,6 +16,7 @@ Presets and why the default differs from the common codes: ``docs/metrics.md``.
 """
 
 from murk.metrics._common import MetricWarning
+from murk.metrics.affine_psnr import affine_fit, affine_fit_psnr, affine_fit_psnr_torch
 from murk.metrics.depth import (
     DEPTH_ERROR_NAMES,
     DepthErrors,
@@ -66,6 +67,9 @@ __all__ = [
     "UIQMBatch",
     "UIQMPreset",
     "UIQMResult",
+    "affine_fit",
+    "affine_fit_psnr",
+    "affine_fit_psnr_torch",
     "artefact_energy",
     "artefact_ratio",
     "ciede2000",

@@ -5,6 +5,9 @@ ground-truth pixels are valid where min_depth_m < gt < max_depth_m, and over the
 
 - ``silog`` = 100 sqrt(mean(e^2) - mean(e)^2) with e = ln(pred) - ln(gt) (scale-invariant log error x 100),
 - ``abs_rel`` = mean(|gt - pred| / gt), ``sq_rel`` = mean((gt - pred)^2 / gt),
+- ``abs_rel_median`` = ``abs_rel`` after the prediction is scaled by median(gt) / median(pred) (then clipped
+  again): the error in the map's shape once its overall scale is forgiven, as monocular-depth work scores
+  scale-ambiguous predictions (medians are the lower median of the valid pixels, ``(n - 1) // 2``),
 - ``rmse`` = sqrt(mean((gt - pred)^2)) in metres, ``log_rmse`` = sqrt(mean((ln gt - ln pred)^2)),
 - ``log10`` = mean(|log10 gt - log10 pred|),
 - ``d1``, ``d2``, ``d3`` = fraction of pixels with max(gt/pred, pred/gt) < 1.25, 1.25^2, 1.25^3.
@@ -36,7 +39,7 @@ if TYPE_CHECKING:
 
 MIN_DEPTH_M = 1e-3
 MAX_DEPTH_M = 15.0
-DEPTH_ERROR_NAMES = ("silog", "abs_rel", "sq_rel", "rmse", "log_rmse", "log10", "d1", "d2", "d3")
+DEPTH_ERROR_NAMES = ("silog", "abs_rel", "abs_rel_median", "sq_rel", "rmse", "log_rmse", "log10", "d1", "d2", "d3")
 
 
 @dataclass(frozen=True)
@@ -45,6 +48,7 @@ class DepthErrors:
 
     silog: float
     abs_rel: float
+    abs_rel_median: float
     sq_rel: float
     rmse: float
     log_rmse: float
@@ -63,6 +67,7 @@ class DepthErrorsBatch(NamedTuple):
 
     silog: torch.Tensor
     abs_rel: torch.Tensor
+    abs_rel_median: torch.Tensor
     sq_rel: torch.Tensor
     rmse: torch.Tensor
     log_rmse: torch.Tensor
@@ -136,9 +141,12 @@ def depth_errors(
     diff = g - p
     e = np.log(p) - np.log(g)
     var = max(float(np.mean(e * e)) - float(np.mean(e)) ** 2, 0.0)  # >= 0 up to rounding
+    k = (n - 1) // 2
+    scaled = np.clip(p * (np.partition(g, k)[k] / np.partition(p, k)[k]), lo, hi)
     return DepthErrors(
         silog=100.0 * math.sqrt(var),
         abs_rel=float(np.mean(np.abs(diff) / g)),
+        abs_rel_median=float(np.mean(np.abs(g - scaled) / g)),
         sq_rel=float(np.mean(diff * diff / g)),
         rmse=math.sqrt(float(np.mean(diff * diff))),
         log_rmse=math.sqrt(float(np.mean(e * e))),
@@ -212,9 +220,13 @@ def depth_errors_torch(
     diff = g - p
     e = torch.log(p) - torch.log(g)
     var = (vmean(e * e) - vmean(e) ** 2).clamp_min(0.0)
+    nan = torch.tensor(math.nan, dtype=p.dtype, device=p.device)
+    scale = torch.where(valid, g, nan).nanmedian(dim=1).values / torch.where(valid, p, nan).nanmedian(dim=1).values
+    scaled = (p * scale[:, None]).clamp(lo, hi)
     return DepthErrorsBatch(
         silog=100.0 * torch.sqrt(var),
         abs_rel=vmean(diff.abs() / g),
+        abs_rel_median=vmean((g - scaled).abs() / g),
         sq_rel=vmean(diff * diff / g),
         rmse=torch.sqrt(vmean(diff * diff)),
         log_rmse=torch.sqrt(vmean(e * e)),

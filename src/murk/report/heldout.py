@@ -5,8 +5,11 @@ Scene ``i`` is ``sample_scene(derive_seed(seed, "heldout", i))``, rendered at ``
 ``derive_seed(train_seed, i)`` for its scenes, so a held-out seed never reproduces a training scene.
 
 Scores per method: PSNR and SSIM of the enhanced image against the clean render (and of the degraded input,
-the ``input`` row), and depth errors (AbsRel, RMSE, SILog, delta < 1.25) against the exact distance on pixels
-that hit a surface (open-water background at the scene's far limit has no meaningful depth and is skipped).
+the ``input`` row), the PSNR after the best per-channel gain and offset onto the clean render
+(:mod:`murk.metrics.affine_psnr`: what a restorer removes beyond a global colour correction, against the same
+oracle correction of the input), and depth errors (AbsRel in m/m, AbsRel after median scaling, RMSE, SILog,
+delta < 1.25) against the exact distance on pixels that hit a surface (open-water background at the scene's far
+limit has no meaningful depth and is skipped). The reference is always the clean scene itself.
 """
 
 from __future__ import annotations
@@ -79,9 +82,10 @@ def score_heldout(
 
     ``restorers`` maps a label to a restorer (``restore(numpy batch) -> Restored``) or None (the input).
     """
-    from murk.metrics import depth_errors, psnr, ssim
+    from murk.metrics import affine_fit_psnr, depth_errors, psnr, ssim
 
     base = [psnr(a, b, data_range=1.0) for a, b in zip(data.degraded, data.clean, strict=True)]
+    base_fit = [affine_fit_psnr(a, b, data_range=1.0) for a, b in zip(data.degraded, data.clean, strict=True)]
     out: dict[str, dict[str, float]] = {"input": _image_scores(data.degraded, data.clean, psnr, ssim)}
     for label, rest in restorers.items():
         if on_method:
@@ -94,7 +98,7 @@ def score_heldout(
             images.append(np.clip(r.images, 0.0, 1.0))
             depths.append(r.depth_m)
         enhanced = np.concatenate(images)
-        row = _image_scores(enhanced, data.clean, psnr, ssim, base=base)
+        row = _image_scores(enhanced, data.clean, psnr, ssim, base=base, base_fit=base_fit)
         if all(d is not None for d in depths):
             pred = np.concatenate(depths)
             errs = [
@@ -102,43 +106,54 @@ def score_heldout(
                 for p, g in zip(pred, data.dist_m, strict=True)
                 if np.isfinite(g).any()
             ]
-            for name in ("abs_rel", "rmse", "silog", "d1"):
+            for name in ("abs_rel", "abs_rel_median", "rmse", "silog", "d1"):
                 row[name] = float(np.mean([getattr(e, name) for e in errs]))
         out[label] = row
     return out
 
 
 def _image_scores(
-    images: np.ndarray, refs: np.ndarray, psnr: Any, ssim: Any, *, base: Sequence[float] | None = None
+    images: np.ndarray,
+    refs: np.ndarray,
+    psnr: Any,
+    ssim: Any,
+    *,
+    base: Sequence[float] | None = None,
+    base_fit: Sequence[float] | None = None,
 ) -> dict[str, float]:
-    """Means and standard deviations over the images; with ``base`` (the input's PSNR per image) also the paired
-    PSNR gain: its mean, standard deviation and the half-width of its 95 % confidence interval (normal
-    approximation, ``1.96 * std / sqrt(n)``, with the sample standard deviation)."""
+    """Means and standard deviations over the images (PSNR, SSIM and the affine-fit PSNR); with ``base`` and
+    ``base_fit`` (the input's PSNR and affine-fit PSNR per image) also the paired gains of both: mean, standard
+    deviation and the half-width of the 95 % confidence interval (normal approximation, ``1.96 * std / sqrt(n)``,
+    with the sample standard deviation)."""
+    from murk.metrics import affine_fit_psnr
+
     ps = [psnr(a, b, data_range=1.0) for a, b in zip(images, refs, strict=True)]
     ss = [ssim(a, b, data_range=1.0) for a, b in zip(images, refs, strict=True)]
+    fs = [affine_fit_psnr(a, b, data_range=1.0) for a, b in zip(images, refs, strict=True)]
     row = {
         "psnr": float(np.mean(ps)),
         "psnr_std": float(np.std(ps)),
         "ssim": float(np.mean(ss)),
         "ssim_std": float(np.std(ss)),
+        "affine_psnr": float(np.mean(fs)),
+        "affine_psnr_std": float(np.std(fs)),
         "n": float(len(ps)),
     }
-    if base is not None:
-        gain = np.asarray(ps, np.float64) - np.asarray(base, np.float64)
+    for key, mine, theirs in (("psnr_gain", ps, base), ("affine_psnr_gain", fs, base_fit)):
+        if theirs is None:
+            continue
+        gain = np.asarray(mine, np.float64) - np.asarray(theirs, np.float64)
         spread = float(np.std(gain, ddof=1)) if gain.size > 1 else 0.0
-        row.update(
-            psnr_gain=float(gain.mean()),
-            psnr_gain_std=spread,
-            psnr_gain_ci95=1.96 * spread / float(np.sqrt(gain.size)),
-        )
+        row.update({key: float(gain.mean()), f"{key}_std": spread, f"{key}_ci95": 1.96 * spread / np.sqrt(gain.size)})
     return row
 
 
 def heldout_table(scores: Mapping[str, Mapping[str, float]], order: Sequence[str] | None = None) -> str:
     """A Markdown table of :func:`score_heldout` results."""
     lines = [
-        "| method | PSNR dB | SSIM | depth AbsRel | depth RMSE m | delta<1.25 |",
-        "|---|---|---|---|---|---|",
+        "| method | PSNR dB | SSIM | PSNR after affine fit dB | its gain over the input dB (95 % CI) "
+        "| depth AbsRel m/m | AbsRel median-scaled | depth RMSE m | delta<1.25 |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for label in order or list(scores):
         r = scores[label]
@@ -146,8 +161,15 @@ def heldout_table(scores: Mapping[str, Mapping[str, float]], order: Sequence[str
         def f(k: str, fmt: str = "{:.3f}", r: Mapping[str, float] = r) -> str:
             return fmt.format(r[k]) if k in r else "-"
 
+        fit_gain = (
+            f"{r['affine_psnr_gain']:+.2f} ({r['affine_psnr_gain'] - r['affine_psnr_gain_ci95']:+.2f} to "
+            f"{r['affine_psnr_gain'] + r['affine_psnr_gain_ci95']:+.2f})"
+            if "affine_psnr_gain" in r
+            else "-"
+        )
         lines.append(
             f"| {label} | {r['psnr']:.2f} +- {r['psnr_std']:.2f} | {r['ssim']:.3f} +- {r['ssim_std']:.3f} | "
-            f"{f('abs_rel')} | {f('rmse', '{:.2f}')} | {f('d1')} |"
+            f"{f('affine_psnr', '{:.2f}')} | {fit_gain} | "
+            f"{f('abs_rel')} | {f('abs_rel_median')} | {f('rmse', '{:.2f}')} | {f('d1')} |"
         )
     return "\n".join(lines)

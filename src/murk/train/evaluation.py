@@ -1,4 +1,6 @@
-"""Evaluation during training: loss, PSNR/SSIM and depth errors on the held-out synthetic split, UIQM/UCIQE on
+"""Evaluation during training: loss, PSNR/SSIM, the affine-fit PSNR (:mod:`murk.metrics.affine_psnr`: what is
+left once a global colour correction is forgiven, for the output and for the degraded input) and depth errors
+(AbsRel in m/m and median-scaled) on the held-out synthetic split, against the true clean scene; UIQM/UCIQE on
 real images (what :func:`murk.train.loop.train` logs at every ``eval.every`` steps and picks ``best.pt`` by)."""
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ def evaluate(
 ) -> dict[str, float]:
     """Loss, PSNR/SSIM (and the degraded input's PSNR) and depth errors on the held-out synthetic split (the
     same ``eval.val_batches`` batches every time, unaugmented); UIQM/UCIQE on real images."""
-    from murk.metrics import depth_errors_torch, psnr_torch, ssim_torch, uciqe_torch, uiqm_torch
+    from murk.metrics import affine_fit_psnr_torch, depth_errors_torch, psnr_torch, ssim_torch, uciqe_torch, uiqm_torch
     from murk.models.padding import pad_to_multiple
     from murk.train.networks import run_network, size_multiple
 
@@ -45,7 +47,7 @@ def evaluate(
     out: dict[str, float] = {}
     if data.val is not None and len(data.val) > 0:
         loader = DataLoader(data.val, batch_size=config.batch, shuffle=False, num_workers=0)
-        ps, ss, errs, in_ps, losses = [], [], [], [], []
+        ps, ss, errs, in_ps, losses, fit, in_fit = [], [], [], [], [], [], []
         for bi, batch in enumerate(loader):
             if bi >= config.eval.val_batches:
                 break
@@ -64,6 +66,8 @@ def evaluate(
             in_ps.append(psnr_torch(inputs.float().clamp(0, 1), targets, data_range=1.0))
             ps.append(psnr_torch(enhanced.clamp(0, 1), targets, data_range=1.0))
             ss.append(ssim_torch(enhanced.clamp(0, 1), targets, data_range=1.0))
+            fit.append(affine_fit_psnr_torch(enhanced.clamp(0, 1), targets, data_range=1.0))
+            in_fit.append(affine_fit_psnr_torch(inputs.float().clamp(0, 1), targets, data_range=1.0))
             if depth_m is not None:  # networks without a depth head: no depth errors
                 errs.append(depth_errors_torch(depth_m, batch["depth"]))
         if ps:
@@ -71,7 +75,9 @@ def evaluate(
             out["val_psnr"] = float(torch.cat(ps).clamp(max=100).mean())
             out["val_input_psnr"] = float(torch.cat(in_ps).clamp(max=100).mean())
             out["val_ssim"] = float(torch.cat(ss).mean())
-            for name in ("silog", "abs_rel", "rmse", "d1"):
+            out["val_affine_psnr"] = float(torch.cat(fit).clamp(max=100).mean())
+            out["val_input_affine_psnr"] = float(torch.cat(in_fit).clamp(max=100).mean())
+            for name in ("silog", "abs_rel", "abs_rel_median", "rmse", "d1"):
                 vals = [getattr(e, name, None) for e in errs]
                 if vals and all(v is not None for v in vals):
                     out[f"val_{name}"] = float(torch.cat([v.reshape(-1) for v in vals]).nanmean())
