@@ -102,3 +102,56 @@ def test_usage_errors_of_every_command_answer_without_torch(tmp_path: Path) -> N
         assert (exit_code, said) == (code, True), (args, output)
         assert heavy == [], (args, heavy)  # nothing heavy so far, in this interpreter, after all earlier cases
     assert not Path(out).exists()  # no usage error wrote anything
+
+
+def test_a_classical_enhance_command_does_not_import_torch(tmp_path: Path) -> None:
+    """``murk enhance --method colorbalance`` (numpy and OpenCV) runs without importing torch: it neither pays
+    torch's start-up nor books it in its restore step (issue 47)."""
+    images = sample_underwater_images()[:1]
+    out = _fresh(
+        f"""
+        import atexit, sys
+        atexit.register(lambda: print(sorted(m for m in {HEAVY!r} if m in sys.modules)))
+        sys.argv = ["murk", "enhance", {str(images[0].parent)!r}, "--out", {str(tmp_path / "out")!r},
+                    "--method", "colorbalance", "-q"]
+        from murk.cli.main import main
+        main()
+        """
+    )
+    assert out.strip().splitlines()[-1] == "[]"
+    assert len(list((tmp_path / "out").glob("*.jpg"))) == 4  # the folder of images[0] (funie_euvp) holds 4
+
+
+def test_classical_methods_run_without_torch_in_enhance_live_and_compare(tmp_path: Path) -> None:
+    """Every classical method, a chain of them, and ``post`` on the CPU (its torch twin is imported only when
+    used) restore through ``murk enhance``, ``murk live`` and ``murk compare`` without importing torch."""
+    from tests._video import make_video
+
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for src in sample_underwater_images()[3:5]:  # 256x256 and 640x480
+        (folder / src.name).write_bytes(src.read_bytes())
+    clip = make_video(tmp_path / "clip.avi", n=3, fps=30.0)
+    methods = ["colorbalance", "greyworld", "clahe", "udcp", "post", "greyworld+clahe", "colorbalance+post"]
+    cases = [["enhance", str(folder), "--out", str(tmp_path / m), "--method", m, "-q"] for m in methods]
+    cases.append(["live", str(clip), "--method", "greyworld+post", "--port", "0", "--exit-at-end", "-q"])
+    compare = ["compare", str(folder), "--out", str(tmp_path / "cmp"), "--method", "colorbalance", "--method", "post"]
+    cases.append(compare)
+    got = _fresh(
+        f"""
+        import json, sys
+        from typer.testing import CliRunner
+        from murk.cli.main import app
+        rows = []
+        for args in {cases!r}:
+            r = CliRunner().invoke(app, args)
+            rows.append([r.exit_code, r.output[-300:], sorted(m for m in {HEAVY!r} if m in sys.modules)])
+        print(json.dumps(rows))
+        """
+    )
+    for args, (exit_code, output, heavy) in zip(cases, json.loads(got), strict=True):
+        assert exit_code == 0, (args, output)
+        assert heavy == [], (args, heavy)
+    for m in methods:
+        assert sorted(p.name for p in (tmp_path / m).glob("*.jpg")) == sorted(p.name for p in folder.iterdir()), m
+    assert (tmp_path / "cmp" / "metrics.json").is_file()

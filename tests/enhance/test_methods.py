@@ -1,5 +1,6 @@
 """The lazy factories of the torch methods (murk.enhance.methods): the registry knows every name and option without
-importing torch, each declaration equals the factory it calls, and calling one builds the real restorer."""
+importing torch, each declaration equals the factory it calls, and calling one builds the real restorer; a method's
+device is read without building the default one."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import pytest
 
 from murk.enhance import methods
 from murk.enhance.options import declared_options
-from murk.enhance.restorer import create, options_of
+from murk.enhance.restorer import Chain, Restorer, create, device_type, options_of
 
 
 def _implementation(name: str):  # type: ignore[no-untyped-def]
@@ -63,6 +64,24 @@ def test_names_and_options_are_checked_without_torch() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_device_type_leaves_the_default_cpu_device_unbuilt() -> None:
+    import torch
+
+    chain = create("greyworld+clahe")
+    assert device_type(chain) == "cpu" and "device" not in vars(chain)  # the lazy default, not a torch.device
+    assert chain.device == torch.device("cpu")  # built when read
+    assert device_type(create("post", shared={"device": "cpu"})) == "cpu"
+
+    class OnCuda(Restorer):
+        device = "cuda:1"  # type: ignore[assignment]
+
+    on_cuda = OnCuda()
+    assert device_type(on_cuda) == "cuda" and device_type(Chain([on_cuda, chain])) == "cuda"
+    stage = Restorer()
+    stage.device = torch.device("cuda", 0)
+    assert device_type(stage) == "cuda" and device_type(Chain([stage])) == "cuda"
 
 
 def test_a_lazy_factory_builds_the_real_restorer() -> None:

@@ -15,7 +15,7 @@ import numpy as np
 
 from murk.enhance.choices import ImageFormat, VideoBackendChoice
 from murk.enhance.preview import DEPTH_PREVIEW_RANGE_M, colorize_depth
-from murk.enhance.restorer import Restored, Restorer
+from murk.enhance.restorer import Restored, Restorer, device_type
 from murk.errors import InputFileError, ShapeError
 from murk.io.depth import write_depth_png
 from murk.io.images import write_rgb
@@ -110,11 +110,12 @@ def should_end(report: EnhanceReport, should_stop: StopFn | None, max_frames: in
 
 
 def restore_batch(restorer: Restorer, images: np.ndarray) -> Restored:
-    """Run the restorer on a numpy batch; on CUDA through the tensor path (pinned upload, one download)."""
-    import torch
+    """Run the restorer on a numpy batch; on CUDA through the tensor path (pinned upload, one download). A method
+    on the CPU runs its numpy path without torch being imported here (the classical methods never load it)."""
+    if device_type(restorer) == "cuda":
+        import torch
 
-    device = getattr(restorer, "device", torch.device("cpu"))
-    if torch.device(device).type == "cuda":
+        device = restorer.device
         x = torch.from_numpy(np.ascontiguousarray(images)).pin_memory().to(device, non_blocking=True)
         out = restorer.restore_tensor(x.permute(0, 3, 1, 2))
         imgs = out.images.detach().float().clamp(0, 1).permute(0, 2, 3, 1).cpu().numpy()

@@ -34,18 +34,19 @@ import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
-import torch
-import torch.nn.functional as F
 
 from murk._checks import check_positive, check_range, check_rgb
 from murk.enhance.choices import HE_MODES, HEMode, PostPreset
-from murk.enhance.restorer import Restored, RestoredTensor, Restorer, as_batch
+from murk.enhance.restorer import Restored, RestoredTensor, Restorer, as_batch, device_type
 from murk.enhance.temporal import FrameEMA
 from murk.errors import ShapeError
+
+if TYPE_CHECKING:  # the torch twins import it when called: post on the CPU runs without torch
+    import torch
 
 SIGMA_PX = 1.0
 """LoG standard deviation of the paper (Sec. 5.1)."""
@@ -315,11 +316,15 @@ def equalize_torch(
 
 
 def _quantise_torch(c: torch.Tensor) -> torch.Tensor:
+    import torch
+
     return torch.round(c.clamp(0.0, 1.0) * 255.0).long()
 
 
 def _equalize_luts_torch(hist: torch.Tensor) -> torch.Tensor:
     """Batched :func:`equalize_lut`: (N, 256) int64 -> (N, 256) float32."""
+    import torch
+
     total = hist.sum(dim=1, keepdim=True)
     k0 = torch.argmax((hist > 0).to(torch.uint8), dim=1, keepdim=True)
     h0 = hist.gather(1, k0)
@@ -337,6 +342,8 @@ def _equalize_luts_torch(hist: torch.Tensor) -> torch.Tensor:
 def _equalize_channels_torch(c: torch.Tensor, tables: TableHook | None = None, per_image: int = 1) -> torch.Tensor:
     """Equalise N independent channels (N, H, W) in [0, 1]; ``tables`` sees them as (N / per_image, per_image,
     256)."""
+    import torch
+
     n = c.shape[0]
     q = _quantise_torch(c).reshape(n, -1)
     offsets = (torch.arange(n, device=c.device) * 256)[:, None]
@@ -361,6 +368,8 @@ def _clahe_torch(q: torch.Tensor, clip_limit: float, tiles: tuple[int, int]) -> 
     excess redistributed uniformly (remainder one count every ``256 // remainder`` bins); each tile's LUT is
     ``round(cdf * 255 / tile_area)``; pixels blend the four nearest tile LUTs bilinearly (tile centres).
     """
+    import torch
+
     n, h, w = q.shape
     tx, ty = tiles
     dev = q.device
@@ -502,7 +511,8 @@ def post_process_torch(
 
 class PostRestorer(Restorer):
     """Eq. (9) as a :class:`~murk.enhance.restorer.Restorer`: OpenCV per image on CPU, the torch twin in
-    batches on CUDA (and always for :meth:`restore_tensor`). Returns no depth.
+    batches on CUDA (and always for :meth:`restore_tensor`). Returns no depth. On the CPU, :meth:`restore` does not
+    import torch.
 
     With ``temporal`` > 0, frames restored inside :meth:`sequence` are equalised with their tables averaged over
     time (:class:`murk.enhance.temporal.FrameEMA`); images restored outside it are each equalised on their own.
@@ -517,7 +527,10 @@ class PostRestorer(Restorer):
         self, params: PostParams | None = None, device: str | torch.device = "cpu", temporal: float = 0.0
     ) -> None:
         self.params = params or PostParams()
-        self.device = torch.device(device)
+        if not (isinstance(device, str) and device == "cpu"):  # "cpu" keeps the default, built when first read
+            import torch
+
+            self.device = torch.device(device)
         ema = FrameEMA(temporal)
         if ema.weight > 0 and self.params.he == "clahe":
             raise ValueError("temporal: applies to he 'y' and 'rgb' (CLAHE has a table per tile)")
@@ -525,7 +538,7 @@ class PostRestorer(Restorer):
 
     def restore(self, images: np.ndarray) -> Restored:
         batch = _check_numpy_batch(images)
-        if self.device.type != "cpu":
+        if device_type(self) != "cpu":
             return super().restore(batch)
         kw = self.params._kwargs()
         out = np.stack([post_process(im, **kw, tables=self.temporal_hook()) for im in batch])
@@ -588,6 +601,8 @@ def _tiles(tiles: Any) -> tuple[int, int]:
 
 def _reflect101_index(n: int, pad_after: int, device: torch.device, pad_before: int = 0) -> torch.Tensor:
     """Source indices of a reflect-101 extension of an axis of length n (any pad size, like OpenCV)."""
+    import torch
+
     i = torch.arange(-pad_before, n + pad_after, device=device)
     if n == 1:
         return torch.zeros_like(i)
@@ -597,6 +612,8 @@ def _reflect101_index(n: int, pad_after: int, device: torch.device, pad_before: 
 
 
 def _pad_reflect101(x: torch.Tensor, r: int) -> torch.Tensor:
+    import torch.nn.functional as F
+
     h, w = x.shape[-2:]
     if h > r and w > r:
         return F.pad(x, (r, r, r, r), mode="reflect")
@@ -606,6 +623,8 @@ def _pad_reflect101(x: torch.Tensor, r: int) -> torch.Tensor:
 
 
 def _check_batch(images: Any, channels: int | None) -> None:
+    import torch
+
     if not isinstance(images, torch.Tensor):
         raise TypeError(f"images: expected a torch tensor (B, C, H, W), got {type(images).__name__}")
     if images.ndim != 4 or (channels is not None and images.shape[1] != channels):

@@ -20,6 +20,7 @@ Two entry points per restorer:
 from __future__ import annotations
 
 import contextlib
+import inspect
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -59,6 +60,25 @@ class _CPUDevice:
         import torch
 
         return torch.device("cpu")
+
+
+def _set_device(restorer: object) -> Any | None:
+    """The device ``restorer`` set (an instance or class attribute, a property's value), or None when it keeps the
+    default CPU device, which is then not built (reading ``restorer.device`` would import torch)."""
+    device = inspect.getattr_static(restorer, "device", None)
+    if device is None or isinstance(device, _CPUDevice):
+        return None
+    return restorer.device if hasattr(device, "__get__") else device  # type: ignore[attr-defined]
+
+
+def device_type(restorer: object) -> str:
+    """The type of the device ``restorer`` runs on (``"cpu"``, ``"cuda"``, ...), read without importing torch
+    for a method that never set a device (the classical ones, chains of them): so a caller can pick the CUDA
+    path of a batch without making a CPU method pay torch's start-up."""
+    device = _set_device(restorer)
+    if device is None:
+        return "cpu"
+    return str(getattr(device, "type", device)).partition(":")[0]
 
 
 def as_batch(images: object) -> np.ndarray:
@@ -149,7 +169,9 @@ class Chain(Restorer):
             raise ValueError("stages: expected at least one restorer")
         self.stages = stages
         self.name = "+".join(s.name for s in stages)
-        self.device = stages[0].device
+        device = _set_device(stages[0])  # a chain of methods that set no device keeps the lazy CPU default
+        if device is not None:
+            self.device = device
 
     def restore(self, images: np.ndarray) -> Restored:
         depth = None
