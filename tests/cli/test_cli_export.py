@@ -54,3 +54,21 @@ def test_bad_arguments_exit_with_code_2(tiny_files):
     assert result.exit_code == 2 and "expected a file name ending in .onnx" in result.output
     result = CliRunner().invoke(app, ["export", "-c", str(tiny_files / "none.pt"), "-o", str(tiny_files / "x.onnx")])
     assert result.exit_code == 2 and "checkpoint not found" in result.output
+
+
+def test_a_trusted_legacy_lite_file_exports_for_murk_live(tmp_path):
+    """murk live has no --trust-checkpoint: the refusal sends the user to murk export, which must then tell a
+    trusted legacy lite file from a Joint-ID one (it said 'not a Joint-ID checkpoint'; issue 49)."""
+    from murk.data import shipped_lite_weights
+
+    legacy = tmp_path / "legacy_lite.pt"
+    obj = torch.load(shipped_lite_weights(), weights_only=True)
+    torch.save({**obj, "hook": _Evil()}, legacy)
+    args = ["export", "-c", str(legacy), "-o", str(tmp_path / "lite.onnx"), "--no-verify", "--quiet"]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 2
+    text = " ".join(result.output.split())
+    assert "--trust-checkpoint" in text and "murk live has no such flag" in text and "murk export" in text
+    result = CliRunner().invoke(app, [*args, "--trust-checkpoint"])
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "lite.onnx").is_file()

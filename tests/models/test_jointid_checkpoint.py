@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 import zipfile
 from pathlib import Path
 
@@ -233,3 +234,24 @@ def test_average_checkpoints_refuses_what_cannot_be_averaged(tmp_path: Path) -> 
     with pytest.raises(ValueError, match=r"balanced\.pt: input_balance_pct"):
         average_checkpoints([tiny, balanced], tmp_path / "x.pt")
     assert not (tmp_path / "x.pt").exists()
+
+
+def test_a_plain_pickle_is_refused_with_the_way_out_and_loads_when_trusted(tmp_path, tiny, capsys):
+    """A legacy file written by pickle.dump (not torch.save): torch.load cannot read it at all, and the refusal
+    said only 'not a readable PyTorch checkpoint (UnpicklingError: Unsupported operand 149)' (issue 49)."""
+    import pickle
+
+    path = tmp_path / "legacy.pkl"
+    state = {f"structure.{k}": v for k, v in tiny.state_dict().items()}
+    with open(path, "wb") as f:
+        pickle.dump({"model": state, "hook": _Evil()}, f, protocol=4)
+    with warnings.catch_warnings(record=True) as caught, pytest.raises(InputFileError) as info:
+        warnings.simplefilter("always")
+        load_checkpoint(path)
+    assert not [w for w in caught if "pickle protocol" in str(w.message)]  # torch's warning is not shown
+    text = str(info.value)
+    assert text.startswith(f"{path}: refusing to load it: a plain Python pickle (written by pickle.dump")
+    assert "builtins.print" in text and "--trust-checkpoint" in text and "murk export" in text
+    assert "this must not run" not in capsys.readouterr().out
+    assert _same_weights(load_checkpoint(path, trust=True), tiny)  # the user's explicit opt-in: pickle.load
+    assert "this must not run" in capsys.readouterr().out

@@ -3,13 +3,16 @@ URSCT-SESR).
 
 Files are read with ``torch.load(weights_only=True)``: tensors and plain data only, plus exactly the numpy
 globals a plain numeric array needs (the official Joint-ID file pickles one). A file that pickles anything
-else (an optimiser object, a model class) is refused with a message that names ``--trust-checkpoint`` and
-why; ``trust=True`` loads it with ``weights_only=False`` (this runs code from the file: trusted files only).
+else (an optimiser object, a model class), and a plain pickle written by ``pickle.dump``, is refused with a
+message that names ``--trust-checkpoint`` (and, for ``murk live``, which has no such flag, the ONNX export) and
+why; ``trust=True`` loads it with ``weights_only=False``, a plain pickle with ``pickle.load`` (this runs code from
+the file: trusted files only).
 """
 
 from __future__ import annotations
 
 import pickle
+import warnings
 import zipfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -67,11 +70,49 @@ def first_line(exc: BaseException) -> str:
 
 TRUST_HINT = (
     "If you made this file or trust where it comes from, allow it with --trust-checkpoint (murk enhance, "
-    "compare, export), model.trust_checkpoint: true in a murk train config, or trust=True in Python: the file "
-    "is then loaded with weights_only=False, which runs any code it holds. It is off by default so that a "
-    "checkpoint from elsewhere cannot run code on this machine; checkpoints written by murk never need it."
+    "compare, export), model.trust_checkpoint: true in a murk train config, or trust=True in Python (murk live "
+    "has no such flag: for jointid or lite, export the file once with murk export --checkpoint FILE "
+    "--trust-checkpoint --out model.onnx and run --method 'jointid?checkpoint=model.onnx'): the file is then "
+    "unpickled in full, which runs any code it holds. It is off by default so that a checkpoint from elsewhere "
+    "cannot run code on this machine; checkpoints written by murk never need it."
 )
 """How a refused checkpoint can be allowed, and why it is refused by default (part of every refusal)."""
+
+_TORCH_LEGACY_MAGIC = b"\x80\x02\x8a\nl\xfc\x9cF\xf9 j\xa8P\x19"
+"""The first bytes of a file written by ``torch.save`` in the legacy (pre-1.6, non-zip) format: its pickled magic
+number."""
+
+
+def is_plain_pickle(path: Path) -> bool:
+    """Whether ``path`` is a Python pickle written by ``pickle.dump`` (not by ``torch.save``, which writes a zip
+    file, or in its legacy format a pickled magic number first). ``torch.load`` cannot read such a file."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(len(_TORCH_LEGACY_MAGIC))
+    except OSError:
+        return False
+    return head[:1] == b"\x80" and not head.startswith(_TORCH_LEGACY_MAGIC) and not zipfile.is_zipfile(path)
+
+
+def pickle_globals(path: Path) -> list[str]:
+    """The ``module.name`` globals a plain pickle refers to (read with :mod:`pickletools`, nothing is run);
+    [] when the file cannot be parsed."""
+    import pickletools
+
+    found: list[str] = []
+    strings: list[str] = []
+    try:
+        with open(path, "rb") as f:
+            for op, arg, _ in pickletools.genops(f):
+                if op.name == "GLOBAL" and isinstance(arg, str):
+                    found.append(arg.replace(" ", "."))
+                elif op.name == "STACK_GLOBAL" and len(strings) >= 2:
+                    found.append(f"{strings[-2]}.{strings[-1]}")
+                if isinstance(arg, str) and "UNICODE" in op.name:
+                    strings.append(arg)
+    except Exception:
+        return []
+    return sorted(set(found))
 
 
 def checkpoint_file(path: str | Path) -> Path:
@@ -102,13 +143,25 @@ def torch_load(path: str | Path, *, trust: bool = False, hint: str = "") -> Any:
     import torch
 
     path = checkpoint_file(path)
+    plain = is_plain_pickle(path)
     if trust:
         try:
+            if plain:  # pickle.dump's file: torch.load cannot read it (no magic number); trusted, so unpickled
+                with open(path, "rb") as f:
+                    return pickle.load(f)  # the user vouched for this file with trust=True
             return torch.load(path, map_location="cpu", weights_only=False)
         except Exception as exc:
             raise InputFileError(path, f"not a readable PyTorch checkpoint ({first_line(exc)})") from exc
+    if plain:
+        what = ", ".join(pickle_globals(path)) or "Python objects"
+        raise InputFileError(
+            path,
+            f"refusing to load it: a plain Python pickle (written by pickle.dump, not torch.save) of {what}, and "
+            f"unpickling it can run code from the file. {TRUST_HINT}{' ' + hint if hint else ''}",
+        )
     try:
-        with torch.serialization.safe_globals(numpy_array_globals()):
+        with torch.serialization.safe_globals(numpy_array_globals()), warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message="Detected pickle protocol")  # a refusal follows, not a hint
             return torch.load(path, map_location="cpu", weights_only=True)
     except pickle.UnpicklingError as exc:
         unsafe = unsafe_globals(path)

@@ -93,7 +93,7 @@ def export_checkpoint(
     else:
         from murk.models.lite.checkpoint import is_lite_checkpoint
 
-        done = (_export_lite if is_lite_checkpoint(checkpoint) else _export_jointid)(
+        done = (_export_lite if is_lite_checkpoint(checkpoint, trust=trust) else _export_jointid)(
             checkpoint, out, opset, verify, trust
         )
     for check in done.checks:

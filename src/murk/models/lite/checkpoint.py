@@ -77,12 +77,20 @@ def save_lite_checkpoint(model: nn.Module, path: str | Path, **meta: Any) -> Pat
     )
 
 
-def is_lite_checkpoint(path: str | Path) -> bool:
-    """True when ``path`` is a file in the ``murk.lite`` format (memory-mapped read: cheap for any size)."""
+def is_lite_checkpoint(path: str | Path, *, trust: bool = False) -> bool:
+    """True when ``path`` is a file in the ``murk.lite`` format (memory-mapped read: cheap for any size).
+
+    ``trust``: a file that pickles other objects (an optimiser state) is unpickled in full to tell (runs code
+    from the file: only for files the user trusts, as with ``--trust-checkpoint``)."""
     try:
         obj = torch.load(Path(path), map_location="cpu", weights_only=True, mmap=True)
     except Exception:
-        return False
+        if not trust:
+            return False
+        try:
+            obj = torch_load(path, trust=True)
+        except Exception:
+            return False
     return isinstance(obj, Mapping) and obj.get("format") == FORMAT
 
 
