@@ -73,6 +73,8 @@ def test_usage_errors_of_every_command_answer_without_torch(tmp_path: Path) -> N
         (["enhance", img, "--out", out, "--device", "gpu"], 2, "--device: expected cpu, cuda or cuda:N"),
         (["enhance", missing, "--out", out], 2, "not found"),
         (["enhance", img, "--out", out, "--method", "jointid", "--checkpoint", missing], 2, "checkpoint not found"),
+        (["live", img, "--method", "jointd", "--port", "0"], 2, "did you mean 'jointid'"),
+        (["live", img, "--method", "jointid?checkpoint=" + missing, "--port", "0"], 2, "checkpoint not found"),
         (["eval", img, "--preset", "foo"], 2, "--preset: expected a UIQM preset"),
         (["compare", img, "--out", out, "--method", "post", "--method", "jointd"], 2, "did you mean 'jointid'"),
         (["compare", img, "--out", out, "--method", "post", "--uiqm-preset", "foo"], 2, "--uiqm-preset: expected"),

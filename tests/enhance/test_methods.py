@@ -1,12 +1,13 @@
 """The lazy factories of the torch methods (murk.enhance.methods): the registry knows every name and option without
-importing torch, each declaration equals the factory it calls, and calling one builds the real restorer; a method's
-device is read without building the default one."""
+importing torch (and, asked to, whether a given weights file is there), each declaration equals the factory it
+calls, and calling one builds the real restorer; a method's device is read without building the default one."""
 
 from __future__ import annotations
 
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import pytest
 
@@ -59,6 +60,34 @@ def test_names_and_options_are_checked_without_torch() -> None:
                 assert text in str(exc), (spec, str(exc))
             else:
                 raise AssertionError(spec)
+        print(sorted(m for m in ("torch", "onnxruntime") if m in sys.modules))
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+
+
+def test_check_with_files_reports_a_missing_weights_file_without_torch(tmp_path: Path) -> None:
+    missing = tmp_path / "missing"
+    code = textwrap.dedent(
+        f"""
+        import sys
+        from murk.enhance.restorer import check
+        from murk.errors import InputFileError
+        check("jointid?checkpoint={missing}.pt")  # names and options only
+        for spec, text in [
+            ("jointid?checkpoint={missing}.pt", "checkpoint not found"),
+            ("lite+post?onnx={missing}.onnx", "ONNX model not found"),
+            ("ursct?checkpoint={missing}.pth", "checkpoint not found"),
+            ("post+udaformer?checkpoint={missing}.pth", "checkpoint not found"),
+        ]:
+            try:
+                check(spec, files=True)
+            except InputFileError as exc:
+                assert text in str(exc) and "{missing}" in str(exc), (spec, str(exc))
+            else:
+                raise AssertionError(spec)
+        check("colorbalance+post?lam=0.2", files=True)  # nothing to check
         print(sorted(m for m in ("torch", "onnxruntime") if m in sys.modules))
         """
     )

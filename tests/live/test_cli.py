@@ -1,4 +1,5 @@
-"""``murk live`` on the command line: the source's end, bad input, and Ctrl+C finishing a running recording."""
+"""``murk live`` on the command line: the source's end, bad input (the method checked before the source is opened),
+and Ctrl+C finishing a running recording."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import http.client
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -41,6 +43,34 @@ def test_bad_input_is_a_clear_error(tmp_path: Path) -> None:
     assert result.exit_code == 2 and "unknown 'nope'" in result.output
     result = runner.invoke(app, ["live", str(path), "--topic", "/cam", "--port", "0"])
     assert result.exit_code == 2 and "not a ROS bag" in result.output
+
+
+def test_the_method_is_checked_before_the_source_is_opened(tmp_path: Path) -> None:
+    """A stream server that accepts and never answers would keep ``murk live`` waiting for its first frame (about
+    11 s) and then report the stream: a misspelt method, an unknown option or a missing weights file is reported
+    first, and the server never sees a connection (issue 47)."""
+    with socket.create_server(("127.0.0.1", 0)) as server:
+        url = f"http://127.0.0.1:{server.getsockname()[1]}/stream"
+        missing = tmp_path / "missing.pt"
+        for method, said in [
+            ("jointd", "unknown 'jointd' (did you mean 'jointid'?)"),
+            ("post?lamda=1", "unknown option 'lamda' (did you mean 'lam'?)"),
+            (f"jointid?checkpoint={missing}", f"{missing}: checkpoint not found"),
+            (f"lite+post?checkpoint={missing}", f"{missing}: checkpoint not found"),
+        ]:
+            result = runner.invoke(app, ["live", url, "--method", method, "--port", "0", "--out", str(tmp_path / "o")])
+            assert result.exit_code == 2, (method, result.output)
+            assert said in " ".join(result.output.split()), (method, result.output)
+            assert url not in result.output  # the stream was not what it reported
+        server.setblocking(False)
+        try:  # the kernel completes a client's handshake without accept(): a connection would wait here
+            conn, peer = server.accept()
+        except BlockingIOError:
+            pass
+        else:
+            conn.close()
+            raise AssertionError(f"murk live connected to the source ({peer}) before checking its method")
+    assert not (tmp_path / "o").exists()
 
 
 def test_exposed_host_prints_a_warning(tmp_path: Path) -> None:

@@ -9,13 +9,15 @@ by ``tests/enhance/test_methods.py``). The classical methods (:mod:`murk.enhance
 register themselves.
 
 A weights file that is given but missing is reported here, before torch (or ONNX Runtime) is imported, with the
-message its loader gives.
+message its loader gives: by the factory, and by each method's preflight, which
+:func:`murk.enhance.restorer.check` runs with ``files=True`` (``murk live`` checks its method so before it opens
+its source).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from murk.enhance.choices import (
     DEFAULT_LITE_BLEND,
@@ -51,6 +53,18 @@ def _check_weights(checkpoint: str | Path | None, onnx: str | Path | None, *, ru
     checkpoint_file(path)
 
 
+def _network_weights(*, checkpoint: str | Path | None = None, onnx: str | Path | None = None, **_: Any) -> None:
+    """Preflight of ``jointid`` and ``lite``: a given checkpoint or ONNX file is there."""
+    _check_weights(checkpoint, onnx, runs_onnx=True)
+
+
+def _baseline_weights(*, checkpoint: str | Path | None = None, onnx: str | Path | None = None, **_: Any) -> None:
+    """Preflight of ``udaformer`` and ``ursct``: a given checkpoint is there (an onnx file is refused by the
+    factory: these run the torch network)."""
+    if onnx is None:
+        _check_weights(checkpoint, None, runs_onnx=False)
+
+
 @register("post")
 def post(
     *,
@@ -71,7 +85,7 @@ def post(
     return make_post(**options)
 
 
-@register("jointid")
+@register("jointid", preflight=_network_weights)
 def jointid(
     *,
     checkpoint: str | Path | None = None,
@@ -91,13 +105,13 @@ def jointid(
 ) -> Restorer:
     """``jointid`` (the network restores and estimates depth): :func:`murk.enhance.jointid_restorer.create_jointid`."""
     options = dict(locals())
-    _check_weights(checkpoint, onnx, runs_onnx=True)
+    _network_weights(checkpoint=checkpoint, onnx=onnx)
     from murk.enhance.jointid_restorer import create_jointid
 
     return create_jointid(**options)
 
 
-@register("lite")
+@register("lite", preflight=_network_weights)
 def lite(
     *,
     checkpoint: str | Path | None = None,
@@ -114,13 +128,13 @@ def lite(
 ) -> Restorer:
     """``lite`` (the small real-time restorer): :func:`murk.enhance.lite_restorer.create_lite`."""
     options = dict(locals())
-    _check_weights(checkpoint, onnx, runs_onnx=True)
+    _network_weights(checkpoint=checkpoint, onnx=onnx)
     from murk.enhance.lite_restorer import create_lite
 
     return create_lite(**options)
 
 
-@register("udaformer")
+@register("udaformer", preflight=_baseline_weights)
 def udaformer(
     *,
     checkpoint: str | Path | None = None,
@@ -135,14 +149,13 @@ def udaformer(
 ) -> Restorer:
     """``udaformer`` (a comparison baseline): :func:`murk.enhance.udaformer_restorer.create_udaformer`."""
     options = dict(locals())
-    if onnx is None:  # (an onnx file is refused by the factory: these run the torch network)
-        _check_weights(checkpoint, None, runs_onnx=False)
+    _baseline_weights(checkpoint=checkpoint, onnx=onnx)
     from murk.enhance.udaformer_restorer import create_udaformer
 
     return create_udaformer(**options)
 
 
-@register("ursct")
+@register("ursct", preflight=_baseline_weights)
 def ursct(
     *,
     checkpoint: str | Path | None = None,
@@ -157,8 +170,7 @@ def ursct(
 ) -> Restorer:
     """``ursct`` (a comparison baseline): :func:`murk.enhance.ursct_restorer.create_ursct`."""
     options = dict(locals())
-    if onnx is None:  # (an onnx file is refused by the factory: these run the torch network)
-        _check_weights(checkpoint, None, runs_onnx=False)
+    _baseline_weights(checkpoint=checkpoint, onnx=onnx)
     from murk.enhance.ursct_restorer import create_ursct
 
     return create_ursct(**options)

@@ -200,11 +200,17 @@ class Chain(Restorer):
 
 
 Factory = Callable[..., Restorer]
+Preflight = Callable[..., None]
 _REGISTRY: dict[str, Factory] = {}
+_PREFLIGHT: dict[str, Preflight] = {}
 
 
-def register(name: str) -> Callable[[Factory], Factory]:
+def register(name: str, *, preflight: Preflight | None = None) -> Callable[[Factory], Factory]:
     """Decorator registering a factory ``f(*, option=default, ...) -> Restorer`` under ``name``.
+
+    ``preflight``, called by :func:`check` with ``files=True`` with the options the factory would get, raises what
+    the factory would raise about the files they name (a weights file that is not there) without reading them or
+    importing torch.
 
     Raises:
         ValueError: an empty name, or one with ``+`` or ``?``.
@@ -217,6 +223,10 @@ def register(name: str) -> Callable[[Factory], Factory]:
     def deco(factory: Factory) -> Factory:
         declared_options(factory)  # the contract is checked when the method is registered
         _REGISTRY[name] = factory
+        if preflight is None:
+            _PREFLIGHT.pop(name, None)
+        else:
+            _PREFLIGHT[name] = preflight
         return factory
 
     return deco
@@ -283,15 +293,27 @@ def create(
 
 
 def check(
-    spec: str, *, shared: dict[str, Any] | None = None, given: Mapping[str, str] | None = None, **options: Any
+    spec: str,
+    *,
+    shared: dict[str, Any] | None = None,
+    given: Mapping[str, str] | None = None,
+    files: bool = False,
+    **options: Any,
 ) -> None:
     """Raise what :func:`create` would raise for these arguments about the method names and options, without
     building anything (no weights are read, torch is not imported): a command checks its ``--method`` at once.
+    With ``files``, also what it would raise about the files the options name (a weights file that is not there;
+    each method's ``preflight``, see :func:`register`): ``murk live`` says so before it opens its source.
 
     Raises:
-        ValueError: as :func:`create`.
+        ValueError: as :func:`create`. InputFileError: with ``files``, a given weights file that is not there.
     """
-    _plan(spec, shared, given, options)
+    names, kwargs = _plan(spec, shared, given, options)
+    if files:
+        for name, kw in zip(names, kwargs, strict=True):
+            preflight = _PREFLIGHT.get(name)
+            if preflight is not None:
+                preflight(**kw)
 
 
 def _plan(

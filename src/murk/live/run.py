@@ -1,6 +1,6 @@
-"""``murk live`` as one library call: open the source, start the frame pipeline, the web server and optionally
-the Foxglove publisher, wait for a stop request (or the source's end), and shut everything down in order:
-web server, capture and restoration, a running recording (finished: a playable file), Foxglove."""
+"""``murk live`` as one library call: check the method, open the source, start the frame pipeline, the web server
+and optionally the Foxglove publisher, wait for a stop request (or the source's end), and shut everything down in
+order: web server, capture and restoration, a running recording (finished: a playable file), Foxglove."""
 
 from __future__ import annotations
 
@@ -84,17 +84,22 @@ def run_live(
     ``exit_at_end``); ``shared`` holds the command's settings for the method (device, ...); ``on_event``
     receives the lines to show (the address, warnings, the source's end).
 
+    The method (names, options, given weights files) is checked first, before the source is opened.
+
     Raises:
-        InputFileError: the source cannot be opened. ValueError: an unknown method or option, a port in use, or
-            ``--foxglove`` without the ``foxglove`` extra.
+        InputFileError: the source cannot be opened, or a given weights file is not there. ValueError: an unknown
+            method or option, a port in use, or ``--foxglove`` without the ``foxglove`` extra.
     """
-    from murk.enhance.restorer import create
+    from murk.enhance.restorer import check, create
 
     settings = {"batch": 1} | dict(shared or {})
 
     def make_restorer(spec: str) -> Any:
         return create(spec, shared=settings)
 
+    # the method's names, options and weights files, before the source is opened (a stream that never answers
+    # would otherwise keep a misspelt method waiting) and before torch is imported
+    check(options.method, shared=settings, files=True)
     reader = open_live_source(options.source, topic=options.topic)
     source = PacedSource(reader, reopen=reopener(options.source, options.topic), loop=options.loop)
     report = LiveReport()
