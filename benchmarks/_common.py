@@ -180,11 +180,18 @@ class Recorder:
         self._changed()
 
     def problem(self, label: str, kind: str, why: str) -> None:
-        """Record a measurement that did not happen: ``kind`` is ``failed`` or ``budget``."""
+        """Record a measurement that did not happen: ``kind`` is ``failed``, ``budget`` or ``skipped`` (it cannot
+        happen here: :meth:`skip`)."""
         self.problems.append({"label": label, "kind": kind, "why": why})
         if self.echo:
             print(f"{label}: {kind.upper()} ({why})", flush=True)
         self._changed()
+
+    def skip(self, label: str, why: str) -> None:
+        """Record a measurement that cannot happen on this machine (a CUDA graph without CUDA) and why."""
+        if not why.strip():
+            raise ValueError(f"{label}: expected the reason of the skip, got {why!r}")
+        self.problem(label, "skipped", why)
 
     def attempt(self, label: str, fn: Callable[[], T], *, need_s: float = 0.0) -> T | None:
         """``fn()``, or None when it raised (recorded as failed) or needs more than the time left (recorded)."""

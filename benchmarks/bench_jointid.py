@@ -169,7 +169,12 @@ def gpu_figures(
         torch.backends.cuda.matmul.allow_tf32 = False  # the official fp32 figures are without TF32
         torch.backends.cudnn.allow_tf32 = False
     elif cuda_graph:
-        rec.note("CUDA graphs need a CUDA device: the graph figures are not measured")
+        no_graph = f"CUDA graphs need a CUDA device (this run's device: {dev.type})"
+        if mode == "eager":
+            rec.skip(f"bf16 + channels-last + CUDA graph, {hw[0]}x{hw[1]} batch 1", no_graph)
+            rec.skip(f"bf16 + channels-last + CUDA graph, {large_hw[0]}x{large_hw[1]} batch 1", no_graph)
+        else:
+            rec.skip("bf16 + channels-last + compile + CUDA graph", f"{no_graph}: compiled without a graph")
         cuda_graph = False
     sync = device_sync(dev)
     model = model.eval()

@@ -38,8 +38,9 @@ as it is measured, so a part killed at its budget keeps what it had. Overall, a 
 
 ``--cpu-dry-run`` runs the same parts and the same functions on the CPU at tiny sizes (a minimal Joint-ID
 configuration of the same structure, 64x96 frames, batches of 2-4, two timed calls after one warm-up, one training
-step after one warm-up), each part on one thread (``DRY_ENV``) and forked from the server above: CUDA-graph
-figures are skipped with a note, NCCL is replaced by gloo (same DDP code), and ``torch.compile`` compiles one
+step after one warm-up), each part on one thread (``DRY_ENV``) and forked from the server above: the CUDA-graph
+figures and the NCCL step are recorded as skipped with the reason (``Recorder.skip``; DDP runs over gloo instead,
+same code), so is each GPU test that skips on the CPU, and ``torch.compile`` compiles one
 shape with inductor's C++ backend, built as one file without optimisation (``TORCHINDUCTOR_CPP_WRAPPER=1``,
 ``TORCHINDUCTOR_DEBUG_COMPILE=1``, ``TORCHINDUCTOR_VEC_ISA_OK=0``; measured on the loaded 2-core development box:
 about 25 s to compile, against 65 s with the default flags for the same network, 170 s for the tiny variant); it
@@ -106,6 +107,10 @@ ALLOWED_DISTRIBUTIONS = (
     "onnxruntime",
 )
 """What the GPU machine has. A part may import these and their dependencies, nothing else (checked per part)."""
+
+
+NO_REASON = "no reason given"
+"""The reason recorded for a skipped test without one (the CPU dry run's test fails on it)."""
 
 
 class PartSkipped(Exception):
@@ -200,8 +205,9 @@ def part_pytest_gpu(ctx: Ctx) -> None:
         if bad is not None:
             counts["failed"] += 1
             ctx.rec.problem(name, "failed", (bad.get("message") or "")[:300])
-        elif case.find("skipped") is not None:
+        elif (skipped := case.find("skipped")) is not None:
             counts["skipped"] += 1
+            ctx.rec.skip(name, (skipped.get("message") or skipped.text or "").strip() or NO_REASON)
         else:
             counts["passed"] += 1
     ctx.details.update(counts, files=files, exit_code=proc.returncode)
@@ -409,7 +415,7 @@ def part_ddp(ctx: Ctx) -> None:
 
     if ctx.dry:
         backend = "gloo"
-        ctx.rec.note("NCCL needs CUDA: the dry run runs the same DDP step over gloo")
+        ctx.rec.skip("DDP nccl step", "NCCL needs CUDA: the dry run runs the same DDP step over gloo")
     else:
         if not dist.is_available() or not dist.is_nccl_available():
             raise PartSkipped(f"torch {torch.__version__} has no NCCL")
@@ -881,7 +887,7 @@ def _status(entry: dict[str, Any]) -> str:
         return "skipped"
     if entry.get("error") or not entry.get("finished"):
         return "failed"
-    kinds = {p["kind"] for p in entry.get("problems", [])}
+    kinds = {p["kind"] for p in entry.get("problems", []) if p["kind"] != "skipped"}  # cannot run here: not missing
     if "failed" in kinds:
         return "partial" if entry.get("figures") else "failed"
     return "partial" if kinds else "ok"
@@ -1069,7 +1075,9 @@ def render_markdown(report: dict[str, Any]) -> str:
         for key in ("skipped", "error"):
             if p.get(key):
                 notes.append(p[key])
-        notes += [f"{q['label']}: {q['kind']} ({q['why']})" for q in p.get("problems", [])]
+        notes += [f"{q['label']}: {q['kind']} ({q['why']})" for q in p.get("problems", []) if q["kind"] != "skipped"]
+        if any(q["kind"] == "skipped" for q in p.get("problems", [])):
+            notes.append(f"{sum(q['kind'] == 'skipped' for q in p['problems'])} skipped (listed below)")
         if p.get("foreign_imports"):
             notes.append(f"imported packages the GPU machine lacks: {', '.join(p['foreign_imports'])}")
         wall = f"{p.get('wall_s', 0):.0f} / {p['budget_s']:.0f} s"
@@ -1079,7 +1087,21 @@ def render_markdown(report: dict[str, Any]) -> str:
     lines += ["", "| part | figure | value | same-run baseline | ratio | target |", "|---|---|---|---|---|---|"]
     for p in report["parts"]:
         lines += [f"| {p['name']} " + figure_row(f) for f in p.get("figures", [])]
+    skips = skipped_items(report)
+    if skips:
+        lines += ["", "What this run skipped (it cannot run here), with the reason:", ""]
+        lines += [f"- {name}: {_cell(what)}: {_cell(why)}" for name, what, why in skips]
     return "\n".join(lines) + "\n"
+
+
+def skipped_items(report: dict[str, Any]) -> list[tuple[str, str, str]]:
+    """(part, what, why) for every part skipped whole and every measurement or test a part skipped."""
+    out: list[tuple[str, str, str]] = []
+    for p in report["parts"]:
+        if p.get("skipped"):
+            out.append((p["name"], "the whole part", p["skipped"]))
+        out += [(p["name"], q["label"], q["why"]) for q in p.get("problems", []) if q["kind"] == "skipped"]
+    return out
 
 
 # ---------------------------------------------------------------------------------------------------------------
