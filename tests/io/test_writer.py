@@ -38,9 +38,9 @@ def test_at_most_max_pending_groups_are_queued() -> None:
     blocked = threading.Thread(target=lambda: w.submit(lambda: None))
     blocked.start()
     blocked.join(0.05)
-    assert blocked.is_alive()  # the third group waits for the first
+    assert blocked.is_alive()  # the third group waits for the first (a busy machine can hide a fault, never fake one)
     gate.set()
-    blocked.join(5)
+    blocked.join(60)  # a guard against a fault only
     assert not blocked.is_alive()
     w.close()
 
