@@ -103,7 +103,10 @@ def resolve_device(device: str) -> str:
         import torch
 
         if not torch.cuda.is_available():
-            raise ValueError(f"--device {device}: CUDA is not available on this machine (torch {torch.__version__})")
+            raise ValueError(
+                f"--device {device}: CUDA is not available on this machine (torch {torch.__version__}); leave "
+                "--device out to run on the CPU, or install a CUDA build of torch (README, Install)"
+            )
         return dev
     raise ValueError(f"--device: expected cpu, cuda or cuda:N, got {device!r}")
 

@@ -169,7 +169,7 @@ def enhance_bag_to_bag(
     if max_frames is not None and max_frames < 1:
         raise ValueError(f"max_frames: expected >= 1, got {max_frames}")
     if storage is not None and source.family == "ros1":
-        raise ValueError("--storage applies to ROS 2 bags; a ROS 1 input gives a ROS 1 bag")
+        raise ValueError("--storage applies to ROS 2 bags; a ROS 1 input gives a ROS 1 bag: leave --storage out")
     if storage is not None and storage not in STORAGES:
         raise ValueError(f"--storage: expected one of {', '.join(STORAGES)}, got {storage!r}")
     d_out, d_depth = default_topics(source.topic, source.msgtype)
@@ -177,10 +177,11 @@ def enhance_bag_to_bag(
     depth_topic = bag.depth_topic or d_depth
     if source.topic in (out_topic, depth_topic) or out_topic == depth_topic:
         raise ValueError(
-            f"output topics {out_topic}, {depth_topic} must differ from each other and from {source.topic}"
+            f"output topics {out_topic}, {depth_topic} must differ from each other and from {source.topic}; "
+            "name them with --out-topic and --depth-topic"
         )
     if real_path(out) == real_path(source.path):
-        raise ValueError(f"--out {out}: is the input bag")
+        raise ValueError(f"--out {out}: is the input bag; choose another --out (the input is never overwritten)")
     copies = resolve_copy_topics(source, bag.copy_topics, skip=(out_topic, depth_topic))
     report = EnhanceReport(
         total=source.frame_count if max_frames is None else min(source.frame_count or max_frames, max_frames)

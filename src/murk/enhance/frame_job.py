@@ -176,7 +176,10 @@ def enhance_frames(
     elif max_frames is not None:
         report.total = max_frames
     if out.suffix.lower() in IMAGE_SUFFIXES:
-        raise ValueError(f"--out {out}: frames are written to a video file or a folder, not an image file")
+        raise ValueError(
+            f"--out {out}: frames are written to a video file or a folder, not an image file; name a video "
+            f"({', '.join(WRITABLE_VIDEO_SUFFIXES)}) or a folder"
+        )
     writer = _FrameWriter(source, out, options, report)
     if writer.as_video and out.suffix.lower() not in WRITABLE_VIDEO_SUFFIXES:
         raise ValueError(

@@ -62,7 +62,11 @@ def resolve_input(spec: str, *, recursive: bool = False, exclude: Path | None = 
         root = _glob_root(spec)
         images = _exclude(glob_images(spec, unusable=True), exclude, root)  # never follows a symlink loop
         if not images:
-            raise InputFileError(spec, "the pattern matches no image file")
+            raise InputFileError(
+                spec,
+                f"the pattern matches no image file (suffixes {', '.join(IMAGE_SUFFIXES)}); check the folder and the "
+                "pattern ('**' matches any number of subfolders)",
+            )
         return EnhanceInput("images", spec, tuple(images), root=root)
     raise InputFileError(
         spec,
@@ -116,10 +120,13 @@ def plan_images(inp: EnhanceInput, out: Path, fmt: ImageFormat | None = None) ->
     if inp.kind != "images" or inp.root is None:
         raise ValueError(f"inp: expected an images input, got {inp.kind}")
     if out.suffix.lower() in VIDEO_SUFFIXES:
-        raise ValueError(f"--out {out}: images are written to a folder or an image file, not a video")
+        raise ValueError(f"--out {out}: images are written to a folder or an image file, not a video; name a folder")
     if len(inp.images) == 1 and out.suffix.lower() in IMAGE_SUFFIXES and not out.is_dir():
         if fmt is not None and out.suffix.lower() not in _suffixes(fmt):
-            raise ValueError(f"--format {fmt} contradicts the output file name {out.name}")
+            raise ValueError(
+                f"--format {fmt} contradicts the output file name {out.name}; leave --format out, or name the file "
+                f"with {' or '.join(_suffixes(fmt))}"
+            )
         jobs = [ImageJob(inp.images[0], out, out.stem)]
         out_dir = out.parent
     else:
@@ -150,7 +157,7 @@ def plan_images(inp: EnhanceInput, out: Path, fmt: ImageFormat | None = None) ->
         hit = sources.get(real_path(job.dst))
         if hit is not None:
             what = "its input" if hit == job.src else f"the input {hit}"
-            raise ValueError(f"--out {out}: the output {job.dst} would overwrite {what}")
+            raise ValueError(f"--out {out}: the output {job.dst} would overwrite {what}; choose another --out")
     return jobs, out_dir
 
 

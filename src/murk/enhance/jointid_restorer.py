@@ -61,7 +61,10 @@ Backend = Callable[[Tensor], tuple[Tensor, Tensor]]
 def _resolve_device(device: str | torch.device) -> torch.device:
     dev = torch.device(device)
     if dev.type == "cuda" and not torch.cuda.is_available():
-        raise ValueError(f"device: CUDA is not available on this machine (torch {torch.__version__}), got {device!r}")
+        raise ValueError(
+            f"device: CUDA is not available on this machine (torch {torch.__version__}), got {device!r}; use "
+            "device cpu, or install a CUDA build of torch"
+        )
     if dev.type not in ("cpu", "cuda"):
         raise ValueError(f"device: expected cpu, cuda or cuda:N, got {device!r}")
     return dev
@@ -184,9 +187,13 @@ class JointIDRestorer(Restorer):
         """The simplest colour balance the network's input takes (from the checkpoint; None: none)."""
         if isinstance(model, OnnxJointID):
             if precision != "fp32":
-                raise ValueError(f"precision: ONNX models run in fp32, got {precision!r}")
+                raise ValueError(
+                    f"precision: ONNX models run in fp32, got {precision!r}; leave precision out or give a .pt"
+                )
             if compile or cuda_graph:
-                raise ValueError("compile/cuda_graph: only for the torch backend, not for ONNX models")
+                raise ValueError(
+                    "compile/cuda_graph: only for the torch backend, not for ONNX models; leave them out or give a .pt"
+                )
             self.device = torch.device("cpu")
             self.model: nn.Module | None = None
             self.channels_last = False
@@ -197,7 +204,7 @@ class JointIDRestorer(Restorer):
         net = unwrap(model)
         self.device = _resolve_device(device)
         if cuda_graph and self.device.type != "cuda":
-            raise ValueError("cuda_graph: needs device cuda")
+            raise ValueError("cuda_graph: needs device cuda; add --device cuda, or leave cuda_graph out")
         self.channels_last = self.device.type == "cuda" if channels_last is None else bool(channels_last)
         net.to(self.device)
         if self.channels_last:

@@ -106,7 +106,10 @@ class LiteRestorer(Restorer):
         maps are (a per-frame balance alone flickers when the scene's extremes move)."""
         if isinstance(model, OnnxLite):
             if self.temporal_state is not None:
-                raise ValueError("temporal: needs the torch network (an ONNX export computes its maps inside)")
+                raise ValueError(
+                    "temporal: needs the torch network (an ONNX export computes its maps inside); give the .pt "
+                    "checkpoint, or leave temporal out"
+                )
             self.device = torch.device("cpu")
             self.model: nn.Module | None = None
             self._backend: Any = model
@@ -116,7 +119,10 @@ class LiteRestorer(Restorer):
             raise TypeError(f"model: expected a LiteNet or an OnnxLite, got {type(model).__name__}")
         dev = torch.device(device)
         if dev.type == "cuda" and not torch.cuda.is_available():
-            raise ValueError(f"device: CUDA is not available on this machine, got {device!r}")
+            raise ValueError(
+                f"device: CUDA is not available on this machine, got {device!r}; use device cpu, or install a CUDA "
+                "build of torch"
+            )
         if dev.type not in ("cpu", "cuda"):
             raise ValueError(f"device: expected cpu, cuda or cuda:N, got {device!r}")
         self.device = dev
@@ -283,7 +289,7 @@ def create_lite(
     from murk.models.lite.onnx_export import OnnxLite
 
     if precision != "fp32":
-        raise ValueError(f"precision: the lite network runs in fp32 only, got {precision!r}")
+        raise ValueError(f"precision: the lite network runs in fp32 only, got {precision!r}; leave precision out")
     if checkpoint is not None and onnx is not None:
         raise ValueError("checkpoint/onnx: give one of them, not both")
     path = onnx if onnx is not None else checkpoint

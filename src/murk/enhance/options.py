@@ -222,7 +222,7 @@ def parse_spec(spec: str) -> tuple[str, dict[str, Any]]:
         if not sep or not key:
             raise ValueError(f"--method {spec}: expected KEY=VALUE options after '?', got {item!r}")
         if key in options:
-            raise ValueError(f"--method {spec}: option {key!r} given twice")
+            raise ValueError(f"--method {spec}: option {key!r} given twice; give it once")
         options[key] = _value(value.strip())
     if "trust_checkpoint" in options:
         raise ValueError(

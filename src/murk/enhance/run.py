@@ -66,7 +66,8 @@ def run_enhance(
         return _run_bag(spec, out, restorer, options, bag or BagOptions(), batch, max_frames, should_stop, shown)
     if bag is not None and bag != BagOptions():
         raise ValueError(
-            f"{spec}: --topic, --every, --out-topic, --depth-topic, --storage, --copy-topics need a ROS bag"
+            f"{spec}: --topic, --every, --out-topic, --depth-topic, --storage, --copy-topics need a ROS bag; leave "
+            "them out for this input"
         )
     inp = resolve_input(spec, recursive=recursive, exclude=out)
     if inp.kind == "images":

@@ -81,7 +81,11 @@ def read_depth(
         if raw.shape[2] >= 3 and not (
             np.array_equal(raw[:, :, 0], raw[:, :, 1]) and np.array_equal(raw[:, :, 0], raw[:, :, 2])
         ):
-            raise InputFileError(path, f"depth must be single-channel, got {raw.shape[2]} different channels")
+            raise InputFileError(
+                path,
+                f"depth must be single-channel, got {raw.shape[2]} different channels (a colour-mapped depth "
+                "picture is not depth: give the raw 16-bit PNG or a .npy of depth values)",
+            )
         raw = raw[:, :, 0]
     if relative:
         integer = np.issubdtype(raw.dtype, np.integer)

@@ -120,7 +120,7 @@ def read_list(list_file: str | Path) -> list[RGBDSource]:
         used.add(stem)
         sources.append(RGBDSource(stem, str(rgb), str(depth)))
     if not sources:
-        raise InputFileError(list_file, "no pairs listed")
+        raise InputFileError(list_file, "no pairs listed (expected one 'rgb_path depth_path' per line)")
     return sources
 
 

@@ -153,7 +153,12 @@ class CaptureSource(FrameSource):
         if not cap.isOpened():
             cap.release()
             what = "camera" if is_camera else "stream" if is_url else "video"
-            raise InputFileError(self.label, f"cannot open {what} (not found, unsupported or not responding)")
+            todo = {
+                "camera": "check the index (ls /dev/video*) and that no other program holds the camera",
+                "stream": "check the URL and that the stream is up (e.g. with ffplay URL)",
+                "video": "check that the file plays (e.g. with ffprobe); convert it to .mp4 (H.264) if not",
+            }[what]
+            raise InputFileError(self.label, f"cannot open {what} (not found, unsupported or not responding); {todo}")
         self._cap = cap
         fps = float(cap.get(cv2.CAP_PROP_FPS))
         self.fps = fps if math.isfinite(fps) and 0.5 <= fps <= 1000 else None
@@ -308,7 +313,9 @@ class VideoSink:
             self._writer.release()
             with contextlib.suppress(FileNotFoundError):
                 self._target.unlink()
-            raise ValueError(f"{self.path}: OpenCV cannot open a video writer for this file")
+            raise ValueError(
+                f"{self.path}: OpenCV cannot open a video writer for this file; try .mp4 or .avi, or --video-backend av"
+            )
 
     def _open_av(self, suffix: str) -> None:
         try:

@@ -46,7 +46,10 @@ class FoxglovePublisher:
         try:
             self._server = foxglove.start_server(name="murk live", host=host, port=port, context=self._context)
         except Exception as exc:  # the SDK raises its own error types
-            raise ValueError(f"--foxglove-port {port}: cannot start the Foxglove server on {host} ({exc})") from None
+            raise ValueError(
+                f"--foxglove-port {port}: cannot start the Foxglove server on {host} ({exc}); choose another "
+                "--foxglove-port (0: a free one)"
+            ) from None
         self.port = int(self._server.port)
         self.host = host
         self._channels = {k: CompressedImageChannel(t, context=self._context) for k, t in TOPICS.items()}

@@ -150,7 +150,7 @@ def real_images(real_dir: Path, out: Path, *, recursive: bool = False) -> list[P
     out_real = real_path(out)
     images = [p for p in listed if out_real not in real_path(p).parents]
     if not images:
-        raise ValueError(f"{real_dir}: no images found")
+        raise ValueError(f"{real_dir}: no images found{'' if recursive else ' (use --recursive for subfolders)'}")
     return images
 
 

@@ -86,7 +86,9 @@ def _method_options(spec: MethodSpec) -> dict[str, Any] | None:
     """The spec's options and checkpoint as keyword arguments of the registry; None for ``raw``."""
     if spec.method == "raw":
         if spec.options or spec.checkpoint:
-            raise ValueError(f"--method {spec.text}: raw (the input itself) takes no checkpoint or options")
+            raise ValueError(
+                f"--method {spec.text}: raw (the input itself) takes no checkpoint or options; write it as plain raw"
+            )
         return None
     extra = dict(spec.options)
     if spec.checkpoint:

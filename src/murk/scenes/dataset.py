@@ -52,11 +52,14 @@ def load_textures(folder: Path, problems: list[ErrorRecord] | None = None) -> di
     """
     from murk.errors import InputFileError
     from murk.io import list_images, read_rgb
+    from murk.io.images import IMAGE_SUFFIXES
     from murk.scenes import prepare_image_texture
 
     paths = list_images(folder, unusable=problems is not None)
     if not paths:
-        raise InputFileError(folder, "no images found for --textures")
+        raise InputFileError(
+            folder, f"no images found for --textures (suffixes {', '.join(IMAGE_SUFFIXES)}); give a folder of images"
+        )
     textures: dict[str, Any] = {}
     for p in paths:
         try:

@@ -49,7 +49,11 @@ def items_from_synth_folder(folder: str | Path) -> list[PairItem]:
     folder = Path(folder)
     manifest = folder / "manifest.jsonl"
     if not manifest.is_file():
-        raise InputFileError(folder, "no manifest.jsonl: not a 'murk synth' output folder")
+        raise InputFileError(
+            folder,
+            "no manifest.jsonl: not a 'murk synth' output folder (write one with 'murk synth', or set data.kind "
+            "to what the folder holds)",
+        )
     items = [
         PairItem(r["stem"], str(folder / r["degraded"]), str(folder / r["clean"]), str(folder / r["depth"]), 1000.0)
         for r in read_jsonl(manifest)

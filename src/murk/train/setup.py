@@ -134,7 +134,10 @@ def init_runtime(device_name: str) -> Runtime:
     """
     rank, world, local_rank = dist_info()
     if device_name.startswith("cuda") and not torch.cuda.is_available():
-        raise ValueError(f"device: {device_name} requested but CUDA is not available")
+        raise ValueError(
+            f"device: {device_name} requested but CUDA is not available; leave --device out to train on the CPU, "
+            "or install a CUDA build of torch"
+        )
     if world > 1:
         backend = "nccl" if device_name.startswith("cuda") else "gloo"
         if not dist.is_initialized():
@@ -226,7 +229,7 @@ def check_run_folder(out: Path, config: TrainConfig, *, resume: bool) -> None:
             )
         return
     if not latest.is_file():
-        raise ValueError(f"--resume: {latest} not found (nothing to resume)")
+        raise ValueError(f"--resume: {latest} not found (nothing to resume); leave --resume out to start a new run")
     try:
         before = read_yaml(out / "config.yaml")
     except ValueError:  # no (readable) config.yaml: an older run folder; the checkpoint itself is checked later
@@ -268,7 +271,7 @@ def resume_state(
     from murk.train.networks import read_network_checkpoint
 
     if not latest.is_file():
-        raise ValueError(f"--resume: {latest} not found (nothing to resume)")
+        raise ValueError(f"--resume: {latest} not found (nothing to resume); leave --resume out to start a new run")
     state, meta = read_network_checkpoint(config.model.kind, latest, trust=config.model.trust_checkpoint)
     missing = [k for k in ("optimizer", "step") if k not in meta]
     if missing:
