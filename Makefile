@@ -11,7 +11,8 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.murk-installed
 PYTEST_ARGS ?= -n auto
 
-.PHONY: demo test test-slow browser-test check lint typecheck layers bench install clean gpu-suite gpu-suite-dry-run gpu-deps
+.PHONY: demo test test-slow browser-test check lint typecheck layers bench install clean gpu-suite gpu-suite-dry-run gpu-deps \
+	wheel-check
 
 install: $(STAMP)
 
@@ -36,6 +37,12 @@ typecheck: $(STAMP)
 
 layers: $(STAMP)
 	$(VENV)/bin/lint-imports
+
+# murk as users install it (CI runs it after make test, .ci/run): build the sdist and the wheel (no deprecation
+# warning), install the wheel in a fresh virtual environment outside the checkout (not editable; its dependencies,
+# torch included, reused from $(VENV), offline), then run murk --version, murk enhance and murk live from there.
+wheel-check: $(STAMP)
+	$(PY) tools/check_wheel.py
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow $(PYTEST_ARGS)
