@@ -45,11 +45,17 @@ class LossWeights:
     """The teacher of ``distill``: ``lite`` or ``jointid`` (the shipped weights) or ``lite:PATH`` /
     ``jointid:PATH`` (a checkpoint). It restores each training input (after augmentation) without gradient, with
     its own input balance."""
+    local: float = 0.0
+    """Weight of the local term inside the enhancement term: the row-wise L2 left after the output's best gain and
+    offset per image and channel onto the clean scene (:func:`murk.train.losses.local_l2`), i.e. the error no
+    global colour correction removes (haze growing with distance, forward scatter, snow). It keeps a network from
+    lowering the loss by colour alone. 0: the original loss."""
     silog_lambda: float = 0.85
     depth_min_m: float = 0.001
 
     def __post_init__(self) -> None:
         check_range("distill", self.distill, 0.0, 1e6)
+        check_range("local", self.local, 0.0, 1e6)
         if self.distill > 0:
             kind = (self.teacher or "").split(":", 1)[0]
             if kind not in ("lite", "jointid"):

@@ -282,6 +282,8 @@ def train(
                 record["snow"] = float(terms.snow)
             if terms.distill is not None:
                 record["distill"] = float(terms.distill)
+            if terms.local is not None:
+                record["local"] = float(terms.local)
             emit(record)
         if step % config.eval.every == 0 or step == end:
             metrics = evaluate(model, data, config, device, step, errors) if main_rank else {}

@@ -12,7 +12,10 @@
 - murk's addition, off by default: ``L2_snow`` (:func:`snow_l2`), the error on the pixels the training input's
   marine snow covers, weighted by ``loss.snow`` inside the enhancement term, so that particles left in the
   output cost more than their share of the pixels (the real-snow issue); and ``L2_teacher``, the same row-wise
-  distance to a teacher's restoration of the input, weighted by ``loss.distill`` (distillation).
+  distance to a teacher's restoration of the input, weighted by ``loss.distill`` (distillation); and ``L2_local``
+  (:func:`local_l2`), the row-wise distance that is left after the output's best gain and offset per image and
+  channel onto the clean scene, weighted by ``loss.local``: the part of the error no global colour correction
+  can remove (haze that grows with distance, blur, snow), so that a network cannot lower the loss by colour alone.
 
 Reference: Yang, Kang, Lee, Cho, "Transformer-Based Joint Image Enhancement and Depth Estimation for Underwater
 Environments", IEEE Sensors Journal 2023, doi:10.1109/JSEN.2023.3338730 (facts from docs/spec/jointid.md).
@@ -43,6 +46,19 @@ def snow_l2(pred: Tensor, target: Tensor, alpha: Tensor) -> Tensor:
     w = alpha.to(pred.dtype)
     m = (w * (pred - target) ** 2).sum() / (w.sum() * pred.shape[1]).clamp(min=1e-8)
     return torch.sqrt(pred.shape[-1] * m + 1e-12)
+
+
+def local_l2(pred: Tensor, target: Tensor) -> Tensor:
+    """:func:`row_l2` between ``target`` and ``pred`` after the least-squares gain and offset per image and channel
+    that map ``pred`` onto ``target`` (the closed form of :func:`murk.metrics.affine_fit`, differentiable; the variance
+    gets 1e-6 so that a flat channel has a gradient). What is left is the error that no global colour map can
+    undo."""
+    p = pred.flatten(2)
+    t = target.flatten(2)
+    pm, tm = p.mean(dim=2, keepdim=True), t.mean(dim=2, keepdim=True)
+    pc = p - pm
+    gain = (pc * (t - tm)).mean(dim=2, keepdim=True) / ((pc * pc).mean(dim=2, keepdim=True) + 1e-6)
+    return row_l2((pc * gain + tm).view_as(pred), target)
 
 
 def laplacian(x: Tensor) -> Tensor:
@@ -100,6 +116,8 @@ class LossTerms:
     """``L2_snow`` when ``loss.snow`` > 0 and the inputs' snow alpha was given, else None."""
     distill: Tensor | None = None
     """``L2_teacher`` when ``loss.distill`` > 0 and the teacher's output was given, else None."""
+    local: Tensor | None = None
+    """``L2_local`` when ``loss.local`` > 0, else None."""
 
 
 def jointid_loss(
@@ -114,7 +132,8 @@ def jointid_loss(
     """The full training loss: ``2.0 * (L2 + 0.1 Lap) + 1.8 SILog`` (+ ``ssim * (1 - SSIM)`` when enabled; +
     ``enhance * snow * L2_snow`` when ``weights.snow`` > 0 and the inputs' marine-snow alpha ``snow_alpha``
     (B, 1, H, W) is given; + ``enhance * distill * L2(enhanced, teacher)`` when ``weights.distill`` > 0 and a
-    teacher's restoration ``teacher`` of the same inputs is given).
+    teacher's restoration ``teacher`` of the same inputs is given; + ``enhance * local * L2_local`` when
+    ``weights.local`` > 0).
 
     ``depth_m`` None (a network without a depth head, e.g. ``lite``): the SILog term is left out (0)."""
     l2 = row_l2(enhanced, clean)
@@ -128,6 +147,10 @@ def jointid_loss(
     if weights.distill > 0 and teacher is not None:
         distill = row_l2(enhanced, teacher)
         enhance = enhance + weights.distill * distill
+    local = None
+    if weights.local > 0:
+        local = local_l2(enhanced, clean)
+        enhance = enhance + weights.local * local
     total = weights.enhance * enhance
     if depth_m is None:
         si = torch.zeros((), device=enhanced.device)
@@ -146,4 +169,5 @@ def jointid_loss(
         ssim_term.detach(),
         None if snow is None else snow.detach(),
         None if distill is None else distill.detach(),
+        None if local is None else local.detach(),
     )
