@@ -29,6 +29,8 @@ def test_shipped_file_is_small_safe_and_the_small_variant() -> None:
     assert obj["meta"]["stage6"]["soup_of_stage5"]["weights"] == [0.5, 0.5]  # stage 4 and its snow continuation
     assert "murk train --config configs/train-small-colour-cpu.yaml" in obj["meta"]["command"]  # stage 6: head
     assert "murk train --config configs/train-small-distill-cpu.yaml" in obj["meta"]["command"]  # stage 6: all
+    assert "murk train --config configs/train-small-depthhead-cpu.yaml" in obj["meta"]["command"]  # stage 7: depth
+    assert obj["meta"]["stage7"]["trainable"] == "depth_head"
     assert obj["meta"]["input_balance_pct"] == 1.0
 
 
@@ -79,6 +81,7 @@ def test_recorded_run_configs_equal_the_shipped_configs() -> None:
         "configs/train-small-colour-cpu.yaml": "docs/models/jointid-small-colour-config.yaml",
         "configs/train-small-distill-cpu.yaml": "docs/models/jointid-small-distill-config.yaml",
         "configs/train-lite-mild-cpu.yaml": "docs/models/lite-mild-config.yaml",
+        "configs/train-small-depthhead-cpu.yaml": "docs/models/jointid-small-depthhead-config.yaml",
     }
     # Stage 6 ran from the files of that day (the head from the then-shipped stage-5 file, the distillation from the
     # head's first run); the shipped configs name where a reproduction finds them (docs/models.md, "Stage 6").
@@ -89,6 +92,10 @@ def test_recorded_run_configs_equal_the_shipped_configs() -> None:
         ),
         "configs/train-small-distill-cpu.yaml": ("runs/small-gc-head-wb3/latest.pt", "runs/small-colour/latest.pt"),
         "configs/train-lite-mild-cpu.yaml": ("src/murk/data/models/lite.pt", "runs/lite-stage4.pt"),
+        "configs/train-small-depthhead-cpu.yaml": (
+            "src/murk/data/models/jointid-small.pt",
+            "runs/jointid-small-stage6.pt",
+        ),
     }
     # Stage 6's teacher was the `lite` shipped that day (stage 4), which lite's stage 5 has since replaced.
     teachers = {"configs/train-small-distill-cpu.yaml": ("lite", "lite:runs/lite-stage4.pt")}
