@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from murk.enhance.frames_u8 import restore_frames, to_u8
 from murk.enhance.job import (
     INPUT_ERRORS,
     RESTORE_ERRORS,
@@ -22,7 +23,6 @@ from murk.enhance.job import (
     OutputOptions,
     ProgressFn,
     StopFn,
-    restore_batch,
     should_end,
     write_depth_outputs,
 )
@@ -43,7 +43,7 @@ WRITE_BEHIND = 4
 @dataclass
 class _FrameItem:
     index: int
-    image: np.ndarray | None  # float32 RGB
+    image: np.ndarray | None  # RGB as decoded (uint8; uint16 from some bags)
     error: str | None = None
     dst: Path | None = None
     replay: bool = False  # written by an earlier run: restored again only to carry the method's state over time
@@ -214,7 +214,7 @@ def enhance_frames(
         t0 = time.perf_counter()
         for group in _same_shape_runs(good):
             try:
-                result = restore_batch(restorer, np.stack([it.image for it in group]))  # type: ignore[misc]
+                result = restore_frames(restorer, np.stack([it.image for it in group]))  # type: ignore[misc]
             except RESTORE_ERRORS as exc:
                 for it in group:
                     it.error = f"restore failed: {type(exc).__name__}: {exc}"
@@ -243,10 +243,10 @@ def enhance_frames(
             stage = "read" if it.image is None else "restore"
             errors.add(ErrorRecord(label, stage, _frame_error(it, repeated), frame=it.index))
             return
-        image, depth = output
-        panel = side_by_side(it.image, image) if options.side_by_side else image  # type: ignore[arg-type]
+        image, depth = output  # uint8
+        panel = side_by_side(_as_u8(it.image), image) if options.side_by_side else image  # type: ignore[arg-type]
         try:
-            writer.write(it.index, to_uint(panel, 8), depth)
+            writer.write(it.index, panel, depth)
             report.processed += 1
         except OutputError:  # a full disk ends the run; finish() discards the partial video
             raise
@@ -270,7 +270,7 @@ def enhance_frames(
                     report.read_s += time.perf_counter() - t0
                     break
                 n_read += 1
-                item = _FrameItem(frame.index, None if frame.image is None else to_float(frame.image), frame.error)
+                item = _FrameItem(frame.index, frame.image, frame.error)
                 report.read_s += time.perf_counter() - t0
                 if not writer.as_video and item.image is not None:
                     item.dst = writer.frame_path(frame.index)
@@ -307,6 +307,11 @@ def enhance_frames(
     if options.depth_video and writer.as_video and not saw_depth and report.processed:
         report.note(f"--depth-video: method {restorer.name!r} returns no depth; no depth video written")
     return report
+
+
+def _as_u8(image: np.ndarray) -> np.ndarray:
+    """A decoded frame as uint8 (the input half of a side-by-side panel)."""
+    return image if image.dtype == np.uint8 else to_u8(to_float(image))
 
 
 def _same_shape_runs(items: list[_FrameItem]) -> list[list[_FrameItem]]:

@@ -183,6 +183,34 @@ class LiteRestorer(Restorer):
             enhanced = refine_restoration(images, enhanced, self.refine_settings)
         return RestoredTensor(enhanced, None)
 
+    def restore_u8(self, frames: np.ndarray, out_dtype: type = np.uint8) -> np.ndarray | None:
+        """The restoration of a batch of uint8 RGB frames (B, H, W, 3) as uint8 (``out_dtype``) or float32, by the
+        fused 8-bit path (:mod:`murk.enhance.lite_u8`: equal to :meth:`restore` of ``to_float(frames)`` within
+        float rounding, then rounded); None where that path does not apply (an ONNX runner, CUDA, ``refine``, or
+        frames the network sees at their own resolution): the caller then takes :meth:`restore`."""
+        from murk.enhance.lite_u8 import frame_levels, restore_frame
+
+        model = self.model
+        if model is None or self.device.type != "cpu" or self.refine_settings.on or frames.dtype != np.uint8:
+            return None
+        if work_size(frames.shape[1], frames.shape[2], self.work_area_px) is None:
+            return None
+        out = []
+        with torch.inference_mode():
+            for frame in frames:
+                levels = None
+                if self.input_balance_pct is not None:
+                    levels = frame_levels(frame, self.input_balance_pct)
+                    if self.levels_state is not None and self.temporal_hook() is not None:
+                        levels = self.levels_state(torch.from_numpy(levels)[None])[0].numpy()
+                restored = restore_frame(
+                    model, frame, levels, self.work_area_px, out_dtype=out_dtype, ema=self.temporal_hook()
+                )
+                if restored is None:
+                    return None
+                out.append(restored)
+        return out[0][None] if len(out) == 1 else np.stack(out)
+
     @contextlib.contextmanager
     def sequence(self) -> Iterator[None]:
         """:meth:`Restorer.sequence`, the balance's levels averaged afresh too."""

@@ -248,6 +248,8 @@ def _quiet_opencv() -> Iterator[None]:
 def _bgr_to_rgb(bgr: np.ndarray) -> np.ndarray:
     if bgr.ndim == 2:
         return np.ascontiguousarray(np.repeat(bgr[:, :, None], 3, axis=2))
+    if bgr.shape[2] == 3:  # the same bytes as numpy's copy of the reversed view, 40x faster (swap_red_blue)
+        return swap_red_blue(bgr)
     return np.ascontiguousarray(bgr[:, :, 2::-1])
 
 

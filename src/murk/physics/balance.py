@@ -55,7 +55,13 @@ def balance_levels(image: np.ndarray, low: float = 1.0, high: float = 1.0) -> np
     8.4 ms for ``torch.sort``, side by side, 2 threads); interpolated in float64 as the twin does."""
     img = np.asarray(image, np.float32)
     s = stats_stride(img.shape[0], img.shape[1])
-    ordered = np.sort(img[::s, ::s].reshape(-1, 3).T, axis=1)  # (3, n), ascending
+    return sample_levels(img[::s, ::s], low, high)
+
+
+def sample_levels(sample: np.ndarray, low: float = 1.0, high: float = 1.0) -> np.ndarray:
+    """The levels of :func:`balance_levels` from its sample itself (float32 (h, w, 3), every pixel used): a caller
+    that holds the frame in 8 bits converts only the sampled pixels (:func:`sample_of` gives them)."""
+    ordered = np.sort(np.asarray(sample, np.float32).reshape(-1, 3).T, axis=1)  # (3, n), ascending
     n = ordered.shape[1]
     out = np.empty((2, 3), np.float32)
     for j, pct in enumerate((float(low), 100.0 - float(high))):
@@ -63,6 +69,12 @@ def balance_levels(image: np.ndarray, low: float = 1.0, high: float = 1.0) -> np
         v0, v1 = ordered[:, i0].astype(np.float64), ordered[:, i1].astype(np.float64)
         out[j] = v0 + frac * (v1 - v0)
     return out
+
+
+def sample_of(image: np.ndarray) -> np.ndarray:
+    """The pixels (a strided view) the percentiles of :func:`balance_levels` are taken over."""
+    s = stats_stride(image.shape[0], image.shape[1])
+    return image[::s, ::s]
 
 
 def apply_levels(image: np.ndarray, levels: np.ndarray) -> np.ndarray:

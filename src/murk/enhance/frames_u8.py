@@ -1,0 +1,64 @@
+"""Restore decoded video frames as they come (8-bit RGB) into 8-bit frames: what ``murk enhance`` on a video and
+``murk live`` write and show (issue 48).
+
+:func:`restore_frames` gives the same frames as converting to float32 (:func:`murk.io.images.to_float`),
+restoring (:func:`murk.enhance.job.restore_batch`) and converting back (:func:`to_u8`), within one grey level,
+but lets a method take the 8-bit frames itself: a restorer (or the first stage of a chain) with a ``restore_u8``
+method (``lite``: :mod:`murk.enhance.lite_u8`) restores them without float32 copies of the frame, and the stages
+after it take its float32 output as in a chain. A method without one, on CUDA, or a frame it declines, takes the
+float32 path.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from murk.enhance.job import restore_batch
+from murk.enhance.restorer import Restored, Restorer, device_type
+from murk.io.images import to_float
+
+
+def restore_frames(restorer: Restorer, frames: np.ndarray) -> Restored:
+    """Restore a batch of RGB frames (B, H, W, 3), uint8 (or uint16: the float32 path), into uint8 frames
+    (``Restored.images`` uint8; ``depth_m`` as the method gives it).
+
+    Raises:
+        what :func:`murk.enhance.job.restore_batch` raises.
+    """
+    if frames.dtype == np.uint8 and device_type(restorer) == "cpu":
+        stages: list[Any] = list(getattr(restorer, "stages", [restorer]))
+        if all(device_type(s) == "cpu" for s in stages):
+            fast = getattr(stages[0], "restore_u8", None)
+            alone = len(stages) == 1
+            first = None if fast is None else fast(frames, np.uint8 if alone else np.float32)
+            if first is not None:
+                if alone:
+                    return Restored(first)
+                images, depth = first, None
+                for stage in stages[1:]:  # the rest of the chain, as Chain.restore runs it
+                    out = stage.restore(images)
+                    images, depth = out.images, out.depth_m if out.depth_m is not None else depth
+                return Restored(to_u8(images), depth)
+    result = restore_batch(restorer, to_float(frames))
+    return Restored(to_u8(result.images), result.depth_m)
+
+
+def to_u8(images: np.ndarray) -> np.ndarray:
+    """float images in [0, 1] (any shape) -> uint8: :func:`murk.io.images.to_uint` (clip, times 255, plus 0.5,
+    truncated: the same bytes), a cache-sized chunk at a time instead of three frame-sized temporaries."""
+    x = np.ascontiguousarray(images, dtype=np.float32)
+    flat, out = x.reshape(-1), np.empty(x.size, np.uint8)
+    tmp = np.empty(min(_CHUNK, flat.size), np.float32)
+    for i in range(0, flat.size, _CHUNK):
+        chunk = flat[i : i + _CHUNK]
+        t = tmp[: chunk.size]
+        np.clip(chunk, 0.0, 1.0, out=t)
+        t *= np.float32(255.0)
+        t += np.float32(0.5)
+        np.copyto(out[i : i + _CHUNK], t, casting="unsafe")  # truncation, as astype
+    return out.reshape(x.shape)
+
+
+_CHUNK = 1 << 16
