@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
-from murk.live.pipeline import LivePipeline, LiveView
+from murk.live.pipeline import PAGE_WIDTH_PX, LivePipeline, LiveView, page_pair
 from tests._video import read_video
 from tests.live._live import WAIT_S, BurstRestorer, WatchedSource, clip, make_restorer, pipeline
 
@@ -151,3 +151,20 @@ def test_an_unexpected_error_in_restoration_ends_the_run_visibly(tmp_path: Path)
         assert p.ended is not None and "restoration failed (KeyError" in p.ended
     finally:
         p.stop()
+
+
+def test_page_pair_is_encoded_at_most_page_width() -> None:
+    """Issue 48: the page's pair of a 1920x1080 frame is encoded 1920 wide (each half at 1/2), a 640x480 pair as is;
+    the raw and restored JPEGs keep the full resolution."""
+    rng = np.random.default_rng(0)
+    raw, restored = (rng.integers(0, 256, (1080, 1920, 3), dtype=np.uint8) for _ in range(2))
+    pair = page_pair(raw, restored)
+    assert pair.shape == (540, PAGE_WIDTH_PX, 3)
+    assert np.array_equal(pair[:, 960:], cv2.resize(restored, (960, 540), interpolation=cv2.INTER_AREA))
+    small = raw[:480, :640], restored[:480, :640]
+    assert np.array_equal(page_pair(*small), np.concatenate(small, axis=1))
+    view = LiveView(0, raw, restored, None, 0, 0, 0, "lite")
+    decoded = cv2.imdecode(np.frombuffer(view.jpeg("pair"), np.uint8), cv2.IMREAD_COLOR)
+    assert decoded.shape == (540, 1920, 3)
+    assert cv2.imdecode(np.frombuffer(view.jpeg("restored"), np.uint8), cv2.IMREAD_COLOR).shape == (1080, 1920, 3)
+    assert view.jpeg("pair") is view.jpeg("pair")  # encoded once, shared

@@ -13,8 +13,14 @@ The method can be switched while running (:meth:`LivePipeline.set_method`): the 
 caller's thread (a bad method or option raises ``ValueError`` there and the running one stays) and swapped in
 between two frames; methods with a ``temporal`` weight start their average afresh.
 
-Each view is encoded to JPEG at most once, when a reader first asks for it (:meth:`LiveView.jpeg`), so
-encoding for the page overlaps with the restoration of the next frame.
+Publish: a third thread encodes the page's JPEG of each restored view (:meth:`LiveView.jpeg`), then hands the view
+to the readers and to the hooks, while the restore thread restores the next frame (issue 48: at 1920x1080 the
+page's JPEG costs about as much as restoring with ``lite``; in one thread the two costs added up). Newest wins here
+too: a view still waiting when a newer one is restored is not shown (counted in :attr:`LivePipeline.unshown`).
+The page's pair is encoded at most :data:`PAGE_WIDTH_PX` wide (each half scaled down by OpenCV's area
+interpolation when the frames are wider than half of it: what the page shows, a quarter of the pixels to encode at
+1920x1080); snapshots, recordings and the ``raw``/``restored`` JPEGs keep the full resolution. Each JPEG is encoded
+at most once per view and shared by every reader (the page, the MJPEG stream, Foxglove).
 """
 
 from __future__ import annotations
@@ -32,7 +38,8 @@ from typing import Any
 import cv2
 import numpy as np
 
-from murk.enhance.job import RESTORE_ERRORS, restore_batch
+from murk.enhance.frames_u8 import restore_frames
+from murk.enhance.job import RESTORE_ERRORS
 from murk.enhance.options import parse_spec
 from murk.enhance.restorer import Restorer
 from murk.io.images import swap_red_blue, to_float, to_uint
@@ -44,6 +51,10 @@ RATE_WINDOW_S = 2.0
 """Frames per second are counted over this last stretch of time."""
 LATENCY_WINDOW = 60
 """The latency shown is the median over this many last frames."""
+
+PAGE_WIDTH_PX = 1920
+"""The widest the page's pair (raw | restored) is encoded: a 640x480 pair (1280 px) as it is, a 1280x720 pair at
+3/4 and a 1920x1080 pair at 1/2 of its size."""
 
 RestorerFactory = Callable[[str], Restorer]
 FrameHook = Callable[["LiveView"], None]
@@ -69,15 +80,26 @@ class LiveView:
 
     def jpeg(self, view: str = "pair", quality: int = 85) -> bytes:
         """The frame encoded as JPEG, once per ``view``: ``pair`` (raw | restored side by side, what the page
-        shows), ``raw`` or ``restored``."""
+        shows; at most :data:`PAGE_WIDTH_PX` wide), ``raw`` or ``restored`` (full resolution)."""
         key = f"{view}:{quality}"
         with self._lock:
             if key not in self._jpeg:
                 image = {"raw": self.raw, "restored": self.restored}.get(view)
                 if image is None:
-                    image = np.concatenate([self.raw, self.restored], axis=1)
+                    image = page_pair(self.raw, self.restored)
                 self._jpeg[key] = encode_jpeg(image, quality)
             return self._jpeg[key]
+
+
+def page_pair(raw: np.ndarray, restored: np.ndarray, width_px: int = PAGE_WIDTH_PX) -> np.ndarray:
+    """raw | restored side by side, scaled down (area interpolation, each half alike) to at most ``width_px``."""
+    h, w = restored.shape[:2]
+    if raw.shape[:2] != (h, w):
+        raw = cv2.resize(raw, (w, h), interpolation=cv2.INTER_AREA)
+    if 2 * w > width_px:
+        size = (max(1, width_px // 2), max(1, round(h * width_px / (2 * w))))
+        raw, restored = (cv2.resize(im, size, interpolation=cv2.INTER_AREA) for im in (raw, restored))
+    return np.concatenate([raw, restored], axis=1)
 
 
 def encode_jpeg(rgb: np.ndarray, quality: int = 85) -> bytes:
@@ -129,12 +151,22 @@ class LivePipeline:
         self.ended: str | None = None
         """Why the source ended (``"end"``, ``"disconnected or ended"``, an error), None while it runs."""
         self.recordings: list[Path] = []
+        self.unshown = 0
+        """Restored views replaced by a newer one before the publish thread took them (newest wins); ``restored``
+        counts the views shown (and handed to the hooks)."""
         self._reader = ReadAhead(source, drop_late=True)
         self._thread = threading.Thread(target=self._run, name="murk-live-restore", daemon=True)
+        self._pending: LiveView | None = None
+        self._pending_cond = threading.Condition()
+        self._restore_done = False
+        self._handed = 0  # views handed to the publish thread, and those it showed (or failed to)
+        self._settled = 0
+        self._publisher = threading.Thread(target=self._publish_loop, name="murk-live-publish", daemon=True)
 
     # -- running ---------------------------------------------------------------------------------------------
 
     def start(self) -> LivePipeline:
+        self._publisher.start()
         self._thread.start()
         return self
 
@@ -148,6 +180,10 @@ class LivePipeline:
             self._loop()
         except Exception as exc:  # a bug or an unexpected library error: shown as the end, never a silent freeze
             self._end(f"restoration failed ({type(exc).__name__}: {exc})")
+        finally:
+            with self._pending_cond:
+                self._restore_done = True
+                self._pending_cond.notify_all()
 
     def _loop(self) -> None:
         with contextlib.ExitStack() as sequence:
@@ -177,7 +213,7 @@ class LivePipeline:
         image = frame.image
         assert image is not None
         try:
-            out = restore_batch(restorer, to_float(image)[None])
+            out = restore_frames(restorer, image[None])
         except RESTORE_ERRORS as exc:
             self.failed += 1
             self.last_error = f"frame {frame.index}: {method} failed ({type(exc).__name__}: {exc})"
@@ -186,7 +222,7 @@ class LivePipeline:
         view = LiveView(
             index=frame.index,
             raw=raw,
-            restored=to_uint(out.images[0], 8),
+            restored=out.images[0],
             depth_m=None if out.depth_m is None else out.depth_m[0],
             capture_ns=frame.capture_ns,
             source_ns=frame.source_ns,
@@ -194,7 +230,40 @@ class LivePipeline:
             method=method,
             frame_id=frame.frame_id,
         )
-        view.jpeg("pair")  # encoded here, beside restoration, so a waiting page gets it without delay
+        with self._rec_lock:
+            recorder = self._recorder
+        if recorder is not None:  # every restored frame, in order (the publish thread may skip views)
+            try:
+                recorder.write(view.index, view.restored)
+            except (OSError, ValueError) as exc:
+                self.last_error = f"recording stopped: {exc}"
+                self._finish_recording()
+        with self._pending_cond:  # to the publish thread; newest wins
+            if self._pending is not None:
+                self.unshown += 1
+            self._pending = view
+            self._handed += 1
+            self._pending_cond.notify_all()
+
+    def _publish_loop(self) -> None:
+        """The publish thread: encode the page's JPEG of the newest restored view, show it, call the hooks."""
+        while True:
+            with self._pending_cond:
+                while self._pending is None and not self._restore_done:
+                    self._pending_cond.wait()
+                view, self._pending = self._pending, None
+            if view is None:
+                return
+            try:
+                self._publish(view)
+            except Exception as exc:  # an encoder failure: shown, the next view is tried
+                self.last_error = f"frame {view.index}: could not be shown ({type(exc).__name__}: {exc})"
+            with self._pending_cond:
+                self._settled += 1
+                self._pending_cond.notify_all()
+
+    def _publish(self, view: LiveView) -> None:
+        view.jpeg("pair")  # encoded before it is shown, so a waiting page gets it without delay
         now = time.perf_counter()
         with self._cond:
             self._view = view
@@ -204,14 +273,6 @@ class LivePipeline:
                 self._restored_times.popleft()
             self._latency_ms.append((view.done_ns - view.capture_ns) / 1e6)
             self._cond.notify_all()
-        with self._rec_lock:
-            recorder = self._recorder
-        if recorder is not None:
-            try:
-                recorder.write(view.index, view.restored)
-            except (OSError, ValueError) as exc:
-                self.last_error = f"recording stopped: {exc}"
-                self._finish_recording()
         for hook in self.hooks:
             try:
                 hook(view)
@@ -219,6 +280,9 @@ class LivePipeline:
                 self.last_error = f"{getattr(hook, '__qualname__', hook)}: {type(exc).__name__}: {exc}"
 
     def _end(self, reason: str) -> None:
+        with self._pending_cond:  # the last restored view is shown first
+            while self._handed > self._settled + self.unshown and self._publisher.is_alive():
+                self._pending_cond.wait(1.0)
         with self._cond:
             self.ended = reason
             self._cond.notify_all()
@@ -228,7 +292,10 @@ class LivePipeline:
         self._stop.set()
         self.source.stop()
         self._reader.stop()
-        self._thread.join(timeout_s)
+        if self._thread.is_alive():
+            self._thread.join(timeout_s)
+        if self._publisher.is_alive():
+            self._publisher.join(timeout_s)
         self._finish_recording()
         if not self._thread.is_alive():
             with contextlib.suppress(Exception):
@@ -279,6 +346,7 @@ class LivePipeline:
             "fps": round(fps, 2),
             "latency_ms": None if latency is None else round(latency, 1),
             "dropped": self.dropped,
+            "unshown": self.unshown,
             "broken": self.broken,
             "failed": self.failed,
             "last_error": self.last_error,
