@@ -22,9 +22,10 @@ import numpy as np
 import torch
 from _common import Figure, Recorder, machine, median_s
 
+from murk.enhance.baseline import BaselineRestorer
 from murk.enhance.jointid_restorer import JointIDRestorer
-from murk.enhance.udaformer_restorer import UDAformerRestorer
-from murk.enhance.ursct_restorer import URSCTRestorer
+from murk.enhance.udaformer_restorer import UDAFORMER
+from murk.enhance.ursct_restorer import URSCT_SESR
 from murk.models.jointid import build_jointid
 from murk.models.udaformer import build_udaformer
 from murk.models.ursct_sesr import build_ursct
@@ -35,8 +36,8 @@ def restorers() -> dict[str, Callable[[], object]]:
     return {
         "jointid-base": lambda: JointIDRestorer(build_jointid("base", init=False).eval()),
         "jointid-small": lambda: JointIDRestorer(build_jointid("small").eval()),
-        "udaformer": lambda: UDAformerRestorer(build_udaformer()),
-        "ursct": lambda: URSCTRestorer(build_ursct()),
+        "udaformer": lambda: BaselineRestorer(UDAFORMER, build_udaformer()),
+        "ursct": lambda: BaselineRestorer(URSCT_SESR, build_ursct()),
     }
 
 

@@ -10,8 +10,9 @@ import torch
 from typer.testing import CliRunner
 
 from murk.cli.main import app
-from murk.enhance.udaformer_restorer import UDAformerRestorer
-from murk.enhance.ursct_restorer import URSCTRestorer
+from murk.enhance.baseline import BaselineRestorer
+from murk.enhance.udaformer_restorer import UDAFORMER
+from murk.enhance.ursct_restorer import URSCT_SESR
 from murk.models.baseline_onnx import export_baseline_onnx
 from murk.models.udaformer import UDAformer
 from murk.models.ursct_sesr import URSCT, URSCTConfig
@@ -33,7 +34,7 @@ def test_export_udaformer_fixed_size(tmp_path):
     session = ort.InferenceSession(str(tmp_path / "u.onnx"), providers=["CPUExecutionProvider"])
     x = torch.rand(3, 3, 21, 37, generator=torch.Generator().manual_seed(1))
     (y,) = session.run(None, {"image": x.numpy()})  # RGB in; padded to 40x24 and BGR inside the graph
-    ref = UDAformerRestorer(model).restore_tensor(x).images
+    ref = BaselineRestorer(UDAFORMER, model).restore_tensor(x).images
     np.testing.assert_allclose(y, ref.numpy(), rtol=0, atol=1e-4)
 
 
@@ -55,7 +56,7 @@ def test_export_reduced_ursct_and_bad_sizes(tmp_path):
     session = ort.InferenceSession(str(done.path), providers=["CPUExecutionProvider"])
     x = torch.rand(1, 3, 128, 128, generator=torch.Generator().manual_seed(2))
     (y,) = session.run(None, {"image": x.numpy()})
-    ref = URSCTRestorer(small, tile=128).restore_tensor(x).images  # one tile: the whole frame
+    ref = BaselineRestorer(URSCT_SESR, small, tile=128).restore_tensor(x).images  # one tile: the whole frame
     np.testing.assert_allclose(y, ref.numpy(), rtol=0, atol=1e-4)
     with pytest.raises(ValueError, match="square size that is a multiple of 128"):
         export_baseline_onnx(small, tmp_path / "x.onnx", size_hw=(128, 256))

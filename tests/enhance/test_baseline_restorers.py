@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 import torch
 
+from murk.enhance.baseline import BaselineRestorer
 from murk.enhance.restorer import available
 from murk.enhance.restorer import create as create_restorer
-from murk.enhance.udaformer_restorer import UDAformerRestorer
-from murk.enhance.ursct_restorer import URSCTRestorer
+from murk.enhance.udaformer_restorer import UDAFORMER
+from murk.enhance.ursct_restorer import URSCT_SESR
 from murk.errors import ShapeError
 from murk.models.udaformer import UDAformer, UDAformerConfig
 from murk.models.ursct_sesr import URSCT, URSCTConfig
@@ -41,7 +42,7 @@ def test_registered():
 
 def test_udaformer_native_is_the_network_on_bgr_at_the_input_size(uda):
     imgs = _images(2, 24, 40)  # multiples of 8: no padding
-    out = UDAformerRestorer(uda).restore(imgs)
+    out = BaselineRestorer(UDAFORMER, uda).restore(imgs)
     assert out.images.shape == imgs.shape and out.depth_m is None and out.images.dtype == np.float32
     x = torch.from_numpy(imgs).permute(0, 3, 1, 2).flip(1)
     with torch.no_grad():
@@ -53,18 +54,18 @@ def test_udaformer_with_a_zero_head_is_the_identity_at_any_size():
     model = UDAformer(UDAformerConfig(dim=4, blocks=(1, 1, 1, 1), refinement_blocks=0))
     with torch.no_grad():
         model.output.weight.zero_()
-    r = UDAformerRestorer(model)
+    r = BaselineRestorer(UDAFORMER, model)
     for h, w in ((13, 29), (1, 5), (40, 24)):
         imgs = _images(1, h, w, seed=h)
         np.testing.assert_array_equal(r.restore(imgs).images, imgs)  # padding, BGR flips and crop undone
-    tiled = UDAformerRestorer(model, tile=16, overlap=8)
+    tiled = BaselineRestorer(UDAFORMER, model, tile=16, overlap=8)
     imgs = _images(1, 37, 50)
     np.testing.assert_allclose(tiled.restore(imgs).images, imgs, rtol=0, atol=1e-6)
 
 
 def test_udaformer_official_policy_reproduces_test_py(uda):
     imgs = _images(1, 60, 90)
-    out = UDAformerRestorer(uda, policy="official").restore(imgs)
+    out = BaselineRestorer(UDAFORMER, uda, policy="official").restore(imgs)
     assert out.images.shape == (1, 256, 256, 3)
     u8 = np.rint(imgs[0] * 255).astype(np.uint8)
     bgr = cv2.resize(u8[..., ::-1], (256, 256), interpolation=cv2.INTER_LINEAR)  # cv2.imread is BGR
@@ -73,12 +74,12 @@ def test_udaformer_official_policy_reproduces_test_py(uda):
         y = uda(x)[0].numpy().transpose(1, 2, 0)
     expected = np.clip(np.rint(y * 255), 0, 255)[..., ::-1] / 255.0  # cv2.imwrite: saturate + round half even
     np.testing.assert_allclose(out.images[0], expected, rtol=0, atol=1e-6)
-    t = UDAformerRestorer(uda, policy="official").restore_tensor(torch.from_numpy(imgs).permute(0, 3, 1, 2))
+    t = BaselineRestorer(UDAFORMER, uda, policy="official").restore_tensor(torch.from_numpy(imgs).permute(0, 3, 1, 2))
     np.testing.assert_allclose(t.images[0].permute(1, 2, 0).numpy(), out.images[0], atol=0)
 
 
 def test_ursct_native_tiles_any_size_and_equals_the_network_on_one_tile(ursct):
-    r = URSCTRestorer(ursct)
+    r = BaselineRestorer(URSCT_SESR, ursct)
     assert r.tile == 256
     imgs = _images(1, 256, 256)
     x = torch.from_numpy(imgs).permute(0, 3, 1, 2)
@@ -92,7 +93,7 @@ def test_ursct_native_tiles_any_size_and_equals_the_network_on_one_tile(ursct):
 
 def test_ursct_official_policy_reproduces_enh_eval(ursct):
     imgs = _images(1, 100, 160)
-    out = URSCTRestorer(ursct, policy="official").restore(imgs)
+    out = BaselineRestorer(URSCT_SESR, ursct, policy="official").restore(imgs)
     assert out.images.shape == (1, 256, 256, 3)
     x = torch.nn.functional.interpolate(
         torch.from_numpy(imgs).permute(0, 3, 1, 2), size=(256, 256), mode="bilinear", align_corners=False
@@ -106,43 +107,42 @@ def test_ursct_official_policy_reproduces_enh_eval(ursct):
 
 @pytest.mark.parametrize("which", ["udaformer", "ursct"])
 def test_an_image_does_not_change_when_batched_with_another(which, uda, ursct):
-    r = UDAformerRestorer(uda) if which == "udaformer" else URSCTRestorer(ursct)
+    network, model = (UDAFORMER, uda) if which == "udaformer" else (URSCT_SESR, ursct)
+    r = BaselineRestorer(network, model)
     a, b = _images(1, 64, 96, seed=1), _images(1, 64, 96, seed=2)
     alone = r.restore(a).images[0]
     for pair, i in ((np.concatenate([a, b]), 0), (np.concatenate([b, a]), 1)):
         np.testing.assert_allclose(r.restore(pair).images[i], alone, rtol=0, atol=1e-5)
-    chunked = (UDAformerRestorer(uda, batch=1) if which == "udaformer" else URSCTRestorer(ursct, batch=1)).restore(
-        np.concatenate([b, a])
-    )
+    chunked = BaselineRestorer(network, model, batch=1).restore(np.concatenate([b, a]))
     np.testing.assert_allclose(chunked.images[1], alone, rtol=0, atol=1e-5)
 
 
 def test_bf16_precision_runs_close_to_fp32(ursct):
     imgs = _images(1, 64, 64)
-    a = URSCTRestorer(ursct).restore(imgs).images
-    b = URSCTRestorer(ursct, precision="bf16").restore(imgs).images
+    a = BaselineRestorer(URSCT_SESR, ursct).restore(imgs).images
+    b = BaselineRestorer(URSCT_SESR, ursct, precision="bf16").restore(imgs).images
     assert b.dtype == np.float32 and np.abs(a - b).mean() < 0.05
 
 
 def test_options_are_validated(uda, ursct):
     with pytest.raises(ValueError, match="policy: expected 'native' or 'official', got 'paper'"):
-        UDAformerRestorer(uda, policy="paper")
+        BaselineRestorer(UDAFORMER, uda, policy="paper")
     with pytest.raises(ValueError, match=r"tile: expected None or a positive multiple of 8 pixels \(UDAformer\)"):
-        UDAformerRestorer(uda, tile=20)
+        BaselineRestorer(UDAFORMER, uda, tile=20)
     with pytest.raises(ValueError, match=r"tile: expected None or a positive multiple of 128 pixels \(URSCT-SESR\)"):
-        URSCTRestorer(ursct, tile=320)
+        BaselineRestorer(URSCT_SESR, ursct, tile=320)
     with pytest.raises(ValueError, match=r"overlap: expected 0 <= overlap < tile \(256\)"):
-        URSCTRestorer(ursct, overlap=256)
+        BaselineRestorer(URSCT_SESR, ursct, overlap=256)
     with pytest.raises(ValueError, match="precision"):
-        URSCTRestorer(ursct, precision="int8")
+        BaselineRestorer(URSCT_SESR, ursct, precision="int8")
     with pytest.raises(ValueError, match="batch"):
-        UDAformerRestorer(uda, batch=0)
+        BaselineRestorer(UDAFORMER, uda, batch=0)
     with pytest.raises(TypeError, match="expected a URSCT"):
-        URSCTRestorer(uda)
+        BaselineRestorer(URSCT_SESR, uda)
     with pytest.raises(ShapeError, match=r"\(B, 3, H, W\)"):
-        URSCTRestorer(ursct).restore_tensor(torch.zeros(1, 4, 8, 8))
+        BaselineRestorer(URSCT_SESR, ursct).restore_tensor(torch.zeros(1, 4, 8, 8))
     with pytest.raises(TypeError, match="float tensor"):
-        UDAformerRestorer(uda).restore_tensor(torch.zeros(1, 3, 8, 8, dtype=torch.uint8))
+        BaselineRestorer(UDAFORMER, uda).restore_tensor(torch.zeros(1, 3, 8, 8, dtype=torch.uint8))
 
 
 @pytest.mark.parametrize("method", ["udaformer", "ursct"])

@@ -1,5 +1,6 @@
 """The ``ursct`` restorer: URSCT-SESR (enhancement model; a comparison baseline of the paper) on images of any
-size, CPU or GPU.
+size, CPU or GPU: :class:`murk.enhance.baseline.BaselineRestorer` with the network declared here
+(:data:`URSCT_SESR`).
 
 The network only takes square inputs whose side is a multiple of 128 and was trained at 256x256. Policies
 (``policy`` option; :mod:`murk.enhance.baseline`):
@@ -29,20 +30,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor
 
-from murk.enhance.baseline import (
-    DEFAULT_OVERLAP,
-    OFFICIAL_SIZE,
-    Policy,
-    TorchRunner,
-    check_images,
-    check_overlap,
-    check_policy,
-    check_tile,
-    missing_weights_message,
-)
-from murk.enhance.jointid_restorer import _resolve_device
-from murk.enhance.restorer import RestoredTensor, Restorer
-from murk.enhance.tiling import pad_to_multiple, tiled_apply
+from murk.enhance.baseline import OFFICIAL_SIZE, BaselineNetwork, baseline_factory
 from murk.models.ursct_sesr.network import SIZE_MULTIPLE, URSCT
 
 DEFAULT_TILE = 256
@@ -69,107 +57,20 @@ def official_output(y: Tensor) -> Tensor:
     return torch.floor(y.clamp(0.0, 1.0) * 255.0 + 0.5) / 255.0
 
 
-class URSCTRestorer(Restorer):
-    """URSCT-SESR as a :class:`~murk.enhance.restorer.Restorer` (enhanced images, no depth).
-
-    Args:
-        model: a :class:`~murk.models.ursct_sesr.URSCT` (moved to ``device``).
-        device: "cpu", "cuda" or "cuda:N".
-        precision: "fp32", or "bf16"/"fp16" autocast.
-        policy: "native" (any size, output at the input size) or "official" (256x256 as the published script).
-        tile: native policy: tile side in pixels, a multiple of 128 (None = 256, the training size).
-        overlap: tile overlap in pixels (also the blending-ramp width).
-        batch: at most this many images (or tiles) per forward pass.
-
-    Raises:
-        ValueError: bad options, or CUDA not available.
-    """
-
-    name = "ursct"
-
-    def __init__(
-        self,
-        model: URSCT,
-        *,
-        device: str | torch.device = "cpu",
-        precision: str = "fp32",
-        policy: Policy = "native",
-        tile: int | None = None,
-        overlap: int | None = DEFAULT_OVERLAP,
-        batch: int | None = None,
-    ) -> None:
-        if not isinstance(model, URSCT):
-            raise TypeError(f"model: expected a URSCT, got {type(model).__name__}")
-        self.policy = check_policy(policy)
-        self.tile = check_tile(tile, SIZE_MULTIPLE, "URSCT-SESR") or DEFAULT_TILE
-        self.overlap = check_overlap(overlap, self.tile)
-        self.device = _resolve_device(device)
-        self.run = TorchRunner(model, self.device, precision, batch)
-        self.weights: str | None = None
-        """The weights file (set by the ``ursct`` factory)."""
-
-    def restore_tensor(self, images: Tensor) -> RestoredTensor:
-        """Restore a torch batch (B, 3, H, W) RGB in [0, 1] on the device (official policy: output 256x256).
-
-        Raises:
-            TypeError: not a floating-point tensor.
-            ShapeError: not (B, 3, H, W).
-        """
-        check_images(images)
-        x = images.to(self.device, torch.float32)
-        if self.policy == "official":
-            return RestoredTensor(official_output(self.run(official_input(x))).contiguous())
-        x, pad = pad_to_multiple(x, PAD_MULTIPLE, "reflect", min_size=self.tile)
-        (y,) = tiled_apply(
-            lambda t: (self.run(t),),
-            x,
-            tile=self.tile,
-            overlap=self.overlap,
-            multiple=PAD_MULTIPLE,
-            max_batch=self.run.batch,
-        )
-        return RestoredTensor(pad.crop(y).clamp(0.0, 1.0).contiguous())
-
-    def __repr__(self) -> str:
-        return (
-            f"URSCTRestorer(device={self.device}, precision={self.run.precision}, policy={self.policy}, "
-            f"tile={self.tile}, overlap={self.overlap}, batch={self.run.batch})"
-        )
-
-
-def create_ursct(
-    *,
-    checkpoint: str | Path | None = None,
-    onnx: str | Path | None = None,
-    device: str | torch.device = "cpu",
-    precision: str = "fp32",
-    policy: Policy = "native",
-    tile: int | None = None,
-    overlap: int | None = DEFAULT_OVERLAP,
-    batch: int | None = None,
-    trust_checkpoint: bool = False,
-) -> URSCTRestorer:
-    """Factory of ``ursct`` (registered lazily by :mod:`murk.enhance.methods`): load ``checkpoint`` and wrap
-    it. Options: see :class:`URSCTRestorer`.
-
-    Raises:
-        ValueError: no checkpoint, or bad options.
-        InputFileError: the checkpoint cannot be loaded (see ``murk.models.ursct_sesr.load_ursct``).
-    """
+def _load(checkpoint: str | Path, trust: bool, side: int | None) -> URSCT:
+    """The network of ``checkpoint`` built for square inputs of ``side`` pixels."""
     from murk.models.ursct_sesr.checkpoint import load_ursct
 
-    if onnx is not None:
-        raise ValueError(
-            f"checkpoint: {onnx} is an ONNX file; the ursct restorer runs the torch network (any frame size) "
-            "from the weights file (murk export's fixed-size graphs are for ONNX Runtime users)"
-        )
-    if checkpoint is None:
-        raise ValueError(missing_weights_message("ursct", WEIGHTS_URL))
-    tile_px = check_tile(tile, SIZE_MULTIPLE, "URSCT-SESR") or DEFAULT_TILE
-    img_size = OFFICIAL_SIZE if policy == "official" else tile_px
-    model = load_ursct(checkpoint, trust=trust_checkpoint, img_size=img_size)
-    restorer = URSCTRestorer(
-        model, device=device, precision=precision, policy=policy, tile=tile, overlap=overlap, batch=batch
-    )
-    restorer.weights = str(checkpoint)
-    return restorer
+    return load_ursct(checkpoint, trust=trust, img_size=side or DEFAULT_TILE)
+
+
+URSCT_SESR = BaselineNetwork(
+    name="ursct", title="URSCT-SESR", model_type=URSCT, load=_load, weights_url=WEIGHTS_URL,
+    tile_multiple=SIZE_MULTIPLE, official_input=official_input, official_output=official_output,
+    pad_multiple=PAD_MULTIPLE, square_tile=DEFAULT_TILE,
+)  # fmt: skip
+"""URSCT-SESR: RGB weights, square tiles only (a multiple of 128; 256 by default, the training size)."""
+
+create_ursct = baseline_factory(URSCT_SESR)
+"""Factory of ``ursct`` (registered lazily by :mod:`murk.enhance.methods`): the released ``*_bestSSIM.pth`` or a
+state dict; see :func:`murk.enhance.baseline.baseline_factory`."""
