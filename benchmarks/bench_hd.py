@@ -200,7 +200,7 @@ def stages(sizes: list[tuple[int, int]], threads: int, tmp: Path) -> None:
     from murk.enhance.restorer import create
     from murk.io.images import swap_red_blue, to_float, to_uint
     from murk.io.video import VideoSink
-    from murk.live.pipeline import encode_jpeg
+    from murk.live.pipeline import encode_jpeg, page_pair
     from murk.models.lite.network import work_image, work_size
     from murk.physics.balance import apply_levels, balance_levels
 
@@ -254,7 +254,12 @@ def stages(sizes: list[tuple[int, int]], threads: int, tmp: Path) -> None:
             "after: lite+post, all steps": lambda rgb=rgb: restore_frames(chain, rgb[None]),
             "after: to uint8": lambda o=out_f: to_u8(o),
             "encode + write (OpenCV MJPG .avi)": lambda u=out_u8, s=sink: s.write(u),
-            "page JPEG, raw | restored, q85": lambda r=rgb, u=out_u8: encode_jpeg(np.concatenate([r, u], 1), 85),
+            "page JPEG, raw + restored at full size, q85 (before)": lambda r=rgb, u=out_u8: encode_jpeg(
+                np.concatenate([r, u], 1), 85
+            ),
+            "page JPEG, the pair at most 1920 px wide, q85 (after)": lambda r=rgb, u=out_u8: encode_jpeg(
+                page_pair(r, u), 85
+            ),
         }
         for label, fn in steps.items():
             fn()
