@@ -11,7 +11,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.murk-installed
 PYTEST_ARGS ?= -n auto
 
-.PHONY: demo test test-slow browser-test check lint typecheck layers bench install clean gpu-suite gpu-suite-dry-run gpu-deps \
+.PHONY: demo test test-slow soak-test browser-test check lint typecheck layers bench install clean gpu-suite gpu-suite-dry-run gpu-deps \
 	wheel-check
 
 install: $(STAMP)
@@ -46,6 +46,10 @@ wheel-check: $(STAMP)
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow $(PYTEST_ARGS)
+
+# murk live under a short soak and abuse run (benchmarks/soak_live.py, about 3 minutes; the long run: --minutes 15)
+soak-test: $(STAMP)
+	$(PY) -m pytest -q -m soak
 
 browser-test: $(STAMP)
 	command -v chromium >/dev/null || (apt-get update -qq && apt-get install -y -qq chromium)
