@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from murk.errors import ShapeError
-from murk.metrics import ciede2000
-from murk.report.evaluate import REF_COLUMNS, evaluate
+from murk.metrics import ciede2000, table
+from murk.report.evaluate import evaluate
 
 
 def _lstar(srgb: float) -> float:
@@ -46,7 +46,7 @@ def test_eval_ref_adds_the_ciede2000_column(tmp_path: Path) -> None:
     cv2.imwrite(str(tmp_path / "ref" / "a.png"), ref)
     cv2.imwrite(str(tmp_path / "out" / "a.png"), np.clip(ref.astype(int) + 20, 0, 255).astype(np.uint8))
     res = evaluate([tmp_path / "out"], ref=tmp_path / "ref")
-    assert "ciede2000" in REF_COLUMNS
+    assert "ciede2000" in table.names("reference", default=True)
     (row,) = res.images
     want = ciede2000(cv2.imread(str(tmp_path / "out" / "a.png"))[:, :, ::-1], ref[:, :, ::-1], data_range=255)
     assert row["ciede2000"] == pytest.approx(want, rel=1e-6)  # murk reads to float32

@@ -17,6 +17,13 @@ import typer
 
 from murk.cli._common import QuietOpt, make_console, parse_size
 from murk.cli._jobs import JobProgress, print_summary
+from murk.metrics import table
+
+_METRICS_HELP = (
+    "Comma-separated metrics to score instead of the default ones (each needs what it scores against: --ref, "
+    f"--input or --depth): {', '.join(table.names(default=True))}; off by default: "
+    f"{', '.join(n for n in table.names(default=False) if table.get(n).needs != 'snow_pair')}. See --list-metrics."
+)
 
 
 def evaluate(
@@ -78,6 +85,13 @@ def evaluate(
         str | None, typer.Option("--topic", help="ROS bags among IMAGES: the image topic (omit it to list them).")
     ] = None,
     every: Annotated[int, typer.Option("--every", min=1, help="ROS bags among IMAGES: every N-th frame.")] = 1,
+    metrics: Annotated[str | None, typer.Option("--metrics", help=_METRICS_HELP)] = None,
+    list_metrics: Annotated[
+        bool,
+        typer.Option(
+            "--list-metrics", help="List every metric (label, unit, direction, what it needs, data range) and exit."
+        ),
+    ] = False,
     quiet: QuietOpt = False,
 ) -> None:
     """Score images: UIQM (Eq. 10, with UICM/UISM/UIConM) and UCIQE; PSNR/SSIM with --ref; restoration measures
@@ -85,6 +99,9 @@ def evaluate(
     table and mean +- std (population std over files)."""
     from murk.report.evaluate import EvalOptions, parse_presets, run_eval
 
+    if list_metrics:
+        typer.echo(table.describe())
+        raise typer.Exit(0)
     uiqm_preset, uciqe_preset = parse_presets(preset or [])
     options = EvalOptions(
         uiqm_preset=uiqm_preset,
@@ -93,6 +110,7 @@ def evaluate(
         ssim_window=ssim_window,
         depth_scale=depth_scale,
         recursive=recursive,
+        metrics=tuple(m.name for m in table.pick(metrics) or ()) if metrics is not None else None,
     )
     with JobProgress(make_console(quiet), "scoring images", unit="images") as progress:
         result = run_eval(

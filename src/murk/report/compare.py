@@ -9,6 +9,9 @@ zoomed boxes: Figs. 7 and 9), ``report.html`` (self-contained; flagged methods m
 Each row holds the input-vs-output measures (:data:`murk.metrics.MEASURE_KEYS`; input = the raw image read,
 output = the method's result, so the ``raw`` method gets the identity values) and ``flags``, the names
 :func:`murk.metrics.flags` raised, joined with ``"; "`` (empty when none).
+
+The scores, their order, headings and directions are the default rows of the metric table
+(:mod:`murk.metrics.table`), read when a comparison runs: a row registered there is scored here.
 """
 
 from __future__ import annotations
@@ -32,40 +35,54 @@ from murk.io.images import read_image, to_float, to_uint, write_rgb, write_uint
 from murk.io.jobs import ErrorRecord, JobSummary
 from murk.io.jsonl import json_safe
 from murk.io.paths import output_names as unique_names
-from murk.metrics import fidelity
-from murk.metrics.fidelity import MEASURE_KEYS, count_flags, flags, join_flags, restoration_measures
+from murk.metrics import fidelity, table
+from murk.metrics.fidelity import count_flags, flags, join_flags
 from murk.metrics.stats import column_stats
 from murk.report.figures import Box, auto_boxes, comparison_grid
-from murk.report.html import SUMMARY_METRICS, render_report
+from murk.report.html import SUMMARY_METRICS, html_heading, render_report
 from murk.report.methods import MethodSpec, build_restorer, check_method
 
-SCORE_KEYS = ("uiqm", "uicm", "uism", "uiconm", "uciqe", "sigma_c", "con_l", "mu_s")
-"""No-reference scores of the output alone (:func:`score`)."""
-METRIC_KEYS = (*SCORE_KEYS, *MEASURE_KEYS)
-"""Every numeric column of a row (besides ``ms``), summarised per method."""
-REF_KEYS = ("psnr", "ssim", "ciede2000")
-"""Full-reference scores of the output against the reference image (``--ref``)."""
-PAIRED_KEYS = tuple(f"d_{k}" for k in REF_KEYS)
-"""Paired differences to the raw input on the same image (``d_psnr = psnr(output) - psnr(input)``; for
-CIEDE2000 negative is better)."""
-SNOW_KEYS = ("snow_residue", "snow_sites_left", "snow_free_gms", "snow_colour_residue")
-"""Marine-snow removal on a pair of the same scene without and with snow (``snow_clean``;
-:mod:`murk.metrics.snow_pairs`): contrast-normalised particle excess left, share of particle sites left, structure
-away from the sites, and the particles' RGB difference left (a recoloured particle counts as left)."""
-SNOW_HTML_COLUMNS = (
-    ("snow_residue", "snow residue (pairs)"),
-    ("snow_sites_left", "snow sites left"),
-    ("snow_colour_residue", "snow colour residue"),
-    ("snow_free_gms", "structure away from snow (GMS)"),
-)
-REF_HTML_COLUMNS = (
-    ("psnr", "PSNR dB"),
-    ("d_psnr", "&Delta;PSNR vs raw"),
-    ("ssim", "SSIM"),
-    ("d_ssim", "&Delta;SSIM vs raw"),
-    ("ciede2000", "CIEDE2000"),
-    ("d_ciede2000", "&Delta;CIEDE2000 vs raw"),
-)
+SNOW_HTML_ORDER = ("snow_residue", "snow_sites_left", "snow_colour_residue", "snow_free_gms")
+"""The snow-pair columns of the report page, in its order."""
+_MEASURES = "murk.metrics.fidelity:restoration_measures"
+
+
+def metric_keys() -> tuple[str, ...]:
+    """Every numeric column of a row (besides ``ms``) that is always scored, summarised per method: the no-reference
+    scores of the output alone (:func:`score`) and the input-vs-output restoration measures."""
+    return (*table.names("none", default=True), *table.names("input", default=True))
+
+
+def ref_keys() -> tuple[str, ...]:
+    """Full-reference scores of the output against the reference image (``--ref``)."""
+    return table.names("reference", default=True)
+
+
+def paired_keys() -> tuple[str, ...]:
+    """Paired differences to the raw input on the same image (``d_psnr = psnr(output) - psnr(input)``; better is
+    the metric's direction: for CIEDE2000 negative)."""
+    return tuple(f"d_{k}" for k in ref_keys())
+
+
+def snow_keys() -> tuple[str, ...]:
+    """Marine-snow removal on a pair of the same scene without and with snow (``snow_clean``;
+    :mod:`murk.metrics.snow_pairs`): contrast-normalised particle excess left, share of particle sites left,
+    structure away from the sites, and the particles' RGB difference left (a recoloured particle counts as left)."""
+    return table.names("snow_pair", default=True)
+
+
+def ref_html_columns() -> tuple[tuple[str, str], ...]:
+    """(key, HTML heading) of each full-reference score and its paired difference to the raw input."""
+    return tuple(
+        col
+        for m in table.metrics("reference", default=True)
+        for col in ((m.name, html_heading(m.heading)), (f"d_{m.name}", html_heading(f"Δ{m.label} vs raw")))
+    )
+
+
+def snow_html_columns() -> tuple[tuple[str, str], ...]:
+    """(key, HTML heading) of the snow-pair scores, in the report's order."""
+    return tuple((k, html_heading(table.get(k).heading)) for k in SNOW_HTML_ORDER)
 
 
 @dataclass
@@ -88,21 +105,17 @@ class CompareResult(JobSummary):
 
 
 def score(image: np.ndarray, *, uiqm_preset: str = "panetta2016", uciqe_preset: str = "uciqe_m") -> dict[str, float]:
-    """UIQM and UCIQE with their parts for a float RGB image in [0, 1]."""
-    from murk.metrics import uciqe, uiqm
+    """The no-reference scores (the metric table's default rows: UIQM and UCIQE with their parts) of a float RGB
+    image in [0, 1]."""
+    settings = {"uiqm": {"preset": uiqm_preset}, "uciqe": {"preset": uciqe_preset}}
+    return table.compute(table.metrics("none", default=True), image, data_range=1.0, settings=settings)
 
-    q = uiqm(image, data_range=1.0, preset=uiqm_preset)  # type: ignore[arg-type]
-    c = uciqe(image, data_range=1.0, preset=uciqe_preset)  # type: ignore[arg-type]
-    return {
-        "uiqm": q.uiqm,
-        "uicm": q.uicm,
-        "uism": q.uism,
-        "uiconm": q.uiconm,
-        "uciqe": c.uciqe,
-        "sigma_c": c.sigma_c,
-        "con_l": c.con_l,
-        "mu_s": c.mu_s,
-    }
+
+def measures(input: np.ndarray, output: np.ndarray) -> tuple[dict[str, float], list[str]]:
+    """The input-vs-output restoration measures (the metric table's default rows) and the flags they raise."""
+    results: dict[str, Any] = {}
+    values = table.compute(table.metrics("input", default=True), input, output, results=results)
+    return values, flags(results[_MEASURES]) if _MEASURES in results else []
 
 
 def summarise(
@@ -111,21 +124,23 @@ def summarise(
     """Per method and metric: mean and population std over images (finite values), and n; under ``"flags"``
     the flag counts of :func:`murk.metrics.count_flags` (rows flagged, rows, and rows per flag name).
 
-    With ``reference``, also the full-reference scores (:data:`REF_KEYS`) and their paired differences to the raw
-    input on the same images (:data:`PAIRED_KEYS`), each with ``better``: on how many images the method beat
-    the raw input (higher PSNR/SSIM, lower CIEDE2000)."""
+    With ``reference``, also the full-reference scores (:func:`ref_keys`) and their paired differences to the raw
+    input on the same images (:func:`paired_keys`), each with ``better``: on how many images the method beat
+    the raw input (by the metric's direction: higher PSNR/SSIM, lower CIEDE2000)."""
     out: dict[str, dict[str, dict[str, float]]] = {}
-    keys = (*METRIC_KEYS, *REF_KEYS, *PAIRED_KEYS, "ms") if reference else (*METRIC_KEYS, "ms")
-    if any(k in r for r in rows for k in SNOW_KEYS):
-        keys = (*keys, *SNOW_KEYS)
+    metric_cols, paired = metric_keys(), paired_keys()
+    keys = (*metric_cols, *ref_keys(), *paired, "ms") if reference else (*metric_cols, "ms")
+    snow = snow_keys()
+    if any(k in r for r in rows for k in snow):
+        keys = (*keys, *snow)
     for lab in labels:
         mine = [r for r in rows if r["method"] == lab]
         out[lab] = {}
         for k in keys:
             st = column_stats(r[k] for r in mine if isinstance(r.get(k), (int, float)))
             out[lab][k] = {"mean": st.mean, "std": st.std, "n": st.n_finite}
-            if k in PAIRED_KEYS:
-                sign = -1.0 if k == "d_ciede2000" else 1.0
+            if k in paired:
+                sign = table.get(k[2:]).sign
                 out[lab][k]["better"] = sum(1 for r in mine if isinstance(r.get(k), float) and sign * r[k] > 0)
         out[lab]["flags"] = dict(count_flags(r["flags"] for r in mine if isinstance(r.get("flags"), str)))
     return out
@@ -186,13 +201,13 @@ def run_compare(
 
     ``ref_dir``: a folder of reference images matched by file stem (the field's full-reference protocol on
     real paired photographs): every row gets PSNR, SSIM and CIEDE2000 against the reference and their paired
-    differences to the raw input (:data:`REF_KEYS`, :data:`PAIRED_KEYS`); an image without a reference of its
+    differences to the raw input (:func:`ref_keys`, :func:`paired_keys`); an image without a reference of its
     size is one error record. ``max_side``: images (and references) whose long side exceeds it are first
     downscaled to it (area resampling), e.g. 256 as in the published real-pair tables.
 
     ``snow_clean``: a folder of snow-free images of the same scenes as ``images`` (matched by file stem): every
     method also restores the snow-free image, and each row gets the snow-pair measures of
-    :mod:`murk.metrics.snow_pairs` (:data:`SNOW_KEYS`: particle residue on the known particle sites)."""
+    :mod:`murk.metrics.snow_pairs` (:func:`snow_keys`: particle residue on the known particle sites)."""
     from murk.io.rosbag import bag_frames_as_files
     from murk.metrics import UCIQE_PRESETS, UIQM_PRESETS
 
@@ -257,14 +272,9 @@ def _read_reference(
 
 
 def _reference_scores(image: np.ndarray, ref: np.ndarray) -> dict[str, float]:
-    from murk.metrics import ciede2000, psnr, ssim
-
+    """The full-reference scores (the metric table's default rows) of ``image`` against ``ref``."""
     ref = resize_to(ref, image.shape[:2])
-    return {
-        "psnr": psnr(image, ref, data_range=1.0),
-        "ssim": ssim(image, ref, data_range=1.0),
-        "ciede2000": ciede2000(image, ref, data_range=1.0),
-    }
+    return table.compute(table.metrics("reference", default=True), image, ref, data_range=1.0)
 
 
 def downscale_to(image: np.ndarray, max_side: int | None) -> np.ndarray:
@@ -352,7 +362,8 @@ def _run_compare(
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
                 metrics = score(restored, uiqm_preset=uiqm_preset, uciqe_preset=uciqe_preset)
-                metrics.update(restoration_measures(resize_to(img, restored.shape[:2]), restored))
+                measured, raised = measures(resize_to(img, restored.shape[:2]), restored)
+                metrics.update(measured)
                 if snow_free is not None and sites is not None:
                     from murk.metrics.fidelity import structure_fidelity
                     from murk.metrics.snow_pairs import snow_free_mask, snow_residue
@@ -375,7 +386,7 @@ def _run_compare(
                     metrics.update(full)
                     metrics.update({f"d_{k}": v - input_scores[k] for k, v in full.items()})
             row = {"image": path.name, "path": str(path), "method": spec.label, "spec": spec.text, "ms": ms, **metrics}
-            row["flags"] = join_flags(flags(metrics))
+            row["flags"] = join_flags(raised)
             if caught:
                 row["warnings"] = "; ".join(sorted({str(w.message) for w in caught}))
             rows.append(row)
@@ -465,8 +476,8 @@ def _run_compare(
         images=sections,
         notes=notes,
         columns=(
-            *(REF_HTML_COLUMNS if refs is not None else ()),
-            *(SNOW_HTML_COLUMNS if snow is not None else ()),
+            *(ref_html_columns() if refs is not None else ()),
+            *(snow_html_columns() if snow is not None else ()),
             *SUMMARY_METRICS,
         ),
         meta=f"murk {__version__} · {len(sections)} images · {time.strftime('%Y-%m-%d %H:%M')}",
@@ -517,9 +528,9 @@ def _write_tables(
     reference: bool = False,
     snow: bool = False,
 ) -> None:
-    ref_cols = [*REF_KEYS, *PAIRED_KEYS] if reference else []
-    ref_cols += list(SNOW_KEYS) if snow else []
-    cols = ["image", "method", "spec", *ref_cols, *METRIC_KEYS, "ms", "flags", "warnings"]
+    ref_cols = [*ref_keys(), *paired_keys()] if reference else []
+    ref_cols += list(snow_keys()) if snow else []
+    cols = ["image", "method", "spec", *ref_cols, *metric_keys(), "ms", "flags", "warnings"]
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=cols, extrasaction="ignore", lineterminator="\n")
     w.writeheader()

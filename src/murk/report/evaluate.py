@@ -2,6 +2,10 @@
 input-vs-output restoration measures and flags (``inputs``), depth errors; the per-column statistics
 (:func:`murk.metrics.stats.column_stats`, shared with ``murk compare``) and the JSON/CSV writers.
 
+What is scored, in which column order, comes from the metric table (:mod:`murk.metrics.table`): its default rows
+of each kind the inputs allow (no-reference always, full-reference with ``ref``, restoration measures with
+``inputs``, depth errors with ``depth``), or the rows picked by :attr:`EvalOptions.metrics`.
+
 Failures (an unreadable file, no matching reference, a size mismatch) are :class:`murk.io.jobs.ErrorRecord`
 lines (stage ``score`` or ``depth``; the message without the path, which ``input`` holds); :func:`run_eval`
 writes them to ``errors.jsonl`` beside the JSON/CSV output when one is given (rewritten by every run).
@@ -18,9 +22,16 @@ from pathlib import Path
 from typing import Any
 
 from murk.io.jobs import ErrorRecord, JobSummary
+from murk.metrics import table
+from murk.metrics.table import Metric, Needs
 
-NOREF_COLUMNS = ("uiqm", "uicm", "uism", "uiconm", "uciqe", "sigma_c", "con_l", "mu_s")
-REF_COLUMNS = ("psnr", "ssim", "ciede2000")
+NEEDED_BY: dict[Needs, str] = {
+    "reference": "--ref (reference images)",
+    "input": "--input (the raw inputs)",
+    "depth": "--depth and --depth-ref",
+    "snow_pair": "murk compare --snow-clean (pairs of the same scene without and with snow)",
+}
+"""What each kind of metric needs besides IMAGES, as the usage error says it."""
 
 
 @dataclass(frozen=True)
@@ -33,6 +44,7 @@ class EvalOptions:
         ssim_window: ``gaussian`` (11x11, sigma 1.5) or ``uniform`` (7x7).
         depth_scale: raw units per metre of integer depth images.
         recursive: search folders recursively.
+        metrics: the metric names to score (:mod:`murk.metrics.table`), or None: the default rows.
     """
 
     uiqm_preset: str = "panetta2016"
@@ -41,10 +53,13 @@ class EvalOptions:
     ssim_window: str = "gaussian"
     depth_scale: float = 1000.0
     recursive: bool = False
+    metrics: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
         from murk.metrics.reference import SSIM_WINDOWS
 
+        if self.metrics is not None:
+            table.pick(self.metrics)  # unknown names: ValueError naming the nearest
         if self.ssim_window not in SSIM_WINDOWS:
             raise ValueError(f"--ssim-window: expected one of {', '.join(SSIM_WINDOWS)}, got {self.ssim_window!r}")
         if not (math.isfinite(self.depth_scale) and self.depth_scale > 0):
@@ -58,7 +73,13 @@ class EvalOptions:
             "resize": list(self.resize) if self.resize else None,
             "ssim_window": self.ssim_window,
             "depth_scale": self.depth_scale,
+            **({"metrics": list(self.metrics)} if self.metrics is not None else {}),
         }
+
+    def chosen(self, needs: Needs) -> list[Metric]:
+        """The rows of kind ``needs`` to score: the picked ones, or the default ones."""
+        picked = table.pick(self.metrics)
+        return table.metrics(needs, default=True) if picked is None else [m for m in picked if m.needs == needs]
 
 
 @dataclass
@@ -124,6 +145,11 @@ def evaluate(
         raise ValueError("--input: needs IMAGES (the restored images to compare with their raw inputs)")
     if not images and depth is None:
         raise ValueError("nothing to evaluate: give IMAGES (files or folders) and/or --depth PRED --depth-ref GT")
+    given: dict[Needs, bool] = {"reference": ref is not None, "input": inputs is not None, "depth": depth is not None}
+    for needs, flag in NEEDED_BY.items():
+        missing = [m.name for m in opts.chosen(needs)] if opts.metrics is not None and not given.get(needs) else []
+        if missing:
+            raise ValueError(f"--metrics {','.join(missing)}: needs {flag}")
     result = EvalResult(options=opts)
     if images:
         from murk.io.rosbag import bag_frames_as_files
@@ -268,18 +294,14 @@ def _score_images(
     import numpy as np
 
     from murk.io import read_image, to_float, to_uint
-    from murk.metrics import (
-        ciede2000,
-        flags,
-        join_flags,
-        pil_bicubic_resize,
-        psnr,
-        restoration_measures,
-        ssim,
-        uciqe,
-        uiqm,
-    )
+    from murk.metrics import flags, join_flags, pil_bicubic_resize
 
+    noref, ref_rows, input_rows = opts.chosen("none"), opts.chosen("reference"), opts.chosen("input")
+    settings = {
+        "uiqm": {"preset": opts.uiqm_preset},
+        "uciqe": {"preset": opts.uciqe_preset},
+        "ssim": {"window": opts.ssim_window},
+    }
     for done, (name, path) in enumerate(files, start=1):
         row: dict[str, Any] = {"file": name}
         try:
@@ -291,25 +313,25 @@ def _score_images(
                 if opts.resize is not None:
                     u8 = rgb if rgb.dtype == np.uint8 else to_uint(to_float(rgb), 8)
                     scored, peak = pil_bicubic_resize(u8, opts.resize), 255.0
-                q = uiqm(scored, data_range=peak, preset=opts.uiqm_preset)  # type: ignore[arg-type]
-                c = uciqe(scored, data_range=peak, preset=opts.uciqe_preset)  # type: ignore[arg-type]
-                row.update({k: getattr(q, k) for k in NOREF_COLUMNS[:4]})
-                row.update({k: getattr(c, k) for k in NOREF_COLUMNS[4:]})
+                native = [m for m in noref if m.data_range == "native"]
+                values = table.compute(native, scored, data_range=peak, settings=settings)
+                unit = [m for m in noref if m.data_range != "native"]
+                values.update(table.compute(unit, to_float(scored), data_range=1.0, settings=settings) if unit else {})
+                row.update({m.name: values[m.name] for m in noref})
                 if refs is not None:
                     ref_path = _match(path, refs, "--ref", "reference")
                     ref_rgb = _read_same_size(path, ref_path, rgb.shape, "reference")
                     pred01, ref01 = to_float(rgb), to_float(ref_rgb)
                     row["ref"] = str(ref_path)
-                    row["psnr"] = psnr(pred01, ref01, data_range=1.0)
-                    row["ssim"] = ssim(pred01, ref01, data_range=1.0, window=opts.ssim_window)  # type: ignore[arg-type]
-                    row["ciede2000"] = ciede2000(pred01, ref01, data_range=1.0)
+                    row.update(table.compute(ref_rows, pred01, ref01, data_range=1.0, settings=settings))
                 if inputs is not None:
                     input_path = _match(path, inputs, "--input", "raw input")
                     raw_rgb = _read_same_size(path, input_path, rgb.shape, "raw input")
-                    measures = restoration_measures(to_float(raw_rgb), to_float(rgb))
+                    results: dict[str, Any] = {}
                     row["input"] = str(input_path)
-                    row.update(measures)
-                    row["flags"] = join_flags(flags(measures))
+                    row.update(table.compute(input_rows, to_float(raw_rgb), to_float(rgb), results=results))
+                    if _MEASURES in results:  # the flags read every restoration measure
+                        row["flags"] = join_flags(flags(results[_MEASURES]))
             row["warnings"] = sorted({str(w.message) for w in caught})
             for msg in row["warnings"]:
                 out.note(f"{name}: {msg}")
@@ -320,10 +342,12 @@ def _score_images(
             on_progress(done, len(files))
 
 
+_MEASURES = "murk.metrics.fidelity:restoration_measures"
+
+
 def _score_depth(pred: Path, gt: Path, opts: EvalOptions, out: EvalResult) -> None:
     from murk.errors import InputFileError
     from murk.io import read_depth
-    from murk.metrics import depth_errors
 
     if pred.is_file() != gt.is_file():
         raise ValueError("--depth and --depth-ref: give two files or two folders")
@@ -345,8 +369,8 @@ def _score_depth(pred: Path, gt: Path, opts: EvalOptions, out: EvalResult) -> No
                     f"size {d_pred.shape[1]}x{d_pred.shape[0]} differs from the reference depth {g} "
                     f"({d_ref.shape[1]}x{d_ref.shape[0]})",
                 )
-            errs = depth_errors(d_pred, d_ref)
-            out.depth.append({"file": str(p), "ref": str(g), **errs.as_dict()})
+            errs = table.compute(opts.chosen("depth"), d_pred, d_ref)
+            out.depth.append({"file": str(p), "ref": str(g), **errs})
         except (ValueError, OSError) as exc:
             out.add_failure(ErrorRecord(str(p), "depth", _problem(exc)))
 
@@ -363,12 +387,9 @@ def _problem(exc: Exception) -> str:
 
 
 def columns(rows: list[dict[str, Any]]) -> list[str]:
-    """The metric columns present in ``rows``, in table order."""
-    from murk.metrics import DEPTH_ERROR_NAMES, MEASURE_KEYS
-
-    order = (*NOREF_COLUMNS, *REF_COLUMNS, *MEASURE_KEYS, *DEPTH_ERROR_NAMES)
+    """The metric columns present in ``rows``, in the order of the metric table."""
     present = {k for r in rows for k in r}
-    return [c for c in order if c in present]
+    return [c for c in table.names() if c in present]
 
 
 def summarize(rows: list[dict[str, Any]]) -> dict[str, dict[str, float | int]]:

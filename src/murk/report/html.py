@@ -14,26 +14,40 @@ import base64
 import html
 import math
 from collections.abc import Sequence
+from html.entities import codepoint2name
 from typing import Any
 
 import cv2
 import numpy as np
 
-SUMMARY_METRICS = (
-    ("uiqm", "UIQM"),
-    ("uicm", "UICM"),
-    ("uism", "UISM"),
-    ("uiconm", "UIConM"),
-    ("uciqe", "UCIQE"),
-    ("structure_gms", "structure GMS"),
-    ("artefact_periodic_ratio", "periodic artefacts &times;"),
-    ("artefact_isolated_ratio", "isolated artefacts &times;"),
-    ("particle_residue_ratio", "particles &times;"),
-    ("contrast_ratio", "contrast &times;"),
-    ("luminance_ratio", "luminance &times;"),
+from murk.metrics import table
+
+SUMMARY_COLUMNS = (
+    "uiqm",
+    "uicm",
+    "uism",
+    "uiconm",
+    "uciqe",
+    "structure_gms",
+    "artefact_periodic_ratio",
+    "artefact_isolated_ratio",
+    "particle_residue_ratio",
+    "contrast_ratio",
+    "luminance_ratio",
 )
-"""(key, column heading) of the summary and per-image tables; headings are HTML. The ``&times;`` columns are
-output/input ratios of the restoration measures (1 = unchanged)."""
+"""The metrics of the summary and per-image tables, in their order (headings: the metric table's labels and
+units; the ``×`` columns are output/input ratios of the restoration measures, 1 = unchanged)."""
+
+
+def html_heading(text: str) -> str:
+    """``text`` escaped for HTML, its non-ASCII characters as named entities (``×`` -> ``&times;``)."""
+    return "".join(
+        f"&{codepoint2name[ord(c)]};" if ord(c) > 127 and ord(c) in codepoint2name else c for c in html.escape(text)
+    )
+
+
+SUMMARY_METRICS = tuple((k, html_heading(table.get(k).heading)) for k in SUMMARY_COLUMNS)
+"""(key, HTML heading) of :data:`SUMMARY_COLUMNS`."""
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:24px;color:#1d2733;background:#fafbfc}

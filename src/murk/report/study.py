@@ -28,6 +28,7 @@ from murk._version import __version__
 from murk.io.atomic import write_text_atomic
 from murk.io.jobs import ErrorRecord, JobSummary
 from murk.io.jsonl import json_safe
+from murk.metrics import table
 from murk.train.config import TrainConfig
 from murk.train.study import WALL_FILE, ArmRun, StudyConfig, arm_config, load_study, train_arms
 
@@ -241,8 +242,12 @@ def pair_sets(folder: Path) -> dict[str, Path]:
     return sets
 
 
+CONTRAST_KEYS = ("psnr", "ciede2000")
+"""The metrics the arms are contrasted by, image by image (:func:`paired_contrasts`)."""
+
+
 def paired_contrasts(
-    rows: list[dict[str, Any]], contrasts: list[tuple[str, str]], keys: tuple[str, ...] = ("psnr", "ciede2000")
+    rows: list[dict[str, Any]], contrasts: list[tuple[str, str]], keys: tuple[str, ...] = CONTRAST_KEYS
 ) -> list[dict[str, Any]]:
     """Method ``a`` against method ``b`` for each ``(a, b)`` of ``contrasts``, paired over the images both scored:
     per key the mean and standard deviation of ``a - b`` over the images, how many images have ``a > b``, and the
@@ -280,7 +285,7 @@ def evaluate_real_pairs(
     mean PSNR / SSIM / CIEDE2000 and paired differences (each set counted once), and the ``contrasts`` between
     methods paired over all images of all sets (:func:`paired_contrasts`)."""
     from murk.io.images import list_images
-    from murk.report.compare import PAIRED_KEYS, REF_KEYS, run_compare
+    from murk.report.compare import paired_keys, ref_keys, run_compare
 
     say = on_event or (lambda _m: None)
     sets: dict[str, Any] = {}
@@ -302,7 +307,7 @@ def evaluate_real_pairs(
     over_sets: dict[str, dict[str, float]] = {}
     for lab in labels:
         over_sets[lab] = {}
-        for k in (*REF_KEYS, *PAIRED_KEYS):
+        for k in (*ref_keys(), *paired_keys()):
             means = [s["summary"][lab][k]["mean"] for s in sets.values() if s["summary"][lab][k]["n"]]
             over_sets[lab][k] = sum(means) / len(means) if means else float("nan")
     return {
@@ -339,17 +344,11 @@ def _training_record(study: StudyConfig, base: TrainConfig, out: Path) -> dict[s
     return record
 
 
-SUMMARY_KEYS = (
-    ("uiqm", "UIQM"),
-    ("uciqe", "UCIQE"),
-    ("artefact_periodic_ratio", "artefact periodic x"),
-    ("artefact_isolated_ratio", "artefact isolated x"),
-    ("structure_gms", "structure GMS"),
-    ("particle_residue_ratio", "particles out/in"),
-    ("cast_out", "colour cast"),
-    ("luminance_ratio", "luminance out/in"),
-    ("contrast_ratio", "contrast out/in"),
-)
+def summary_keys() -> list[tuple[str, str]]:
+    """(key, heading) of the real-image table: the headline no-reference scores and restoration measures of the
+    metric table."""
+    kinds: tuple[table.Needs, ...] = ("none", "input")
+    return [(m.name, m.heading) for kind in kinds for m in table.metrics(kind) if m.headline]
 
 
 def real_pairs_markdown(pairs: dict[str, Any]) -> list[str]:
@@ -360,45 +359,54 @@ def real_pairs_markdown(pairs: dict[str, Any]) -> list[str]:
         ok = v.get("n") and isinstance(v.get("mean"), (int, float)) and math.isfinite(v["mean"])
         return f"{v['mean']:.2f} +- {v['std']:.2f}" if ok else "-"
 
+    from murk.report.compare import ref_keys
+
+    refs = [table.get(k) for k in ref_keys()]
+    first = refs[0].name  # its paired difference also counts the images where the method beat raw
+    head = [col for m in refs for col in (m.heading, f"d {m.label}", *(["better than raw"] if m.name == first else []))]
     lines = [f"## Real paired photographs (long side <= {pairs['max_side']} px; {pairs['folder']})", ""]
     for name, s in pairs["sets"].items():
         lines += [
             f"### {name} ({s['images']} pairs): mean +- std over images; d = paired difference to raw",
             "",
-            "| method | PSNR dB | d PSNR | better than raw | SSIM | d SSIM | CIEDE2000 | d CIEDE2000 |",
-            "|---|---|---|---|---|---|---|---|",
+            "| method | " + " | ".join(head) + " |",
+            "|---|" + "---|" * len(head),
         ]
         for m in pairs["methods"]:
             r = s["summary"][m]
-            better = f"{r['d_psnr'].get('better', 0)}/{r['d_psnr']['n']}"
-            lines.append(
-                f"| {m} | {cell(r['psnr'])} | {cell(r['d_psnr'])} | {better} | "
-                f"{cell(r['ssim'])} | {cell(r['d_ssim'])} | {cell(r['ciede2000'])} | {cell(r['d_ciede2000'])} |"
-            )
+            better = f"{r[f'd_{first}'].get('better', 0)}/{r[f'd_{first}']['n']}"
+            cells = [
+                c
+                for k in refs
+                for c in (cell(r[k.name]), cell(r[f"d_{k.name}"]), *([better] if k.name == first else []))
+            ]
+            lines.append(f"| {m} | " + " | ".join(cells) + " |")
         lines.append("")
-    lines += ["### Mean over sets (each set's mean counted once)", "", "| method | PSNR dB | SSIM | CIEDE2000 |"]
-    lines.append("|---|---|---|---|")
+    lines += ["### Mean over sets (each set's mean counted once)", ""]
+    lines += ["| method | " + " | ".join(m.heading for m in refs) + " |", "|---|" + "---|" * len(refs)]
     for m in pairs["methods"]:
         o = pairs["mean_over_sets"][m]
-        lines.append(f"| {m} | {o['psnr']:.2f} | {o['ssim']:.3f} | {o['ciede2000']:.2f} |")
+        lines.append(f"| {m} | " + " | ".join(f"{o[k.name]:.{k.digits}f}" for k in refs) + " |")
     contrasts = [c for c in pairs.get("contrasts", []) if c["n"]]
     if contrasts:
+        keys = [table.get(k) for k in CONTRAST_KEYS]
+        directions = ", ".join(f"higher {k.label} is {'better' if k.better == 'higher' else 'worse'}" for k in keys)
         lines += [
             "",
             "### Arms against each other: paired over all images of all sets",
             "",
             "a - b per image: mean +- sd, images where a's value is higher, paired t (n - 1 degrees of freedom). "
-            "Higher PSNR is better, higher CIEDE2000 worse.",
+            f"{directions[0].upper()}{directions[1:]}.",
             "",
-            "| a - b | images | PSNR dB | PSNR higher on | t | CIEDE2000 | CIEDE2000 higher on | t |",
-            "|---|---|---|---|---|---|---|---|",
+            "| a - b | images | " + " | ".join(f"{k.heading} | {k.label} higher on | t" for k in keys) + " |",
+            "|---|---|" + "---|---|---|" * len(keys),
         ]
         for c in contrasts:
-            p, e = c["psnr"], c["ciede2000"]
-            lines.append(
-                f"| {c['a']} - {c['b']} | {c['n']} | {p['mean']:+.2f} +- {p['std']:.2f} | {p['higher']} | "
-                f"{p['t']:.2f} | {e['mean']:+.2f} +- {e['std']:.2f} | {e['higher']} | {e['t']:.2f} |"
-            )
+            cells = [
+                f"{c[k.name]['mean']:+.2f} +- {c[k.name]['std']:.2f} | {c[k.name]['higher']} | {c[k.name]['t']:.2f}"
+                for k in keys
+            ]
+            lines.append(f"| {c['a']} - {c['b']} | {c['n']} | " + " | ".join(cells) + " |")
     return [*lines, ""]
 
 
@@ -409,7 +417,7 @@ def study_markdown(report: dict[str, Any]) -> str:
     lines = [f"# murk study (murk {report['murk_version']})", ""]
     real = report["real"]
     lines += [f"## Real images: mean +- std over {real['images']} images of {real['folder']} (Fig. 8)", ""]
-    keys = [(k, name) for k, name in SUMMARY_KEYS if any(k in real["summary"][m] for m in real["methods"])]
+    keys = [(k, name) for k, name in summary_keys() if any(k in real["summary"][m] for m in real["methods"])]
     lines.append("| method | " + " | ".join(name for _, name in keys) + " | images flagged |")
     lines.append("|---|" + "---|" * (len(keys) + 1))
     for m in real["methods"]:

@@ -1,11 +1,17 @@
 """Evaluation during training: loss, PSNR/SSIM, the affine-fit PSNR (:mod:`murk.metrics.affine_psnr`: what is
 left once a global colour correction is forgiven, for the output and for the degraded input) and depth errors
 (AbsRel in m/m and median-scaled) on the held-out synthetic split, against the true clean scene; UIQM/UCIQE on
-real images (what :func:`murk.train.loop.train` logs at every ``eval.every`` steps and picks ``best.pt`` by)."""
+real images (what :func:`murk.train.loop.train` logs at every ``eval.every`` steps and picks ``best.pt`` by).
+
+The metrics are rows of the metric table (:mod:`murk.metrics.table`) with a torch twin: every full-reference one
+(``val_<name>``; those in dB also for the degraded input, ``val_input_<name>``, and capped at 100 dB, the PSNR of
+an exact copy being infinite), the headline depth errors (``val_<name>``) and the headline no-reference scores
+(``real_<name>``)."""
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Sized
+from typing import Any, cast
 
 import numpy as np
 import torch
@@ -13,6 +19,7 @@ import torch.nn.functional as F
 from torch.utils.data import DataLoader
 
 from murk.io.jobs import ErrorLog
+from murk.metrics import table
 from murk.physics.balance import color_balance_torch
 from murk.train.config import TrainConfig
 from murk.train.data import record_unreadable
@@ -36,7 +43,6 @@ def evaluate(
 ) -> dict[str, float]:
     """Loss, PSNR/SSIM (and the degraded input's PSNR) and depth errors on the held-out synthetic split (the
     same ``eval.val_batches`` batches every time, unaugmented); UIQM/UCIQE on real images."""
-    from murk.metrics import affine_fit_psnr_torch, depth_errors_torch, psnr_torch, ssim_torch, uciqe_torch, uiqm_torch
     from murk.models.padding import pad_to_multiple
     from murk.train.networks import run_network, size_multiple
 
@@ -45,9 +51,14 @@ def evaluate(
     was_training = model.training
     model.eval()
     out: dict[str, float] = {}
-    if data.val is not None and len(data.val) > 0:
+    refs = [m for m in table.metrics("reference") if m.torch_function is not None]
+    depths = [m for m in table.metrics("depth") if m.headline and m.torch_function is not None]
+    if data.val is not None and len(cast(Sized, data.val)) > 0:
         loader = DataLoader(data.val, batch_size=config.batch, shuffle=False, num_workers=0)
-        ps, ss, errs, in_ps, losses, fit, in_fit = [], [], [], [], [], [], []
+        twins = {m.name: m.load(torch=True) for m in refs}
+        depth_twin = depths[0].load(torch=True) if depths else None
+        scores: dict[str, list[torch.Tensor]] = {}
+        errs, losses = [], []
         for bi, batch in enumerate(loader):
             if bi >= config.eval.val_batches:
                 break
@@ -63,29 +74,29 @@ def evaluate(
             enhanced = enhanced.float()
             depth_m = None if depth_m is None else depth_m.float()
             losses.append(float(jointid_loss(enhanced, targets, depth_m, batch["depth"], config.loss).total))
-            in_ps.append(psnr_torch(inputs.float().clamp(0, 1), targets, data_range=1.0))
-            ps.append(psnr_torch(enhanced.clamp(0, 1), targets, data_range=1.0))
-            ss.append(ssim_torch(enhanced.clamp(0, 1), targets, data_range=1.0))
-            fit.append(affine_fit_psnr_torch(enhanced.clamp(0, 1), targets, data_range=1.0))
-            in_fit.append(affine_fit_psnr_torch(inputs.float().clamp(0, 1), targets, data_range=1.0))
-            if depth_m is not None:  # networks without a depth head: no depth errors
-                errs.append(depth_errors_torch(depth_m, batch["depth"]))
-        if ps:
+            for m in refs:
+                fn = twins[m.name]
+                scores.setdefault(m.name, []).append(m.value(fn(enhanced.clamp(0, 1), targets, data_range=1.0)))
+                if m.unit == "dB":  # and the degraded input's, the bar to clear
+                    x = inputs.float().clamp(0, 1)
+                    scores.setdefault(f"input_{m.name}", []).append(m.value(fn(x, targets, data_range=1.0)))
+            if depth_m is not None and depth_twin is not None:  # networks without a depth head: no depth errors
+                errs.append(depth_twin(depth_m, batch["depth"]))
+        if losses:
             out["val_loss"] = float(np.mean(losses))
-            out["val_psnr"] = float(torch.cat(ps).clamp(max=100).mean())
-            out["val_input_psnr"] = float(torch.cat(in_ps).clamp(max=100).mean())
-            out["val_ssim"] = float(torch.cat(ss).mean())
-            out["val_affine_psnr"] = float(torch.cat(fit).clamp(max=100).mean())
-            out["val_input_affine_psnr"] = float(torch.cat(in_fit).clamp(max=100).mean())
-            for name in ("silog", "abs_rel", "abs_rel_median", "rmse", "d1"):
-                vals = [getattr(e, name, None) for e in errs]
-                if vals and all(v is not None for v in vals):
-                    out[f"val_{name}"] = float(torch.cat([v.reshape(-1) for v in vals]).nanmean())
+            for m in refs:
+                for key in (m.name, f"input_{m.name}") if m.unit == "dB" else (m.name,):
+                    values = torch.cat(scores[key])
+                    out[f"val_{key}"] = float((values.clamp(max=100) if m.unit == "dB" else values).mean())
+            for m in depths:
+                if errs:
+                    out[f"val_{m.name}"] = float(torch.cat([m.value(e).reshape(-1) for e in errs]).nanmean())
     if config.eval.real:
         from murk.io.images import list_images, read_rgb
 
         files = list_images(config.eval.real, recursive=True)[: config.eval.real_max]
-        uiqms, uciqes = [], []
+        norefs = [m for m in table.metrics("none") if m.headline and m.torch_function is not None]
+        real: dict[str, list[torch.Tensor]] = {m.name: [] for m in norefs}
         for f in files:
             img = read_rgb(f)
             h, w = img.shape[:2]
@@ -98,12 +109,11 @@ def evaluate(
                 x = color_balance_torch(x, pct, pct)
             xp, padding = pad_to_multiple(x, size_multiple(kind))
             o = padding.crop(run_network(kind, model, xp)[0].float()).clamp(0, 1)
-            uiqms.append(uiqm_torch(o, data_range=1.0).uiqm)
-            uciqes.append(uciqe_torch(o, data_range=1.0).uciqe)
-        if uiqms:
-            out["real_uiqm"] = float(torch.cat(uiqms).mean())
-            out["real_uciqe"] = float(torch.cat(uciqes).mean())
-            out["real_images"] = float(len(uiqms))
+            for m in norefs:
+                real[m.name].append(m.value(m.load(torch=True)(o, data_range=1.0)))
+        if files:
+            out.update({f"real_{name}": float(torch.cat(values).mean()) for name, values in real.items()})
+            out["real_images"] = float(len(files))
     if was_training:
         model.train()
     return out
