@@ -142,8 +142,10 @@ def test_paired_contrasts_are_per_image_differences_over_all_sets() -> None:
     assert c["psnr"]["mean"] == pytest.approx(diffs.mean()) and c["ciede2000"]["mean"] == pytest.approx(-diffs.mean())
     assert c["psnr"]["std"] == pytest.approx(diffs.std(ddof=1))
     assert c["psnr"]["t"] == pytest.approx(diffs.mean() / (diffs.std(ddof=1) / 2.0))
+    # 95 % interval: Student's t with 3 degrees of freedom, 3.182446 (tables), times sd / sqrt(4)
+    assert c["psnr"]["ci95"] == pytest.approx(3.182446 * diffs.std(ddof=1) / 2.0, rel=1e-6)
     (same,) = paired_contrasts(rows, [("b", "b")])
     assert same["psnr"]["mean"] == 0.0 and np.isnan(same["psnr"]["t"])  # no spread: no t
     pairs = {"max_side": 256, "folder": "F", "sets": {}, "methods": [], "mean_over_sets": {}, "contrasts": [c]}
     md = "\n".join(real_pairs_markdown(pairs))
-    assert "### Arms against each other" in md and "| a - b | 5 | +1.50 +- 1.68 | 3 | 1.78 |" in md
+    assert "### Arms against each other" in md and "| a - b | 5 | +1.50 +- 1.68 (-1.18 to +4.18) | 3 | 1.78 |" in md

@@ -246,12 +246,24 @@ CONTRAST_KEYS = ("psnr", "ciede2000")
 """The metrics the arms are contrasted by, image by image (:func:`paired_contrasts`)."""
 
 
+def ci95_half_width(sd: float, n: int) -> float:
+    """Half-width of the 95 % confidence interval of a mean of ``n`` paired differences with sample standard
+    deviation ``sd``: Student's t quantile with ``n - 1`` degrees of freedom times ``sd / sqrt(n)`` (NaN under two
+    values)."""
+    if n < 2 or not math.isfinite(sd):
+        return float("nan")
+    from scipy.stats import t as student_t
+
+    return float(student_t.ppf(0.975, n - 1)) * sd / math.sqrt(n)
+
+
 def paired_contrasts(
     rows: list[dict[str, Any]], contrasts: list[tuple[str, str]], keys: tuple[str, ...] = CONTRAST_KEYS
 ) -> list[dict[str, Any]]:
     """Method ``a`` against method ``b`` for each ``(a, b)`` of ``contrasts``, paired over the images both scored:
-    per key the mean and standard deviation of ``a - b`` over the images, how many images have ``a > b``, and the
-    paired t statistic (mean / (sd / sqrt(n)); NaN under two images or with no spread). ``rows``: dicts with
+    per key the mean and standard deviation of ``a - b`` over the images, how many images have ``a > b``, the
+    paired t statistic (mean / (sd / sqrt(n)); NaN under two images or with no spread) and the half-width of the
+    mean's 95 % confidence interval (:func:`ci95_half_width`). ``rows``: dicts with
     ``set``, ``image``, ``method`` and the keys (``murk compare`` rows, tagged with their set)."""
     table = {(r["set"], r["image"], r["method"]): r for r in rows}
     out = []
@@ -266,7 +278,14 @@ def paired_contrasts(
             mean = sum(d) / n if n else float("nan")
             sd = math.sqrt(sum((v - mean) ** 2 for v in d) / (n - 1)) if n > 1 else float("nan")
             t = mean / (sd / math.sqrt(n)) if n > 1 and sd > 0 else float("nan")
-            entry[k] = {"mean": mean, "std": sd, "n": n, "higher": sum(v > 0 for v in d), "t": t}
+            entry[k] = {
+                "mean": mean,
+                "std": sd,
+                "n": n,
+                "higher": sum(v > 0 for v in d),
+                "t": t,
+                "ci95": ci95_half_width(sd, n),
+            }
         out.append(entry)
     return out
 
@@ -395,17 +414,22 @@ def real_pairs_markdown(pairs: dict[str, Any]) -> list[str]:
             "",
             "### Arms against each other: paired over all images of all sets",
             "",
-            "a - b per image: mean +- sd, images where a's value is higher, paired t (n - 1 degrees of freedom). "
+            "a - b per image: mean +- sd, the mean's 95 % confidence interval (Student's t, n - 1 degrees of "
+            "freedom), images where a's value is higher, paired t. "
             f"{directions[0].upper()}{directions[1:]}.",
             "",
             "| a - b | images | " + " | ".join(f"{k.heading} | {k.label} higher on | t" for k in keys) + " |",
             "|---|---|" + "---|---|---|" * len(keys),
         ]
         for c in contrasts:
-            cells = [
-                f"{c[k.name]['mean']:+.2f} +- {c[k.name]['std']:.2f} | {c[k.name]['higher']} | {c[k.name]['t']:.2f}"
-                for k in keys
-            ]
+            cells = []
+            for k in keys:
+                e = c[k.name]
+                half = ci95_half_width(e["std"], e["n"])  # from the figures, so older study.json files render too
+                cells.append(
+                    f"{e['mean']:+.2f} +- {e['std']:.2f} ({e['mean'] - half:+.2f} to {e['mean'] + half:+.2f}) | "
+                    f"{e['higher']} | {e['t']:.2f}"
+                )
             lines.append(f"| {c['a']} - {c['b']} | {c['n']} | " + " | ".join(cells) + " |")
     return [*lines, ""]
 
