@@ -79,18 +79,11 @@ def affine_fit_psnr_torch(pred: torch.Tensor, ref: torch.Tensor, *, data_range: 
     """
     import torch
 
+    from murk.metrics.reference import _check_pair_torch  # the same batch contract as psnr_torch
+
     data_range = check_data_range(data_range)
-    for name, a in (("pred", pred), ("ref", ref)):
-        if not isinstance(a, torch.Tensor):
-            raise TypeError(f"{name}: expected a torch.Tensor of shape (B, C, H, W), got {type(a).__name__}")
-        if a.dtype == torch.bool or a.is_complex():
-            raise TypeError(f"{name}: expected an integer or float tensor, got dtype {a.dtype}")
-        if a.ndim != 4 or a.numel() == 0:
-            raise ShapeError(f"{name}: expected shape (B, C, H, W), got {tuple(a.shape)}")
-    if pred.shape != ref.shape:
-        raise ShapeError(f"pred: expected the shape of ref {tuple(ref.shape)}, got {tuple(pred.shape)}")
-    p = pred.detach().double().flatten(2)
-    r = ref.detach().double().flatten(2)
+    x, y = _check_pair_torch(pred, ref)
+    p, r = x.flatten(2), y.flatten(2)
     pm, rm = p.mean(dim=2, keepdim=True), r.mean(dim=2, keepdim=True)
     var = ((p - pm) ** 2).mean(dim=2, keepdim=True)
     cov = ((p - pm) * (r - rm)).mean(dim=2, keepdim=True)
