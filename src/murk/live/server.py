@@ -19,15 +19,25 @@ bug), shown in the page; no request can stop the server. Safety: with ``token`` 
 (``X-Murk-Token`` header or ``?token=``); on a loopback address the ``Host`` header must name the loopback
 (a web page cannot reach the server through DNS rebinding); POST bodies must be JSON (a cross-site form cannot
 send one without the browser asking the server first, which this server does not allow).
+
+Hostile or broken clients: a request's head and body must arrive within :data:`REQUEST_DEADLINE_S` of when the
+server starts waiting for it (a connection that trickles a byte a second is closed then, as is a silent one);
+at most :data:`MAX_CONNECTIONS` connections are served at once (one more is answered 503 and closed at once, in
+the accepting thread); a client that resets its connection or stops reading is dropped without a traceback.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hmac
+import io
 import ipaddress
 import json
 import socket
+import sys
 import threading
+import time
+from collections.abc import Callable
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Any
@@ -39,6 +49,11 @@ from murk.live.pipeline import LivePipeline
 FRAME_WAIT_S = 2.0
 """How long ``/api/frame`` waits for a newer frame before answering 204."""
 MAX_BODY_BYTES = 64 * 1024
+REQUEST_DEADLINE_S = 30.0
+"""A request's head and body must have arrived this long after the server started waiting for it (the idle
+timeout, ``LiveHandler.timeout``, counts per read: a client sending a byte a second would never meet it)."""
+MAX_CONNECTIONS = 64
+"""Connections served at once (each has a thread); one more is answered 503 and closed. A page holds 2-3."""
 PAGE_REFUSED_OPTIONS = ("checkpoint", "onnx", "trust_checkpoint", "device", "batch", "compile")
 """Method options the page may not set: they name files or run code on the server, or set the command's
 settings (set them on the command line)."""
@@ -68,13 +83,27 @@ class LiveServer(ThreadingHTTPServer):
         *,
         token: str | None = None,
         methods: dict[str, list[dict[str, Any]]] | None = None,
+        max_connections: int = MAX_CONNECTIONS,
+        request_deadline_s: float = REQUEST_DEADLINE_S,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
+        if max_connections < 1 or request_deadline_s <= 0:
+            raise ValueError("max_connections: expected >= 1; request_deadline_s: expected > 0")
         self.address_family = socket.AF_INET6 if ":" in host else socket.AF_INET
         super().__init__((host, port), LiveHandler)
         self.pipeline = pipeline
         self.token = token or None
         self.methods = methods or {}
         self.loopback = _is_loopback(host)
+        self.max_connections = max_connections
+        self.request_deadline_s = request_deadline_s
+        self.clock = clock
+        """The clock of the request deadline (a test passes one it controls)."""
+        self.connections = 0
+        """Connections being served now (at most ``max_connections``)."""
+        self.refused = 0
+        """Connections answered 503 because ``max_connections`` were being served."""
+        self._count_lock = threading.Lock()
         self._thread: threading.Thread | None = None
 
     @property
@@ -92,6 +121,82 @@ class LiveServer(ThreadingHTTPServer):
     def stop(self) -> None:
         self.shutdown()
         self.server_close()
+
+    # -- connections: bounded, and clients that go away are no error ------------------------------------------
+
+    def process_request(self, request: Any, client_address: Any) -> None:
+        with self._count_lock:
+            busy = self.connections >= self.max_connections
+            if not busy:
+                self.connections += 1
+            else:
+                self.refused += 1
+        if busy:  # answered here, in the accepting thread: no thread for it, and at once
+            _refuse(request)
+            self.shutdown_request(request)
+            return
+        try:
+            super().process_request(request, client_address)
+        except BaseException:  # its thread did not start
+            self._release()
+            raise
+
+    def process_request_thread(self, request: Any, client_address: Any) -> None:
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self._release()
+
+    def _release(self) -> None:
+        with self._count_lock:
+            self.connections -= 1
+
+    def handle_error(self, request: Any, client_address: Any) -> None:
+        if isinstance(sys.exc_info()[1], (ConnectionError, TimeoutError)):
+            return  # a client that reset its connection, stopped reading or timed out: nothing to report
+        super().handle_error(request, client_address)  # a bug: its traceback
+
+
+_BUSY_BODY = b'{"error": "503 murk live is serving as many connections as it may; try again"}'
+_BUSY = (
+    b"HTTP/1.1 503 Service Unavailable\r\nContent-Type: application/json\r\nRetry-After: 1\r\n"
+    b"Connection: close\r\nContent-Length: " + str(len(_BUSY_BODY)).encode() + b"\r\n\r\n" + _BUSY_BODY
+)
+
+
+def _refuse(sock: socket.socket) -> None:
+    """Answer 503 on a fresh connection without waiting for anything (the accepting thread must not block)."""
+    with contextlib.suppress(OSError):
+        sock.setblocking(False)
+        sock.send(_BUSY)
+        with contextlib.suppress(OSError):  # what the client sent already: read, so closing sends no reset
+            sock.recv(65536)
+
+
+class _DeadlineReader(io.RawIOBase):
+    """The socket reader of a :class:`LiveHandler`: every read waits at most the idle timeout and at most until
+    the handler's ``deadline`` (``server.clock`` time; None: no deadline); past it, reading raises TimeoutError."""
+
+    def __init__(self, handler: LiveHandler) -> None:
+        super().__init__()
+        self._handler = handler
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer: Any) -> int:
+        h = self._handler
+        sock, idle = h.connection, h.timeout
+        if h.deadline is None:
+            return sock.recv_into(buffer)
+        left = h.deadline - h.server.clock()
+        if left <= 0:
+            raise TimeoutError(f"the request did not arrive within {h.server.request_deadline_s:g} s")
+        sock.settimeout(left if idle is None else min(idle, left))
+        try:
+            return sock.recv_into(buffer)
+        finally:
+            sock.settimeout(idle)  # writes keep the idle timeout
 
 
 def _is_loopback(host: str) -> bool:
@@ -170,13 +275,26 @@ class LiveHandler(BaseHTTPRequestHandler):
     # TCP_NODELAY: a frame's last partial segment must not wait for the page's delayed ACK (Nagle's algorithm
     # held it for about 40 ms on every keep-alive response, capping the page at about 21 frames/s)
     disable_nagle_algorithm = True
-    timeout = 30  # an idle or trickling connection frees its thread after 30 s (a frame request waits 2 s)
+    timeout = 30  # an idle connection frees its thread after 30 s of silence (a frame request waits 2 s)
     server_version = "murk-live"
     error_content_type = "application/json"
     error_message_format = '{"error": "%(code)d %(message)s"}'
 
+    deadline: float | None = None
+    """When the request being read must have arrived (``server.clock`` time; see :data:`REQUEST_DEADLINE_S`)."""
+
     def log_message(self, format: str, *args: Any) -> None:
         pass  # the terminal shows the live status, not one line per frame
+
+    def setup(self) -> None:
+        super().setup()
+        plain, self.rfile = self.rfile, io.BufferedReader(_DeadlineReader(self))
+        plain.close()  # (the socket stays open: it is closed when the connection ends)
+
+    def handle_one_request(self) -> None:
+        # a trickling or silent client is closed at the deadline (TimeoutError: the base class closes)
+        self.deadline = self.server.clock() + self.server.request_deadline_s
+        super().handle_one_request()
 
     # -- dispatch --------------------------------------------------------------------------------------------
 
@@ -255,6 +373,8 @@ class LiveHandler(BaseHTTPRequestHandler):
             return json.loads(raw or b"{}")
         except (UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise RequestError(HTTPStatus.BAD_REQUEST, f"body: not JSON ({exc})") from None
+        except RecursionError:  # '[' x 5000: the decoder's recursion limit
+            raise RequestError(HTTPStatus.BAD_REQUEST, "body: JSON nested too deeply") from None
 
     # -- routes ----------------------------------------------------------------------------------------------
 
