@@ -1,21 +1,25 @@
 """The live server against hostile or broken clients (issue 49, point 5; found by benchmarks/soak_live.py): a request
 head that trickles in is closed at its deadline, the connections served at once are bounded, a client's reset is
-no traceback, and a deeply nested JSON body is a 400. No outcome depends on the machine's speed: the deadline runs
-on a clock the test moves, and every wait is for something that must happen (bounded by ``WAIT_S``, which only a
-fault reaches)."""
+no traceback, a deeply nested JSON body is a 400, and a recording stopped by a full disk is said in the terminal and
+the status. No outcome depends on the machine's speed: the deadline runs on a clock the test moves, and every wait
+is for something that must happen (bounded by ``WAIT_S``, which only a fault reaches)."""
 
 from __future__ import annotations
 
+import errno
 import http.client
 import json
 import socket
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
+from murk.live import outputs
 from murk.live.pipeline import LivePipeline
+from murk.live.run import LiveOptions, run_live
 from murk.live.server import LiveServer
 from tests.live._live import WAIT_S, clip, pipeline
 
@@ -172,3 +176,54 @@ def test_a_deeply_nested_json_body_is_a_400(live) -> None:
         assert r.status == 400 and "nested too deeply" in body["error"]
     finally:
         server.stop()
+
+
+def full_disk(monkeypatch, writes: int = 2) -> None:
+    """The recorder's writes fail with ENOSPC after ``writes`` frames."""
+    written = {"n": 0}
+    write = outputs.Recorder.write
+
+    def write_until_full(self, index, image) -> None:
+        if written["n"] >= writes:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        written["n"] += 1
+        write(self, index, image)
+
+    monkeypatch.setattr(outputs.Recorder, "write", write_until_full)
+
+
+def test_a_recording_stopped_by_a_full_disk_is_in_the_status_and_the_view_goes_on(live, monkeypatch) -> None:
+    full_disk(monkeypatch)
+    path = live.set_recording(True)
+    until(lambda: live.recordings, "the recording's stop (its file finished)")
+    state = live.status()
+    assert state["recording"] is None
+    assert "No space left on device" in state["recording_stopped"] and live.recording_stops == 1
+    assert live.recordings == [path] and path.is_file()  # what was written is kept
+    seen = live.latest().index
+    assert live.wait_view(seen, WAIT_S) is not None and live.ended is None  # the view goes on
+    monkeypatch.undo()
+    live.set_recording(True)  # a new recording: the old reason is gone
+    assert live.status()["recording_stopped"] is None
+    live.set_recording(False)
+
+
+def test_run_live_prints_why_a_recording_stopped(tmp_path: Path, monkeypatch) -> None:
+    full_disk(monkeypatch)
+    lines: list[str] = []
+    said = threading.Event()
+    deadline = time.monotonic() + WAIT_S
+
+    def on_event(text: str) -> None:
+        lines.append(text)
+        if text.startswith("recording stopped:"):
+            said.set()
+
+    options = LiveOptions(
+        str(clip(tmp_path, n=20, fps=30.0)), method="post", port=0, out_dir=tmp_path / "out", loop=True, record=True
+    )
+    report = run_live(options, on_event=on_event, should_stop=lambda: said.is_set() or time.monotonic() > deadline)
+    assert said.is_set(), lines
+    (line,) = [t for t in lines if t.startswith("recording stopped:")]
+    assert "No space left on device" in line
+    assert report.stopped and len(report.recordings) == 1

@@ -151,6 +151,11 @@ class LivePipeline:
         self.ended: str | None = None
         """Why the source ended (``"end"``, ``"disconnected or ended"``, an error), None while it runs."""
         self.recordings: list[Path] = []
+        self.recording_stopped: str | None = None
+        """Why the last recording stopped by itself (a write failed: a full disk, ...); None when none did since
+        a recording last started."""
+        self.recording_stops = 0
+        """Recordings that stopped by themselves (``murk live`` prints each one's ``recording_stopped``)."""
         self.unshown = 0
         """Restored views replaced by a newer one before the publish thread took them (newest wins); ``restored``
         counts the views shown (and handed to the hooks)."""
@@ -237,6 +242,8 @@ class LivePipeline:
                 recorder.write(view.index, view.restored)
             except (OSError, ValueError) as exc:
                 self.last_error = f"recording stopped: {exc}"
+                self.recording_stopped = str(exc)
+                self.recording_stops += 1
                 self._finish_recording()
         with self._pending_cond:  # to the publish thread; newest wins
             if self._pending is not None:
@@ -352,6 +359,7 @@ class LivePipeline:
             "last_error": self.last_error,
             "ended": self.ended,
             "recording": recording,
+            "recording_stopped": self.recording_stopped,
             "has_depth": bool(view is not None and view.depth_m is not None),
             "out_dir": str(self.out_dir),
         }
@@ -397,6 +405,7 @@ class LivePipeline:
         with self._rec_lock:
             if on and self._recorder is None:
                 self._recorder = Recorder(self.out_dir, self.source.fps)
+                self.recording_stopped = None
                 return self._recorder.path
             if on:
                 return self._recorder.path if self._recorder else None

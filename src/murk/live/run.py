@@ -137,8 +137,11 @@ def run_live(
             on_event(f"Foxglove: {publisher.url} (topics /murk/raw, /murk/restored, /murk/depth)")
         if options.record:
             on_event(f"recording to {pipeline.set_recording(True)}")
-        told = False
+        told, stops = False, 0
         while not should_stop():
+            if pipeline.recording_stops > stops:  # a write failed (a full disk): the view goes on
+                stops = pipeline.recording_stops
+                on_event(f"recording stopped: {pipeline.recording_stopped or 'a write failed'}")
             if pipeline.ended is not None and not told:
                 told = True
                 on_event(f"source ended: {pipeline.ended} (after {pipeline.restored} restored frames)")

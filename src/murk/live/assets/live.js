@@ -133,6 +133,9 @@
       ended.hidden = !s.ended;
       ended.textContent = s.ended ? "source ended: " + s.ended : "";
       if (s.ended) document.body.dataset.state = "ended";
+      const stopped = s.recording_stopped && !s.recording; // a write failed (a full disk): why, until the next recording
+      $("rec-stopped").hidden = !stopped;
+      $("rec-stopped").textContent = stopped ? "recording stopped: " + s.recording_stopped : "";
       if (document.activeElement !== $("method") && !$("method").value) $("method").value = s.method;
       if (s.last_error) $("ended").title = s.last_error;
     } catch (e) {
