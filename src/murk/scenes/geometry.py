@@ -163,17 +163,20 @@ def _sign(xp: Any, x: Array) -> Array:
 def box_t(xp: Any, d: tuple[Array, Array, Array], k: Any) -> Array:
     """Nearest hit of an oriented box (slab method in the box frame)."""
     dx, dy, dz = d
-    tn = tf = None
-    for j in range(3):
+
+    def slab(j: int) -> tuple[Array, Array]:  # entry and exit distances of the slab of local axis j
         dl = _safe(xp, k[3 * j] * dx + k[3 * j + 1] * dy + k[3 * j + 2] * dz, 1e-12)
         inv = 1.0 / dl
         ol, h = k[9 + j], k[12 + j]
         ta = (-h - ol) * inv
         tb = (h - ol) * inv
-        lo = xp.minimum(ta, tb)
-        hi = xp.maximum(ta, tb)
-        tn = lo if tn is None else xp.maximum(tn, lo)
-        tf = hi if tf is None else xp.minimum(tf, hi)
+        return xp.minimum(ta, tb), xp.maximum(ta, tb)
+
+    tn, tf = slab(0)
+    for j in (1, 2):
+        lo, hi = slab(j)
+        tn = xp.maximum(tn, lo)
+        tf = xp.minimum(tf, hi)
     return xp.where((tn <= tf) & (tn > EPS_T), tn, INF)
 
 
@@ -378,15 +381,15 @@ def seabed_newton(xp: Any, state: dict[str, Any], k: Any, steps: int) -> tuple[A
     A ray has converged when its last step was below :data:`SEABED_NEWTON_TOL_M` (Newton converges
     quadratically, so the remaining error is orders of magnitude smaller) and it never left the bracket.
     """
-    t = state["t"]
+    if steps < 1:
+        raise ValueError(f"seabed_newton: expected at least one step, got {steps}")
+    t = t_prev = state["t"]
     inside = state["valid"]
-    step = None
     for _ in range(steps):
         g, gp = _seabed_g(xp, state, k, t)
-        t_new = t - g / _safe(xp, gp, 1e-12)
-        step = xp.abs(t_new - t)
-        t = t_new
+        t_prev, t = t, t - g / _safe(xp, gp, 1e-12)
         inside = inside & (t >= state["lo"]) & (t <= state["hi"])
+    step = xp.abs(t - t_prev)  # the last step
     # Rays that ran past the bracket's far end at t_cap hit beyond t_cap (the background): done too.
     return t, (inside & (step < SEABED_NEWTON_TOL_M)) | (t > state["hi"]) & (state["hi"] >= state["cap"])
 

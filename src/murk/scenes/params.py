@@ -233,6 +233,12 @@ def _material(d: dict[str, Any]) -> Material:
     )
 
 
+def _lighting(d: dict[str, Any]) -> Lighting:
+    """Lists become vectors, the rest floats; ``Lighting`` itself refuses a missing or unknown key."""
+    kwargs: dict[str, Any] = {k: (_vec(v) if isinstance(v, list) else float(v)) for k, v in d.items()}
+    return Lighting(**kwargs)
+
+
 def _primitive(d: dict[str, Any]) -> Primitive:
     shape = d.get("shape")
     if shape not in _PRIMITIVES:
@@ -269,7 +275,7 @@ def scene_from_dict(d: dict[str, Any]) -> SceneParams:
                 roll_deg=float(cam["roll_deg"]),
                 hfov_deg=float(cam["hfov_deg"]),
             ),
-            lighting=Lighting(**{k: (_vec(v) if isinstance(v, list) else float(v)) for k, v in lit.items()}),
+            lighting=_lighting(lit),
             seabed=Seabed(
                 z0_m=float(bed["z0_m"]),
                 slope=_vec(bed["slope"]),
