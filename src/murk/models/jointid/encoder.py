@@ -80,9 +80,15 @@ class RLN(nn.Module):
         self.meta2 = nn.Conv2d(1, dim, 1)  # mu -> rebias
 
     def forward(self, x: Tensor) -> tuple[Tensor, Tensor, Tensor]:
-        return rln(
-            x, self.weight, self.bias, self.meta1.weight, self.meta1.bias, self.meta2.weight, self.meta2.bias, self.eps
-        )
+        meta1, meta2 = self.meta1, self.meta2
+        return rln(x, self.weight, self.bias, meta1.weight, _bias(meta1), meta2.weight, _bias(meta2), self.eps)
+
+
+def _bias(conv: nn.Conv2d) -> Tensor:
+    """The bias of a convolution built with one (``nn.Conv2d`` types ``bias`` as optional)."""
+    if conv.bias is None:
+        raise ValueError("RLN: expected the meta convolutions to have a bias")
+    return conv.bias
 
 
 class Attention(nn.Module):

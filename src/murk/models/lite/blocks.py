@@ -70,6 +70,8 @@ class PlainConv(nn.Module):
 def fold_bn(kernel: Tensor, bn: nn.BatchNorm2d) -> tuple[Tensor, Tensor]:
     """``BN(conv(x; kernel))`` with running statistics as one convolution: the scaled kernel and the bias (in
     ``kernel``'s dtype)."""
+    if bn.running_mean is None or bn.running_var is None:
+        raise ValueError("fold_bn: the batch norm keeps no running statistics (track_running_stats=False)")
     mean, var = bn.running_mean.to(kernel), bn.running_var.to(kernel)
     scale = bn.weight.to(kernel) / torch.sqrt(var + bn.eps)
     return kernel * scale.reshape(-1, 1, 1, 1), bn.bias.to(kernel) - mean * scale
@@ -93,6 +95,7 @@ def fold_rep_conv(block: RepConv) -> PlainConv:
         kid, bid = fold_bn(kid, block.bn_id)
         kernel, bias = kernel + kid, bias + bid
     plain = PlainConv(block.in_channels, block.out_channels, block.stride).to(block.conv3.weight.device)
+    assert plain.conv.bias is not None  # PlainConv builds its convolution with a bias
     plain.conv.weight.copy_(kernel.to(block.conv3.weight.dtype))
     plain.conv.bias.copy_(bias.to(block.conv3.weight.dtype))
     return plain

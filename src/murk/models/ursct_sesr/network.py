@@ -146,6 +146,8 @@ def to_tokens(x: Tensor) -> Tensor:
 class WindowAttention(nn.Module):
     """Window attention with the depthwise q/k/v conv over the window grid and the relative-position bias."""
 
+    relative_position_index: Tensor  # a buffer (register_buffer below); declared for the type checker
+
     def __init__(self, dim: int, batch_coupled: bool = False) -> None:
         super().__init__()
         self.dim = dim
