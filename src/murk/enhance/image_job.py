@@ -33,7 +33,7 @@ from murk.enhance.preview import side_by_side
 from murk.enhance.restorer import Restorer
 from murk.errors import OutputError
 from murk.io.atomic import make_output_folder, remove_stale_temporaries
-from murk.io.images import read_image, to_float, to_uint, write_uint
+from murk.io.images import BitDepth, read_image, to_float, to_uint, write_uint
 from murk.io.jobs import ErrorLog, ErrorRecord
 from murk.io.listing import real_path
 
@@ -42,7 +42,7 @@ from murk.io.listing import real_path
 class _Loaded:
     job: ImageJob
     image: np.ndarray
-    bits: int
+    bits: BitDepth
 
 
 def enhance_images(
@@ -107,7 +107,7 @@ def enhance_images(
             report.read_s += time.perf_counter() - t0
         for note in info.notes:
             converted[note] = converted.get(note, 0) + 1
-        bits = 16 if info.bit_depth == 16 and job.dst.suffix.lower() in SIXTEEN_BIT_SUFFIXES else 8
+        bits: BitDepth = 16 if info.bit_depth == 16 and job.dst.suffix.lower() in SIXTEEN_BIT_SUFFIXES else 8
         if pending and pending[0].image.shape != image.shape:
             flush()
         pending.append(_Loaded(job, image, bits))

@@ -282,6 +282,10 @@ class BagSource(FrameSource):
             return first
         return next(self._it, None)
 
+    def __iter__(self) -> Iterator[BagFrame]:  # FrameSource's loop, typed with BagFrame
+        while (frame := self.read()) is not None:
+            yield frame
+
     def read(self) -> BagFrame | None:
         frame = self._read()
         if frame is not None:

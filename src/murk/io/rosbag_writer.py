@@ -14,7 +14,7 @@ import os
 import shutil
 import uuid
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -23,7 +23,7 @@ from murk.io.atomic import TMP_PREFIX, make_output_folder, no_space_as_error
 from murk.io.ros_image import COMPRESSED_MSG, IMAGE_MSG, encode_pixels
 from murk.io.rosbag import STORAGES, BagFamily, Storage, _require
 
-ROS2_BAG_VERSION = 8
+ROS2_BAG_VERSION: Literal[8, 9] = 8
 """rosbag2 metadata version of written ROS 2 bags: the oldest one the rosbags writer offers (8 or 9), for the widest
 compatibility with installed ROS 2 tools (not tested here against a ROS installation)."""
 
