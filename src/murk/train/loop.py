@@ -25,10 +25,10 @@ import contextlib
 import json
 import math
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sized
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal, NamedTuple
+from typing import Any, Literal, NamedTuple, cast
 
 import numpy as np
 import torch
@@ -206,7 +206,7 @@ def _set_up(
         write_text_atomic(out / "config.yaml", dump_yaml(config, murk_version=__version__, world_size=rt.world))
     logger = _Logger(out, rt.main)
 
-    n_train = len(data.train)
+    n_train = len(cast(Sized, data.train))  # every training set has a length; torch's Dataset does not declare it
     spe, total, schedule = plan_steps(config, n_train, rt.world)
     model = build_model(config, rt.device)
     teacher = load_teacher(config.loss.teacher, rt.device) if config.loss.distill > 0 and config.loss.teacher else None
