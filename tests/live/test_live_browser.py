@@ -8,6 +8,7 @@ Marked ``browser`` (CI skips it): run with ``make browser-test``.
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import shutil
@@ -111,3 +112,32 @@ def test_live_page_in_chromium(tmp_path: Path) -> None:
     assert image is not None and image.shape[1] >= 1000
     if os.environ.get("MURK_UPDATE_DOCS_IMAGES"):
         shutil.copyfile(shot, DOCS_IMAGE)
+
+
+@pytest.mark.browser
+@pytest.mark.skipif(CHROMIUM is None, reason="no Chromium on this machine (make browser-test installs it)")
+def test_the_page_says_why_a_recording_stopped(tmp_path: Path, monkeypatch) -> None:
+    from murk.live import outputs
+
+    def disk_full(self, index, image) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(outputs.Recorder, "write", disk_full)
+    p = pipeline(underwater_clip(tmp_path / "dive.avi", n=30, w=320, h=240), tmp_path / "out", "post", loop=True)
+    server = LiveServer(p.start(), "127.0.0.1", 0, methods=method_table()).start()
+    try:
+        with chromium(tmp_path / "profile") as open_page:
+            page = open_page(server.url)
+            page.wait_for("window.murkStats && murkStats.frames >= 3", timeout_s=120)
+            page.evaluate("document.getElementById('record').click()")
+            said = page.wait_for(
+                "!document.getElementById('rec-stopped').hidden && document.getElementById('rec-stopped').innerText",
+                timeout_s=60,
+            )
+            assert said == "recording stopped: [Errno 28] No space left on device"
+            assert "No space left on device" in page.evaluate("document.body.innerText")  # visible, not a tooltip
+            seen = page.evaluate("murkStats.lastFrame")
+            page.wait_for(f"murkStats.lastFrame > {seen} + 5", timeout_s=60)  # the view goes on
+    finally:
+        server.stop()
+        p.stop()
