@@ -1,43 +1,51 @@
-"""The lazy factories of the torch methods (murk.enhance.methods): the registry knows every name and option without
-importing torch (and, asked to, whether a given weights file is there), each declaration equals the factory it
-calls, and calling one builds the real restorer; a method's device is read without building the default one."""
+"""The declarations of the built-in methods (murk.enhance.methods): the registry serves each one, knows every name
+and option without importing torch or OpenCV (and, asked to, whether a given weights file is there), checks
+declared ranges, the docs' options table is the declarations, and building one builds the real restorer; a
+method's device is read without building the default one."""
 
 from __future__ import annotations
 
+import importlib
 import subprocess
 import sys
 import textwrap
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from murk.enhance import methods
-from murk.enhance.options import declared_options
-from murk.enhance.restorer import Chain, Restorer, create, device_type, options_of
+from murk.enhance.declare import Method
+from murk.enhance.restorer import Chain, Restorer, check, create, declaration, device_type, options_of
 
 
-def _implementation(name: str):  # type: ignore[no-untyped-def]
-    from murk.enhance import jointid_restorer, lite_restorer, post, udaformer_restorer, ursct_restorer
+@pytest.mark.parametrize("method", methods.BUILTIN, ids=lambda m: m.name)
+def test_each_builtin_method_is_declared_once_and_served_by_the_registry(method: Method) -> None:
+    assert options_of(method.name) == method.option_map and declaration(method.name) is method
+    for option in method.options:
+        assert option.help and "\n" not in option.help, (method.name, option.name)
+        assert option.type in str(option) and option.default == dict(method.option_map)[option.name].default
+        if "torch" not in option.type:  # resolved without torch; torch.device is checked by the implementation
+            assert option.annotation is not Any, (method.name, option.name)
+    module, _, name = str(method.implementation).partition(":")
+    assert callable(getattr(importlib.import_module(module), name))
 
-    return {
-        "post": post.make_post,
-        "jointid": jointid_restorer.create_jointid,
-        "lite": lite_restorer.create_lite,
-        "udaformer": udaformer_restorer.create_udaformer,
-        "ursct": ursct_restorer.create_ursct,
-    }[name]
+
+def test_options_are_checked_against_their_declared_ranges() -> None:
+    with pytest.raises(ValueError, match=r"option lite_blend: expected a number in \[0.0, 1.0\], got 1.5"):
+        check("jointid?lite_blend=1.5")
+    with pytest.raises(ValueError, match=r"option batch: expected a number in \[1.0, inf\], got 0.0"):
+        check("lite", batch=0)
+    with pytest.raises(ValueError, match=r"option strength: expected a number in \[0.0, 1.0\], got nan"):
+        check("greyworld", strength=float("nan"))
+    check("jointid?lite_blend=1,tile=0")  # the ends are in range
 
 
-@pytest.mark.parametrize("name", ["post", "jointid", "lite", "udaformer", "ursct"])
-def test_the_declaration_equals_the_implementation(name: str) -> None:
-    lazy = declared_options(getattr(methods, name))
-    real = declared_options(_implementation(name))
-    assert [(o.name, o.type, o.default) for o in lazy.values()] == [(o.name, o.type, o.default) for o in real.values()]
-    # the annotations the implementation resolves are resolved the same (torch.device only there)
-    for key, option in lazy.items():
-        if "torch" not in option.type:
-            assert option.annotation == real[key].annotation, key
-    assert options_of(name) == lazy
+def test_the_docs_table_of_options_is_the_declarations() -> None:
+    text = (Path(__file__).parents[2] / "docs" / "enhance.md").read_text(encoding="utf-8")
+    start, end = "<!-- options table: murk.enhance.methods.options_table() -->\n", "\n<!-- end of options table -->"
+    assert start in text and end in text
+    assert text.split(start)[1].split(end)[0] == methods.options_table()
 
 
 def test_names_and_options_are_checked_without_torch() -> None:
@@ -60,7 +68,7 @@ def test_names_and_options_are_checked_without_torch() -> None:
                 assert text in str(exc), (spec, str(exc))
             else:
                 raise AssertionError(spec)
-        print(sorted(m for m in ("torch", "onnxruntime") if m in sys.modules))
+        print(sorted(m for m in ("torch", "onnxruntime", "cv2") if m in sys.modules))
         """
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
@@ -88,7 +96,7 @@ def test_check_with_files_reports_a_missing_weights_file_without_torch(tmp_path:
             else:
                 raise AssertionError(spec)
         check("colorbalance+post?lam=0.2", files=True)  # nothing to check
-        print(sorted(m for m in ("torch", "onnxruntime") if m in sys.modules))
+        print(sorted(m for m in ("torch", "onnxruntime", "cv2") if m in sys.modules))
         """
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

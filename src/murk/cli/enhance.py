@@ -20,6 +20,7 @@ from murk.cli._common import (
 )
 from murk.cli._jobs import JobProgress, print_summary
 from murk.enhance.choices import BagStorage, HEMode, ImageFormat, Policy, Precision, VideoBackendChoice
+from murk.enhance.methods import methods_help
 
 FLAGS = {
     "he": "--he",
@@ -78,7 +79,7 @@ def enhance(
             "(e.g. post?lam=0.5,he=rgb; a misspelt one is an error). post?preset=paper is Eq. 9 exactly; the "
             "default preset 'real' applies 30 % of the equalisation. jointid re-expresses the network's output as a "
             "local affine map of the input and averages lite's restoration in by default "
-            "(jointid?refine=0,lite_blend=0: the network alone; docs/enhance.md).",
+            "(jointid?refine=0,lite_blend=0: the network alone; docs/enhance.md). Methods: " + methods_help() + ".",
         ),
     ] = "lite",
     recursive: Annotated[bool, typer.Option("--recursive", "-r", help="Include subfolders of a folder.")] = False,

@@ -25,6 +25,7 @@ import torch
 from torch import Tensor, nn
 
 from murk.enhance.choices import DEFAULT_OVERLAP, POLICIES, Policy
+from murk.enhance.declare import Checked
 from murk.enhance.jointid_restorer import _resolve_device
 from murk.enhance.restorer import RestoredTensor, Restorer
 from murk.enhance.tiling import pad_to_multiple, tiled_apply
@@ -227,42 +228,30 @@ class BaselineRestorer(Restorer):
         )
 
 
-def baseline_factory(network: BaselineNetwork) -> Callable[..., BaselineRestorer]:
-    """The registry factory of ``network`` (``create_<name>``; registered lazily by :mod:`murk.enhance.methods`):
-    load ``checkpoint`` (an official file that pickles more than weights needs ``trust_checkpoint``) and wrap
-    it. Options: see :class:`BaselineRestorer`.
+def baseline_factory(network: BaselineNetwork) -> Callable[[Checked], BaselineRestorer]:
+    """The implementation of ``network``'s method (``create_<name>``; declared in :mod:`murk.enhance.methods`):
+    load ``checkpoint`` (an official file that pickles more than weights needs ``trust_checkpoint``) and wrap it.
+    Options: see :class:`BaselineRestorer`.
 
-    The factory raises ValueError for no checkpoint, an ONNX file or bad options, and InputFileError when the
-    checkpoint cannot be loaded.
+    The implementation raises ValueError for no checkpoint, an ONNX file or bad options, and InputFileError when
+    the checkpoint cannot be loaded.
     """
 
-    def create(
-        *,
-        checkpoint: str | Path | None = None,
-        onnx: str | Path | None = None,
-        device: str | torch.device = "cpu",
-        precision: str = "fp32",
-        policy: Policy = "native",
-        tile: int | None = None,
-        overlap: int | None = DEFAULT_OVERLAP,
-        batch: int | None = None,
-        trust_checkpoint: bool = False,
-    ) -> BaselineRestorer:
-        if onnx is not None:
+    def create(o: Checked) -> BaselineRestorer:
+        if o.onnx is not None:
             raise ValueError(
-                f"checkpoint: {onnx} is an ONNX file; the {network.name} restorer runs the torch network (any frame "
+                f"checkpoint: {o.onnx} is an ONNX file; the {network.name} restorer runs the torch network (any frame "
                 "size) from the weights file (murk export's fixed-size graphs are for ONNX Runtime users)"
             )
-        if checkpoint is None:
+        if o.checkpoint is None:
             raise ValueError(missing_weights_message(network.name, network.weights_url))
-        tile_px = check_tile(tile, network.tile_multiple, network.title) or network.square_tile
-        model = network.load(checkpoint, trust_checkpoint, OFFICIAL_SIZE if policy == "official" else tile_px)
-        restorer = BaselineRestorer(
-            network, model, device=device, precision=precision, policy=policy, tile=tile, overlap=overlap, batch=batch
-        )
-        restorer.weights = str(checkpoint)
+        tile_px = check_tile(o.tile, network.tile_multiple, network.title) or network.square_tile
+        model = network.load(o.checkpoint, o.trust_checkpoint, OFFICIAL_SIZE if o.policy == "official" else tile_px)
+        settings = {k: o[k] for k in ("device", "precision", "policy", "tile", "overlap", "batch")}
+        restorer = BaselineRestorer(network, model, **settings)
+        restorer.weights = str(o.checkpoint)
         return restorer
 
     create.__name__ = create.__qualname__ = f"create_{network.name}"
-    create.__doc__ = f"Factory of ``{network.name}``: see :func:`baseline_factory`."
+    create.__doc__ = f"Implementation of ``{network.name}``: see :func:`baseline_factory`."
     return create

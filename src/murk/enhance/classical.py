@@ -31,7 +31,8 @@ import cv2
 import numpy as np
 
 from murk._checks import check_positive, check_range
-from murk.enhance.restorer import Restored, Restorer, as_batch, register
+from murk.enhance.declare import Checked
+from murk.enhance.restorer import Restored, Restorer, as_batch
 from murk.physics.affine_transfer import guided_filter
 from murk.physics.balance import color_balance
 
@@ -62,10 +63,9 @@ class GreyWorld(Restorer):
         return Restored(np.stack([grey_world(im, self.strength) for im in _check(images)]))
 
 
-@register("greyworld")
-def make_greyworld(*, strength: float = 1.0) -> GreyWorld:
-    """Factory of ``greyworld`` (grey-world white balance; ``strength`` 0-1 blends the gains towards 1)."""
-    return GreyWorld(strength)
+def make_greyworld(o: Checked) -> GreyWorld:
+    """Implementation of ``greyworld`` (declared in :mod:`murk.enhance.methods`)."""
+    return GreyWorld(o.strength)
 
 
 # ------------------------------------------------------------------------------------ simplest colour balance
@@ -84,11 +84,9 @@ class ColorBalance(Restorer):
         return Restored(np.stack([color_balance(im, self.low, self.high) for im in _check(images)]))
 
 
-@register("colorbalance")
-def make_colorbalance(*, low: float = 1.0, high: float = 1.0) -> ColorBalance:
-    """Factory of ``colorbalance`` (simplest colour balance, Limare et al. 2011: per channel, ``low`` % of the
-    pixels saturate to 0 and ``high`` % to 1)."""
-    return ColorBalance(low, high)
+def make_colorbalance(o: Checked) -> ColorBalance:
+    """Implementation of ``colorbalance`` (declared in :mod:`murk.enhance.methods`)."""
+    return ColorBalance(o.low, o.high)
 
 
 # ----------------------------------------------------------------------------------------------------- CLAHE
@@ -117,10 +115,9 @@ class Clahe(Restorer):
         return Restored(np.stack([clahe_lab(im, self.clip, self.tiles) for im in _check(images)]))
 
 
-@register("clahe")
-def make_clahe(*, clip: float = 2.0, tiles: int = 8) -> Clahe:
-    """Factory of ``clahe`` (CLAHE on Lab L*; ``clip`` limit, ``tiles`` per side)."""
-    return Clahe(clip, tiles)
+def make_clahe(o: Checked) -> Clahe:
+    """Implementation of ``clahe`` (declared in :mod:`murk.enhance.methods`)."""
+    return Clahe(o.clip, o.tiles)
 
 
 # ------------------------------------------------------------------------------------------------------ UDCP
@@ -166,8 +163,6 @@ class Udcp(Restorer):
         return Restored(np.stack([udcp(im, self.patch, self.omega, self.t_min)[0] for im in _check(images)]))
 
 
-@register("udcp")
-def make_udcp(*, patch: int = 15, omega: float = 0.95, t_min: float = 0.1) -> Udcp:
-    """Factory of ``udcp`` (Underwater Dark Channel Prior, Drews et al. 2013; window ``patch`` px, haze kept
-    ``1 - omega``, transmission floor ``t_min``)."""
-    return Udcp(patch, omega, t_min)
+def make_udcp(o: Checked) -> Udcp:
+    """Implementation of ``udcp`` (declared in :mod:`murk.enhance.methods`)."""
+    return Udcp(o.patch, o.omega, o.t_min)

@@ -38,14 +38,14 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 import torch
 from torch import Tensor, nn
 
 from murk._checks import check_range
-from murk.enhance.choices import DEFAULT_LITE_BLEND, DEFAULT_OVERLAP, DEFAULT_REFINE, DEFAULT_REFINE_GUARD, Precision
+from murk.enhance.choices import DEFAULT_OVERLAP, DEFAULT_REFINE_GUARD, Precision
+from murk.enhance.declare import Checked
 from murk.enhance.refine import RefineSettings, refine_restoration
 from murk.enhance.restorer import RestoredTensor, Restorer
 from murk.enhance.tiling import pad_to_multiple, tiled_apply
@@ -286,24 +286,8 @@ class JointIDRestorer(Restorer):
         )
 
 
-def create_jointid(
-    *,
-    checkpoint: str | Path | None = None,
-    onnx: str | Path | None = None,
-    device: str | torch.device = "cpu",
-    precision: Precision = "fp32",
-    tile: int | None = None,
-    overlap: int | None = DEFAULT_OVERLAP,
-    trust_checkpoint: bool = False,
-    batch: int | None = None,
-    compile: bool = False,
-    cuda_graph: bool = False,
-    refine: float = DEFAULT_REFINE,
-    refine_eps: float = 1e-4,
-    refine_guard: float = DEFAULT_REFINE_GUARD,
-    lite_blend: float = DEFAULT_LITE_BLEND,
-) -> JointIDRestorer:
-    """Factory of ``jointid`` (registered lazily by :mod:`murk.enhance.methods`): load ``checkpoint`` (or the
+def create_jointid(o: Checked) -> JointIDRestorer:
+    """Implementation of ``jointid`` (declared in :mod:`murk.enhance.methods`): load ``checkpoint`` (or the
     ``onnx`` file) and wrap it.
 
     Without either, the weights shipped with murk are used (``murk.data.shipped_jointid_weights()``: the
@@ -315,13 +299,13 @@ def create_jointid(
         ValueError: no checkpoint given, or bad options.
         InputFileError: the checkpoint cannot be loaded (see ``murk.models.jointid.load_checkpoint``).
     """
-    from murk.enhance.lite_restorer import create_lite
+    from murk.enhance.restorer import create
     from murk.models.jointid.checkpoint import load_checkpoint
     from murk.models.jointid.onnx_export import OnnxJointID
 
-    if checkpoint is not None and onnx is not None:
+    if o.checkpoint is not None and o.onnx is not None:
         raise ValueError("checkpoint/onnx: give one of them, not both")
-    path = onnx if onnx is not None else checkpoint
+    path = o.onnx if o.onnx is not None else o.checkpoint
     if path is None:
         from murk.data import shipped_jointid_weights
 
@@ -331,26 +315,21 @@ def create_jointid(
                 f"checkpoint: the shipped weights {path} are missing from this installation; give --checkpoint FILE "
                 "(a murk or the official Joint-ID checkpoint, or an .onnx export)"
             )
-    if onnx is not None or str(path).lower().endswith(".onnx"):
-        model: nn.Module | OnnxJointID = OnnxJointID(path, device=str(device))
+    if o.onnx is not None or str(path).lower().endswith(".onnx"):
+        model: nn.Module | OnnxJointID = OnnxJointID(path, device=str(o.device))
         dev = torch.device("cpu")
     else:
-        dev = _resolve_device(device)
-        model = load_checkpoint(path, trust=trust_checkpoint, device="cpu")
+        dev = _resolve_device(o.device)
+        model = load_checkpoint(path, trust=o.trust_checkpoint, device="cpu")
+    settings = {k: o[k] for k in ("precision", "tile", "overlap", "batch", "compile", "cuda_graph", "lite_blend")}
     restorer = JointIDRestorer(
         model,
         device=dev,
-        precision=precision,
-        tile=tile,
-        overlap=overlap,
-        batch=batch,
-        compile=compile,
-        cuda_graph=cuda_graph,
-        refine=refine,
-        refine_eps=refine_eps,
-        refine_guard=refine_guard,
-        lite_blend=lite_blend,
-        lite=create_lite(device=dev) if check_range("lite_blend", lite_blend, 0.0, 1.0) > 0 else None,
+        refine=o.refine,
+        refine_eps=o.refine_eps,
+        refine_guard=o.refine_guard,
+        lite=create("lite", device=dev) if check_range("lite_blend", o.lite_blend, 0.0, 1.0) > 0 else None,
+        **settings,
     )
     restorer.weights = str(path)
     return restorer

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -34,6 +33,7 @@ import torch.nn.functional as F
 from torch import Tensor, nn
 
 from murk.enhance.choices import DEFAULT_REFINE_GUARD
+from murk.enhance.declare import Checked
 from murk.enhance.refine import RefineSettings, refine_restoration
 from murk.enhance.restorer import RestoredTensor, Restorer
 from murk.enhance.temporal import FrameEMA
@@ -287,22 +287,9 @@ STRIP_ROWS = 128
 than the whole frame at 1280x720; 128 the fastest)."""
 
 
-def create_lite(
-    *,
-    checkpoint: str | Path | None = None,
-    onnx: str | Path | None = None,
-    device: str | torch.device = "cpu",
-    precision: str = "fp32",
-    trust_checkpoint: bool = False,
-    batch: int | None = None,
-    threads: int | None = None,
-    temporal: float = 0.0,
-    refine: float = 0.0,
-    refine_eps: float = 1e-4,
-    refine_guard: float = DEFAULT_REFINE_GUARD,
-) -> LiteRestorer:
-    """Factory of ``lite`` (registered lazily by :mod:`murk.enhance.methods`): load ``checkpoint`` (or the
-    ``onnx`` file), fold it and wrap it.
+def create_lite(o: Checked) -> LiteRestorer:
+    """Implementation of ``lite`` (declared in :mod:`murk.enhance.methods`): load ``checkpoint`` (or the ``onnx``
+    file), fold it and wrap it.
 
     Without either, the weights shipped with murk are used (``murk.data.shipped_lite_weights()``, model card
     ``docs/models.md``); the restorer's ``weights`` attribute names the file used. A checkpoint path ending in
@@ -316,11 +303,11 @@ def create_lite(
     from murk.models.lite.checkpoint import load_lite
     from murk.models.lite.onnx_export import OnnxLite
 
-    if precision != "fp32":
-        raise ValueError(f"precision: the lite network runs in fp32 only, got {precision!r}; leave precision out")
-    if checkpoint is not None and onnx is not None:
+    if o.precision != "fp32":
+        raise ValueError(f"precision: the lite network runs in fp32 only, got {o.precision!r}; leave precision out")
+    if o.checkpoint is not None and o.onnx is not None:
         raise ValueError("checkpoint/onnx: give one of them, not both")
-    path = onnx if onnx is not None else checkpoint
+    path = o.onnx if o.onnx is not None else o.checkpoint
     if path is None:
         from murk.data import shipped_lite_weights
 
@@ -330,15 +317,15 @@ def create_lite(
                 f"checkpoint: no shipped lite weights exist in this installation ({path} is missing); pass "
                 "--checkpoint FILE (a 'murk train' checkpoint with model.kind: lite, or its .onnx export)"
             )
-    onnx_file = onnx is not None or str(path).lower().endswith(".onnx")
+    onnx_file = o.onnx is not None or str(path).lower().endswith(".onnx")
     restorer = LiteRestorer(
-        OnnxLite(path, threads=threads) if onnx_file else load_lite(path, trust=trust_checkpoint, fold=True),
-        device="cpu" if onnx_file else device,
-        batch=batch,
-        temporal=temporal,
-        refine=refine,
-        refine_eps=refine_eps,
-        refine_guard=refine_guard,
+        OnnxLite(path, threads=o.threads) if onnx_file else load_lite(path, trust=o.trust_checkpoint, fold=True),
+        device="cpu" if onnx_file else o.device,
+        batch=o.batch,
+        temporal=o.temporal,
+        refine=o.refine,
+        refine_eps=o.refine_eps,
+        refine_guard=o.refine_guard,
     )
     restorer.weights = str(path)
     return restorer

@@ -1,46 +1,34 @@
-"""The built-in methods that run torch (``post``, ``jointid``, ``lite``, ``udaformer``, ``ursct``), registered
-as lazy factories: each declares the options of its method (the signature is the options contract of
-:mod:`murk.enhance.options`) and imports its implementation only when called.
+"""Every built-in restoration method, declared once (:class:`murk.enhance.declare.Method`): its name, its options
+(types, ranges, defaults, one line of help each), what it needs and the import path of its implementation.
 
-So the registry knows every method's name and options without importing torch or a network: an unknown method
-or a misspelt option is refused at once (``murk enhance --method jointd`` answers before torch is loaded). Each
-factory's signature equals that of the implementation's factory it calls (names, annotations, defaults; pinned
-by ``tests/enhance/test_methods.py``). The classical methods (:mod:`murk.enhance.classical`: numpy and OpenCV)
-register themselves.
+The registry (:mod:`murk.enhance.restorer`) registers :data:`BUILTIN` on first use; ``murk enhance --help``
+(:func:`methods_help`), ``murk live``'s method menu, the options table of docs/enhance.md (:func:`options_table`,
+pinned by ``tests/enhance/test_methods.py``) and the spec checker read the same declarations. This module imports
+only the standard library and :mod:`murk.enhance.choices`: an unknown method or a misspelt option is refused before
+torch, OpenCV or a network is loaded (``murk enhance --method jointd`` answers at once).
 
-A weights file that is given but missing is reported here, before torch (or ONNX Runtime) is imported, with the
-message its loader gives: by the factory, and by each method's preflight, which
-:func:`murk.enhance.restorer.check` runs with ``files=True`` (``murk live`` checks its method so before it opens
-its source).
+A weights file that is given but missing is reported before torch (or ONNX Runtime) is imported, with the message
+its loader gives, by each network method's preflight (run before its implementation is imported, and by
+:func:`murk.enhance.restorer.check` with ``files=True``: ``murk live`` checks its method so before it opens its
+source).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from murk.enhance.choices import (
-    DEFAULT_LITE_BLEND,
-    DEFAULT_OVERLAP,
-    DEFAULT_REFINE,
-    DEFAULT_REFINE_GUARD,
-    HEMode,
-    Policy,
-    PostPreset,
-    Precision,
-)
-from murk.enhance.restorer import Restorer, register
-from murk.errors import InputFileError
-from murk.models.checkpoint_io import checkpoint_file
-
-if TYPE_CHECKING:
-    import torch
+from murk.enhance.choices import DEFAULT_LITE_BLEND, DEFAULT_OVERLAP, DEFAULT_REFINE, DEFAULT_REFINE_GUARD
+from murk.enhance.declare import Method, Need, Option, opt
 
 
 def _check_weights(checkpoint: str | Path | None, onnx: str | Path | None, *, runs_onnx: bool) -> None:
     """Raise the loader's InputFileError for a given weights file that is not there (``runs_onnx``: a path ending
     in ``.onnx`` runs with ONNX Runtime). Nothing to check when neither is given (the shipped weights) or both
-    are (the factory refuses that)."""
+    are (the implementation refuses that)."""
+    from murk.errors import InputFileError
+    from murk.models.checkpoint_io import checkpoint_file
+
     if checkpoint is not None and onnx is not None:
         return
     path = onnx if onnx is not None else checkpoint
@@ -53,124 +41,185 @@ def _check_weights(checkpoint: str | Path | None, onnx: str | Path | None, *, ru
     checkpoint_file(path)
 
 
-def _network_weights(*, checkpoint: str | Path | None = None, onnx: str | Path | None = None, **_: Any) -> None:
+def network_weights(*, checkpoint: str | Path | None = None, onnx: str | Path | None = None, **_: Any) -> None:
     """Preflight of ``jointid`` and ``lite``: a given checkpoint or ONNX file is there."""
     _check_weights(checkpoint, onnx, runs_onnx=True)
 
 
-def _baseline_weights(*, checkpoint: str | Path | None = None, onnx: str | Path | None = None, **_: Any) -> None:
+def baseline_weights(*, checkpoint: str | Path | None = None, onnx: str | Path | None = None, **_: Any) -> None:
     """Preflight of ``udaformer`` and ``ursct``: a given checkpoint is there (an onnx file is refused by the
-    factory: these run the torch network)."""
+    implementation: these run the torch network)."""
     if onnx is None:
         _check_weights(checkpoint, None, runs_onnx=False)
 
 
-@register("post")
-def post(
-    *,
-    device: str | torch.device = "cpu",
-    preset: PostPreset = "real",
-    sigma_px: float | None = None,
-    lam: float | None = None,
-    he: HEMode | None = None,
-    clahe_clip: float | None = None,
-    clahe_tiles: int | tuple[int, int] | None = None,
-    he_strength: float | None = None,
-    temporal: float = 0.0,
-) -> Restorer:
-    """``post`` (Eq. 9): :func:`murk.enhance.post.make_post`."""
-    options = dict(locals())
-    from murk.enhance.post import make_post
+# ----------------------------------------------------------------------------- options several methods share
 
-    return make_post(**options)
-
-
-@register("jointid", preflight=_network_weights)
-def jointid(
-    *,
-    checkpoint: str | Path | None = None,
-    onnx: str | Path | None = None,
-    device: str | torch.device = "cpu",
-    precision: Precision = "fp32",
-    tile: int | None = None,
-    overlap: int | None = DEFAULT_OVERLAP,
-    trust_checkpoint: bool = False,
-    batch: int | None = None,
-    compile: bool = False,
-    cuda_graph: bool = False,
-    refine: float = DEFAULT_REFINE,
-    refine_eps: float = 1e-4,
-    refine_guard: float = DEFAULT_REFINE_GUARD,
-    lite_blend: float = DEFAULT_LITE_BLEND,
-) -> Restorer:
-    """``jointid`` (the network restores and estimates depth): :func:`murk.enhance.jointid_restorer.create_jointid`."""
-    options = dict(locals())
-    _network_weights(checkpoint=checkpoint, onnx=onnx)
-    from murk.enhance.jointid_restorer import create_jointid
-
-    return create_jointid(**options)
+DEVICE = opt("device", "str | torch.device", "cpu", "where it runs: cpu, cuda or cuda:N")
+CHECKPOINT = opt(
+    "checkpoint", "str | Path | None", None, "weights file (.pt/.pth; .onnx runs with ONNX Runtime); default: shipped"
+)
+ONNX = opt("onnx", "str | Path | None", None, "an .onnx export to run with ONNX Runtime (instead of checkpoint)")
+PRECISION = opt("precision", "Precision", "fp32", "arithmetic: fp32, or bf16/fp16 autocast")
+TILE = opt("tile", "int | None", None, "tile side in pixels for large frames (None or 0: whole frames)", low=0)
+OVERLAP = opt("overlap", "int | None", DEFAULT_OVERLAP, "overlap of neighbouring tiles in pixels", low=0)
+TRUST = opt("trust_checkpoint", "bool", False, "read a checkpoint that pickles more than weights (a flag only)")
+BATCH = opt("batch", "int | None", None, "at most this many frames (or tiles) per forward pass", low=1)
+TEMPORAL = opt("temporal", "float", 0.0, "weight in [0, 1) of the past frames in a video's average (0: off)", low=0)
+REFINE_EPS = opt("refine_eps", "float", 1e-4, "the affine transfer's regulariser (> 0)")
+REFINE_GUARD = opt(
+    "refine_guard",
+    "float",
+    DEFAULT_REFINE_GUARD,
+    "top-hat luma in [0, 1) from which a removed particle is kept (0: off)",
+)
 
 
-@register("lite", preflight=_network_weights)
-def lite(
-    *,
-    checkpoint: str | Path | None = None,
-    onnx: str | Path | None = None,
-    device: str | torch.device = "cpu",
-    precision: str = "fp32",
-    trust_checkpoint: bool = False,
-    batch: int | None = None,
-    threads: int | None = None,
-    temporal: float = 0.0,
-    refine: float = 0.0,
-    refine_eps: float = 1e-4,
-    refine_guard: float = DEFAULT_REFINE_GUARD,
-) -> Restorer:
-    """``lite`` (the small real-time restorer): :func:`murk.enhance.lite_restorer.create_lite`."""
-    options = dict(locals())
-    _network_weights(checkpoint=checkpoint, onnx=onnx)
-    from murk.enhance.lite_restorer import create_lite
-
-    return create_lite(**options)
+def _refine(default: float) -> Option:
+    return opt("refine", "float", default, "affine transfer onto the input: window radius / long side (0: off)", low=0)
 
 
-@register("udaformer", preflight=_baseline_weights)
-def udaformer(
-    *,
-    checkpoint: str | Path | None = None,
-    onnx: str | Path | None = None,
-    device: str | torch.device = "cpu",
-    precision: str = "fp32",
-    policy: Policy = "native",
-    tile: int | None = None,
-    overlap: int | None = DEFAULT_OVERLAP,
-    batch: int | None = None,
-    trust_checkpoint: bool = False,
-) -> Restorer:
-    """``udaformer`` (a comparison baseline): :func:`murk.enhance.udaformer_restorer.create_udaformer`."""
-    options = dict(locals())
-    _baseline_weights(checkpoint=checkpoint, onnx=onnx)
-    from murk.enhance.udaformer_restorer import create_udaformer
-
-    return create_udaformer(**options)
+NETWORK: tuple[Need, ...] = ("torch", "weights", "onnxruntime")
+BASELINE_OPTIONS = (
+    opt("checkpoint", "str | Path | None", None, "the weights file (required; murk ships none, docs/baselines.md)"),
+    opt("onnx", "str | Path | None", None, "refused: the baselines run the torch network"),
+    DEVICE,
+    opt("precision", "str", "fp32", "arithmetic: fp32, or bf16/fp16 autocast"),
+    opt("policy", "Policy", "native", "native (any size, tiles) or official (the published 256x256 test script)"),
+    TILE,
+    OVERLAP,
+    BATCH,
+    TRUST,
+)
 
 
-@register("ursct", preflight=_baseline_weights)
-def ursct(
-    *,
-    checkpoint: str | Path | None = None,
-    onnx: str | Path | None = None,
-    device: str | torch.device = "cpu",
-    precision: str = "fp32",
-    policy: Policy = "native",
-    tile: int | None = None,
-    overlap: int | None = DEFAULT_OVERLAP,
-    batch: int | None = None,
-    trust_checkpoint: bool = False,
-) -> Restorer:
-    """``ursct`` (a comparison baseline): :func:`murk.enhance.ursct_restorer.create_ursct`."""
-    options = dict(locals())
-    _baseline_weights(checkpoint=checkpoint, onnx=onnx)
-    from murk.enhance.ursct_restorer import create_ursct
+def _classical(name: str, help: str, *options: Option) -> Method:
+    """A method of :mod:`murk.enhance.classical` (numpy and OpenCV; implemented by ``make_<name>``)."""
+    return Method(name, f"murk.enhance.classical:make_{name}", options, help=help)
 
-    return create_ursct(**options)
+
+# ---------------------------------------------------------------------------------------------- the methods
+
+CLASSICAL: tuple[Method, ...] = (
+    _classical("greyworld", "grey-world white balance (Buchsbaum 1980)",
+               opt("strength", "float", 1.0, "share of the grey-world gains applied (0: none)", low=0, high=1)),
+    _classical("colorbalance", "simplest colour balance (Limare et al. 2011)",
+               opt("low", "float", 1.0, "per cent of each channel's pixels saturated to 0", low=0, high=49),
+               opt("high", "float", 1.0, "per cent of each channel's pixels saturated to 1", low=0, high=49)),
+    _classical("clahe", "CLAHE of CIE L* (a*, b* kept)",
+               opt("clip", "float", 2.0, "OpenCV's clip limit (> 0)"),
+               opt("tiles", "int", 8, "tiles per side, 1-64", low=1, high=64)),
+    _classical("udcp", "Underwater Dark Channel Prior (Drews et al. 2013)",
+               opt("patch", "int", 15, "dark-channel window in pixels, 1-255", low=1, high=255),
+               opt("omega", "float", 0.95, "share of the haze removed", low=0, high=1),
+               opt("t_min", "float", 0.1, "floor of the transmission", low=1e-3, high=1)),
+)  # fmt: skip
+"""The classical methods (numpy and OpenCV, never torch)."""
+
+BUILTIN: tuple[Method, ...] = (
+    *CLASSICAL,
+    Method(
+        "post",
+        "murk.enhance.post:make_post",
+        (
+            DEVICE,
+            opt("preset", "PostPreset", "real", "real (30 % of the equalisation, lambda 0.1) or paper (Eq. 9 exactly)"),
+            opt("sigma_px", "float | None", None, "LoG sigma in pixels (default: the preset's)", low=0),
+            opt("lam", "float | None", None, "edge-enhancement weight lambda (default: the preset's)", low=0),
+            opt("he", "HEMode | None", None, "equalise luma (y), each channel (rgb) or CLAHE on luma"),
+            opt("clahe_clip", "float | None", None, "CLAHE clip limit (he=clahe)"),
+            opt("clahe_tiles", "int | tuple[int, int] | None", None, "CLAHE tiles: per side, or (columns, rows)"),
+            opt("he_strength", "float | None", None, "share of the equalisation applied (default: the preset's)"),
+            TEMPORAL,
+        ),
+        help="histogram equalisation + LoG edge enhancement (Eq. 9; torch only on CUDA)",
+    ),
+    Method(
+        "jointid",
+        "murk.enhance.jointid_restorer:create_jointid",
+        (
+            CHECKPOINT,
+            ONNX,
+            DEVICE,
+            PRECISION,
+            TILE,
+            OVERLAP,
+            TRUST,
+            BATCH,
+            opt("compile", "bool", False, "torch.compile the network (GPU; slow first frames)"),
+            opt("cuda_graph", "bool", False, "replay a CUDA graph per frame size (CUDA; fixed-size video)"),
+            _refine(DEFAULT_REFINE),
+            REFINE_EPS,
+            REFINE_GUARD,
+            opt("lite_blend", "float", DEFAULT_LITE_BLEND, "weight of lite's restoration averaged in", low=0, high=1),
+        ),
+        help="Joint-ID: restoration and metric depth (shipped weights; lite blended in)",
+        needs=NETWORK,
+        preflight="murk.enhance.methods:network_weights",
+    ),
+    Method(
+        "lite",
+        "murk.enhance.lite_restorer:create_lite",
+        (
+            CHECKPOINT,
+            ONNX,
+            DEVICE,
+            opt("precision", "str", "fp32", "fp32 only"),
+            TRUST,
+            BATCH,
+            opt("threads", "int | None", None, "ONNX Runtime's intra-op threads", low=1),
+            TEMPORAL,
+            _refine(0.0),
+            REFINE_EPS,
+            REFINE_GUARD,
+        ),
+        help="the small real-time restorer (shipped weights; murk's default)",
+        needs=NETWORK,
+        preflight="murk.enhance.methods:network_weights",
+    ),
+    Method(
+        "udaformer",
+        "murk.enhance.udaformer_restorer:create_udaformer",
+        BASELINE_OPTIONS,
+        help="UDAformer, a comparison baseline (its checkpoint required)",
+        needs=("torch", "weights"),
+        preflight="murk.enhance.methods:baseline_weights",
+    ),
+    Method(
+        "ursct",
+        "murk.enhance.ursct_restorer:create_ursct",
+        BASELINE_OPTIONS,
+        help="URSCT-SESR, a comparison baseline (its checkpoint required)",
+        needs=("torch", "weights"),
+        preflight="murk.enhance.methods:baseline_weights",
+    ),
+)
+"""The built-in methods, registered by :mod:`murk.enhance.restorer` on first use."""
+
+
+def methods_help(methods: tuple[Method, ...] = BUILTIN) -> str:
+    """One line per method for ``--help``: ``name: what it does (needs ...)``."""
+    lines = []
+    for m in methods:
+        needs = f" (needs {', '.join(n for n in m.needs if n != 'onnxruntime')})" if m.needs else ""
+        lines.append(f"{m.name}: {m.help}{needs}")
+    return "; ".join(lines)
+
+
+def options_table(methods: tuple[Method, ...] = BUILTIN) -> str:
+    """The options of every method as the markdown table of docs/enhance.md."""
+    rows = ["| method | option | type | default | range | what it does |", "|---|---|---|---|---|---|"]
+    for m in methods:
+        for i, o in enumerate(m.options):
+            name = f"`{m.name}`" if i == 0 else ""
+            kind = o.type.replace("|", "\\|")
+            rows.append(f"| {name} | `{o.name}` | `{kind}` | `{o.default!r}` | {_range(o)} | {o.help} |")
+    return "\n".join(rows)
+
+
+def _range(o: Option) -> str:
+    if o.low is not None and o.high is not None:
+        return f"[{o.low:g}, {o.high:g}]"
+    if o.low is not None:
+        return f">= {o.low:g}"
+    return "" if o.high is None else f"<= {o.high:g}"

@@ -1,9 +1,10 @@
-"""The options contract of restoration methods: what each factory declares, and strict checking of what it gets.
+"""The options contract of restoration methods: what each method declares, and strict checking of what it gets.
 
-A method's factory (registered with :func:`murk.enhance.restorer.register`) declares its options as keyword-only
-parameters with an annotation and a default; that signature is the contract (names, types, defaults), read once
-by :func:`declared_options`. A factory may not take ``**kwargs``: an option nobody declares is an error naming
-it, the nearest declared name and the valid ones, never silently ignored.
+A method declares its options once, in its :class:`murk.enhance.declare.Method` (names, types, defaults, ranges,
+help); a factory registered with the decorator form of :func:`murk.enhance.restorer.register` declares them as
+keyword-only parameters with an annotation and a default, read once by :func:`declared_options`. Such a factory
+may not take ``**kwargs``: an option nobody declares is an error naming it, the nearest declared name and the valid
+ones, never silently ignored.
 
 Two kinds of options reach :func:`murk.enhance.restorer.create`:
 
@@ -21,24 +22,10 @@ import os
 import types
 import typing
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 from murk._suggest import did_you_mean
-
-
-@dataclass(frozen=True)
-class Option:
-    """One declared option of a method: its name, its type (the annotation's text), its default and the resolved
-    annotation (``Any`` when it cannot be resolved)."""
-
-    name: str
-    type: str
-    default: Any
-    annotation: Any = Any
-
-    def __str__(self) -> str:
-        return f"{self.name}: {self.type} = {self.default!r}"
+from murk.enhance.declare import Option
 
 
 def declared_options(factory: Callable[..., Any]) -> dict[str, Option]:
@@ -67,8 +54,8 @@ def declared_options(factory: Callable[..., Any]) -> dict[str, Option]:
 
 def _type_hints(factory: Callable[..., Any]) -> dict[str, Any]:
     """The factory's annotations, evaluated. One that cannot be evaluated here is left out (its values are not
-    type-checked), the others are kept: e.g. ``device: str | torch.device`` in a lazy factory whose module imports
-    torch only for type checkers (:mod:`murk.enhance.methods`)."""
+    type-checked), the others are kept: e.g. ``device: str | torch.device`` in a factory whose module imports
+    torch only for type checkers."""
     try:
         return typing.get_type_hints(factory)
     except (NameError, TypeError):
@@ -86,12 +73,26 @@ def _type_hints(factory: Callable[..., Any]) -> dict[str, Any]:
 
 def check_value(method: str, option: Option, value: Any) -> None:
     """Raises ValueError unless ``value`` fits the option's declared type (bool, int, float, str, paths, None,
-    ``Literal``, tuples and unions of them are checked; other annotations accept anything).
+    ``Literal``, tuples and unions of them are checked; other annotations accept anything) and, for a number, its
+    declared range (``low``/``high``).
 
     A spec's options arrive as text (``post?lam=abc``), so a value of the wrong type is a bad value here.
     """
     if not _fits(option.annotation, value):
         raise ValueError(f"method {method}: option {option.name}: expected {_expected(option)}, got {value!r}")
+    if isinstance(value, numbers.Real) and not isinstance(value, bool) and not _within(option, float(value)):
+        low = "-inf" if option.low is None else float(option.low)
+        high = "inf" if option.high is None else float(option.high)
+        raise ValueError(
+            f"method {method}: option {option.name}: expected a number in [{low}, {high}], got {float(value)}"
+        )
+
+
+def _within(option: Option, value: float) -> bool:
+    """Whether ``value`` lies in the option's declared range (NaN never does when a range is declared)."""
+    if option.low is None and option.high is None:
+        return True
+    return (option.low is None or value >= option.low) and (option.high is None or value <= option.high)
 
 
 def _expected(option: Option) -> str:

@@ -40,7 +40,8 @@ import cv2
 import numpy as np
 
 from murk._checks import check_positive, check_range, check_rgb
-from murk.enhance.choices import HE_MODES, HEMode, PostPreset
+from murk.enhance.choices import HE_MODES, HEMode
+from murk.enhance.declare import Checked
 from murk.enhance.restorer import Restored, RestoredTensor, Restorer, as_batch, device_type
 from murk.enhance.temporal import FrameEMA
 from murk.errors import ShapeError
@@ -614,36 +615,19 @@ class PostRestorer(Restorer):
         return RestoredTensor(post_process_torch(images, **self.params._kwargs(), tables=self.temporal_hook()))
 
 
-def make_post(
-    *,
-    device: str | torch.device = "cpu",
-    preset: PostPreset = "real",
-    sigma_px: float | None = None,
-    lam: float | None = None,
-    he: HEMode | None = None,
-    clahe_clip: float | None = None,
-    clahe_tiles: int | tuple[int, int] | None = None,
-    he_strength: float | None = None,
-    temporal: float = 0.0,
-) -> PostRestorer:
-    """Factory of the ``post`` method (registered lazily by :mod:`murk.enhance.methods`): histogram equalisation
+def make_post(o: Checked) -> PostRestorer:
+    """Implementation of the ``post`` method (declared in :mod:`murk.enhance.methods`): histogram equalisation
     then LoG edge enhancement (see :func:`post_process`), with the settings of ``preset`` (:data:`POST_PRESETS`:
     ``real``, murk's default, or ``paper``, Eq. 9 exactly); any parameter given explicitly overrides the preset's.
     ``temporal`` averages the equalisation tables over the frames of a video (:mod:`murk.enhance.temporal`; 0 = per
     frame, the paper's)."""
+    preset = o.preset
     if preset not in POST_PRESETS:
         raise ValueError(f"preset: expected one of {', '.join(POST_PRESETS)}, got {preset!r}")
     base = POST_PRESETS[preset]
-    given = {
-        "sigma_px": sigma_px,
-        "lam": lam,
-        "he": he,
-        "clahe_clip": clahe_clip,
-        "clahe_tiles": clahe_tiles,
-        "he_strength": he_strength,
-    }
-    params = dataclasses.replace(base, **{k: v for k, v in given.items() if v is not None})  # type: ignore[arg-type]
-    return PostRestorer(params, device=device, temporal=temporal)
+    given = {k: o[k] for k in ("sigma_px", "lam", "he", "clahe_clip", "clahe_tiles", "he_strength")}
+    params = dataclasses.replace(base, **{k: v for k, v in given.items() if v is not None})
+    return PostRestorer(params, device=o.device, temporal=o.temporal)
 
 
 # ----------------------------------------------------------------------------------------------------------

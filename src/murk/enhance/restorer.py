@@ -4,10 +4,12 @@ A :class:`Restorer` takes a batch of float32 RGB images in [0, 1] and returns th
 depth when the method estimates it (Joint-ID does). Methods are registered by name (``post``, ``jointid``,
 ...); a spec ``"a+b"`` chains them left to right (``jointid+post`` = Joint-ID, then Eq. (9) on its output),
 and the depth of the chain is the last depth any stage produced. A spec may carry options after ``?``
-(``post?lam=0.9``). Each factory declares its options in its signature; an option no stage declares is an
-error (:mod:`murk.enhance.options`). This is murk's one registry of methods (networks are built by their
-restorer factories). Importing it does not import torch: the torch methods are registered as lazy factories
-(:mod:`murk.enhance.methods`), so names and options are checked before any network is loaded.
+(``post?lam=0.9``). Each method is declared once (:class:`murk.enhance.declare.Method`: its options, what it
+needs, the import path of its implementation); an option no stage declares, or a value outside its declared type
+or range, is an error (:mod:`murk.enhance.options`). This is murk's one registry of methods (networks are built
+by their methods' implementations). Importing it imports neither torch nor OpenCV: the built-in declarations
+(:data:`murk.enhance.methods.BUILTIN`) name their implementations by import path, imported when a method is
+built, so names and options are checked before any network is loaded.
 
 Two entry points per restorer:
 
@@ -28,7 +30,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from murk._suggest import did_you_mean
-from murk.enhance.options import Option, check_given, declared_options, parse_spec, route_options
+from murk.enhance.declare import Method, Option
+from murk.enhance.options import check_given, declared_options, parse_spec, route_options
 from murk.enhance.temporal import FrameEMA
 
 if TYPE_CHECKING:
@@ -201,41 +204,75 @@ class Chain(Restorer):
 
 Factory = Callable[..., Restorer]
 Preflight = Callable[..., None]
-_REGISTRY: dict[str, Factory] = {}
-_PREFLIGHT: dict[str, Preflight] = {}
+_REGISTRY: dict[str, Method | Factory] = {}
 
 
-def register(name: str, *, preflight: Preflight | None = None) -> Callable[[Factory], Factory]:
-    """Decorator registering a factory ``f(*, option=default, ...) -> Restorer`` under ``name``.
+def register(method: Method | str, *, preflight: Preflight | None = None) -> Any:
+    """Register a method: its :class:`~murk.enhance.declare.Method` declaration (``register(Method(...))``, the
+    form of every built-in method, :mod:`murk.enhance.methods`), or, as a decorator, a factory
+    ``f(*, option=default, ...) -> Restorer`` whose signature declares the options (``@register("mine")``; a quick
+    form for tests and scripts: no help or ranges). A name registered again is replaced.
 
-    ``preflight``, called by :func:`check` with ``files=True`` with the options the factory would get, raises what
-    the factory would raise about the files they name (a weights file that is not there) without reading them or
-    importing torch.
+    ``preflight`` (decorator form; a declaration carries its own), called by :func:`check` with ``files=True`` with
+    the options the factory would get, raises what the factory would raise about the files they name (a weights
+    file that is not there) without reading them or importing torch.
 
     Raises:
-        ValueError: an empty name, or one with ``+`` or ``?``.
+        ValueError: an empty name, or one with ``+``, ``?``, ``|``, ``,``, ``=`` or parentheses.
         TypeError: the factory does not declare its options as keyword-only parameters with defaults (e.g. it
             takes ``**kwargs``).
     """
-    if not name or "+" in name or "?" in name:
-        raise ValueError(f"name: expected a non-empty name without '+' or '?', got {name!r}")
+    if isinstance(method, Method):
+        _REGISTRY[method.name] = method
+        return method
+    name = method
+    Method(name, "m:f")  # the name's rules
 
     def deco(factory: Factory) -> Factory:
-        declared_options(factory)  # the contract is checked when the method is registered
-        _REGISTRY[name] = factory
-        if preflight is None:
-            _PREFLIGHT.pop(name, None)
-        else:
-            _PREFLIGHT[name] = preflight
+        _REGISTRY[name] = _from_factory(name, factory, preflight)  # the contract is checked when registered
         return factory
 
     return deco
+
+
+def _from_factory(name: str, factory: Factory, preflight: Preflight | None = None) -> Method:
+    """The declaration a factory's signature makes (its keyword-only options; no help or ranges)."""
+    options = tuple(declared_options(factory).values())
+    return Method(name, lambda o: factory(**o), options, help=_first_line(factory), preflight=preflight)
+
+
+def _declared(name: str) -> Method:
+    """The registered declaration of ``name``; a bare factory put into the registry (a test's monkeypatch) is read
+    through its signature."""
+    method = _REGISTRY[name]
+    return method if isinstance(method, Method) else _from_factory(name, method)
+
+
+def unregister(name: str) -> None:
+    """Remove the method ``name`` (a test's toy method); nothing when it is not registered."""
+    _REGISTRY.pop(name, None)
+
+
+def _first_line(factory: Callable[..., Any]) -> str:
+    return (factory.__doc__ or "").strip().partition("\n")[0]
 
 
 def available() -> list[str]:
     """Names of the registered methods."""
     _load_builtin()
     return sorted(_REGISTRY)
+
+
+def declaration(name: str) -> Method:
+    """The declaration of the method ``name``.
+
+    Raises:
+        ValueError: an unknown method name.
+    """
+    _load_builtin()
+    if name not in _REGISTRY:
+        raise ValueError(f"method: unknown {name!r}; available: {', '.join(sorted(_REGISTRY))}")
+    return _declared(name)
 
 
 def weighted_stage(restorer: Any) -> Any | None:
@@ -258,15 +295,12 @@ def blended_weights_of(restorer: Any) -> str | None:
 
 
 def options_of(name: str) -> dict[str, Option]:
-    """The options the method ``name`` declares (name, type, default), by name.
+    """The options the method ``name`` declares (name, type, default, help, range), by name.
 
     Raises:
         ValueError: an unknown method name.
     """
-    _load_builtin()
-    if name not in _REGISTRY:
-        raise ValueError(f"method: unknown {name!r}; available: {', '.join(sorted(_REGISTRY))}")
-    return declared_options(_REGISTRY[name])
+    return declaration(name).option_map
 
 
 def create(
@@ -288,7 +322,7 @@ def create(
             with the nearest valid name and the method's valid options).
     """
     names, kwargs = _plan(spec, shared, given, options)
-    stages = [_REGISTRY[n](**kw) for n, kw in zip(names, kwargs, strict=True)]
+    stages = [_declared(n).build(kw) for n, kw in zip(names, kwargs, strict=True)]
     return stages[0] if len(stages) == 1 else Chain(stages)
 
 
@@ -311,9 +345,7 @@ def check(
     names, kwargs = _plan(spec, shared, given, options)
     if files:
         for name, kw in zip(names, kwargs, strict=True):
-            preflight = _PREFLIGHT.get(name)
-            if preflight is not None:
-                preflight(**kw)
+            _declared(name).check_files(kw)
 
 
 def _plan(
@@ -330,21 +362,24 @@ def _plan(
             f"method: unknown {', '.join(repr(n) for n in unknown) or repr(spec)}{hint}; "
             f"available: {', '.join(sorted(_REGISTRY))} (chain them with '+')"
         )
-    declared = [declared_options(_REGISTRY[n]) for n in names]
-    known = {o for f in _REGISTRY.values() for o in declared_options(f)}
-    check_given(spec, declared, given or {}, {n: declared_options(f) for n, f in _REGISTRY.items()})
+    declared = [_declared(n).option_map for n in names]
+    every = {n: _declared(n).option_map for n in _REGISTRY}
+    known = {o for options in every.values() for o in options}
+    check_given(spec, declared, given or {}, every)
     kwargs = route_options(spec, declared, {**options, **spec_options}, shared or {}, known)
     return names, kwargs
 
 
 def _load_builtin() -> None:
-    """Import the modules that register the built-in methods: the classical ones and the lazy factories of the
-    torch ones (:mod:`murk.enhance.methods`), so that names and options are known without importing torch."""
-    import importlib
+    """Register the built-in methods (:data:`murk.enhance.methods.BUILTIN`, declarations that import neither torch
+    nor OpenCV) once, so that names and options are known without loading any implementation."""
+    global _LOADED
+    if not _LOADED:
+        from murk.enhance.methods import BUILTIN
 
-    for module in _BUILTIN_MODULES:
-        importlib.import_module(module)
+        for method in BUILTIN:
+            _REGISTRY.setdefault(method.name, method)
+        _LOADED = True
 
 
-_BUILTIN_MODULES: list[str] = ["murk.enhance.classical", "murk.enhance.methods"]
-"""Modules whose import registers built-in methods (imported on first use of the registry)."""
+_LOADED = False

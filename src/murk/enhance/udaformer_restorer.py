@@ -73,6 +73,6 @@ UDAFORMER = BaselineNetwork(
 """UDAformer: BGR weights, any size (whole frames up to :data:`AUTO_TILE_PIXELS`), tiles a multiple of 8."""
 
 create_udaformer = baseline_factory(UDAFORMER)
-"""Factory of ``udaformer`` (registered lazily by :mod:`murk.enhance.methods`): the official
+"""Factory of ``udaformer`` (declared in :mod:`murk.enhance.methods`): the official
 ``checkpoint_489_epoch.pkl`` needs ``trust_checkpoint`` (it pickles an optimiser object); see
 :func:`murk.enhance.baseline.baseline_factory`."""

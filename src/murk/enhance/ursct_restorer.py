@@ -72,5 +72,5 @@ URSCT_SESR = BaselineNetwork(
 """URSCT-SESR: RGB weights, square tiles only (a multiple of 128; 256 by default, the training size)."""
 
 create_ursct = baseline_factory(URSCT_SESR)
-"""Factory of ``ursct`` (registered lazily by :mod:`murk.enhance.methods`): the released ``*_bestSSIM.pth`` or a
+"""Factory of ``ursct`` (declared in :mod:`murk.enhance.methods`): the released ``*_bestSSIM.pth`` or a
 state dict; see :func:`murk.enhance.baseline.baseline_factory`."""

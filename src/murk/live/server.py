@@ -209,13 +209,18 @@ def _is_loopback(host: str) -> bool:
 
 
 def method_table() -> dict[str, list[dict[str, Any]]]:
-    """Every registered method with the options the page may set (name, type, default)."""
+    """Every registered method with the options the page may set (name, type, default, help: its declaration)."""
     from murk.enhance.restorer import available, options_of
 
     table = {}
     for name in available():
         table[name] = [
-            {"name": o.name, "type": o.type, "default": o.default if _jsonable(o.default) else str(o.default)}
+            {
+                "name": o.name,
+                "type": o.type,
+                "default": o.default if _jsonable(o.default) else str(o.default),
+                "help": o.help,
+            }
             for o in options_of(name).values()
             if o.name not in PAGE_REFUSED_OPTIONS
         ]

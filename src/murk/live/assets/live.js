@@ -162,7 +162,7 @@
         const input = document.createElement("input");
         input.name = opt.name;
         input.placeholder = opt.default === null ? "default" : String(opt.default);
-        input.title = opt.name + ": " + opt.type + " (default " + String(opt.default) + ")";
+        input.title = opt.name + ": " + opt.type + " (default " + String(opt.default) + ")" + (opt.help ? ": " + opt.help : "");
         if (keep[opt.name]) input.value = keep[opt.name];
         label.appendChild(input);
         box.appendChild(label);
