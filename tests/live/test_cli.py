@@ -96,14 +96,15 @@ def test_ctrl_c_finishes_the_recording_and_exits_130(tmp_path: Path) -> None:
         assert b"live view: " in head, head.decode()
         port = urlsplit(head.split(b"live view: ")[1].split()[0].decode()).port
         assert port, head.decode()
-        # Five frames restored after the recording's first (its file appears with it) are five frames recorded:
-        # the restore thread records each frame it restores, and Ctrl+C finishes the one in progress.
+        # Frames shown after the recording's first one (its file appears with it) were recorded: the restore thread
+        # records each frame before it hands it to be shown, and Ctrl+C finishes the one in progress. One frame
+        # restored before the recording may still be being shown: six shown frames hold five recorded ones.
         deadline = time.monotonic() + 600  # only a fault reaches it
         while not list(out.glob("recording_*")):
             assert time.monotonic() < deadline and proc.poll() is None, head.decode()
             time.sleep(0.05)
         first = _status(port)["restored"]
-        while _status(port)["restored"] < first + 5:
+        while _status(port)["restored"] < first + 6:
             assert time.monotonic() < deadline and proc.poll() is None, head.decode()
             time.sleep(0.05)
         proc.send_signal(signal.SIGINT)  # murk live handles SIGINT itself, whatever it inherited

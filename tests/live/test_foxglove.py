@@ -92,9 +92,13 @@ def test_foxglove_client_receives_images_with_the_bag_stamps(tmp_path: Path) -> 
         pipeline = LivePipeline(source, make_restorer, "depth", tmp_path / "out", hooks=[publisher]).start()
         got: dict[str, list[tuple[int, int, dict]]] = {t: [] for t in channels}
         try:
-            while time.monotonic() < deadline and not (
-                pipeline.ended and all(len(m) >= pipeline.restored for m in got.values())
-            ):
+            # The run ends first: every view shown by then has been handed to the publisher, so each topic's count
+            # is known and every message waited for below is on its way (waiting for messages while the run went
+            # on could wait for one more after the last).
+            while pipeline.ended is None:
+                pipeline.wait_view(10**9, WAIT_S)
+                assert time.monotonic() < deadline, pipeline.status()
+            while not all(len(m) >= pipeline.restored for m in got.values()):
                 opcode, payload = ws.recv()
                 if opcode == 2 and payload[0] == 0x01:  # MessageData
                     sub, log_ns = struct.unpack_from("<IQ", payload, 1)

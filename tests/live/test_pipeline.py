@@ -57,9 +57,10 @@ def test_slow_method_drops_frames_and_never_queues(tmp_path: Path) -> None:
         assert p.ended == "end"
     finally:
         p.stop()
-    # frame 0 restored; 1..28 each replaced by the next while it waited; 29, the newest, restored
-    assert (p.restored, p.dropped) == (2, 28)
-    assert p.status()["dropped"] == p.dropped
+    # frame 0 restored; 1..28 each replaced by the next while it waited; 29, the newest, restored. Shown: both,
+    # or only 29 when the publish thread took 0 only after 29 was restored (newest wins there too: unshown)
+    assert (p.restored + p.unshown, p.dropped) == (2, 28) and p.restored >= 1
+    assert p.status()["dropped"] == p.dropped and p.status()["unshown"] == p.unshown
 
 
 def test_method_switch_and_bad_method(tmp_path: Path) -> None:
@@ -139,7 +140,8 @@ def test_end_of_source_is_reported(tmp_path: Path) -> None:
         assert p.wait_view(10**9, 5.0) is None  # ended: readers are not kept waiting
     finally:
         p.stop()
-    assert p.status()["ended"] == "end" and p.restored + p.dropped == 5
+    # every frame restored and shown, restored and replaced before it was shown, or dropped before restoration
+    assert p.status()["ended"] == "end" and p.restored + p.unshown + p.dropped == 5
 
 
 def test_an_unexpected_error_in_restoration_ends_the_run_visibly(tmp_path: Path) -> None:
