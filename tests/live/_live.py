@@ -126,16 +126,23 @@ class WatchedSource(PacedSource):
 
 class BurstRestorer(SlowRestorer):
     """Inverts the image; its first call sets ``started`` and waits until ``source`` has delivered everything:
-    restoration slower than the source by construction."""
+    restoration slower than the source by construction. With ``shown`` (an event a pipeline hook sets when the
+    first view is published), the later calls wait for it: the publish thread has taken the first view before a
+    newer one is restored, so none is replaced unshown however the threads are scheduled."""
 
     name = "burst"
 
-    def __init__(self, source: WatchedSource, started: threading.Event) -> None:
+    def __init__(self, source: WatchedSource, started: threading.Event, shown: threading.Event | None = None) -> None:
         super().__init__(0.0)
-        self.source, self.started = source, started
+        self.source, self.started, self.shown = source, started, shown
+        self.calls = 0
 
     def restore(self, images: np.ndarray) -> Restored:
-        self.started.set()
-        if not self.source.ended.wait(WAIT_S):
-            raise TimeoutError("the source never reached its end")
+        self.calls += 1
+        if self.calls == 1:
+            self.started.set()
+            if not self.source.ended.wait(WAIT_S):
+                raise TimeoutError("the source never reached its end")
+        elif self.shown is not None and not self.shown.wait(WAIT_S):
+            raise TimeoutError("the first view was never shown")
         return super().restore(images)

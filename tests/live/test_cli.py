@@ -97,14 +97,15 @@ def test_ctrl_c_finishes_the_recording_and_exits_130(tmp_path: Path) -> None:
         port = urlsplit(head.split(b"live view: ")[1].split()[0].decode()).port
         assert port, head.decode()
         # Frames shown after the recording's first one (its file appears with it) were recorded: the restore thread
-        # records each frame before it hands it to be shown, and Ctrl+C finishes the one in progress. One frame
-        # restored before the recording may still be being shown: six shown frames hold five recorded ones.
+        # records each frame before it hands it to be shown, and Ctrl+C finishes the one in progress. Two frames
+        # restored before the recording may still be shown after it (one being shown, one waiting to be): seven
+        # shown frames hold five recorded ones.
         deadline = time.monotonic() + 600  # only a fault reaches it
         while not list(out.glob("recording_*")):
             assert time.monotonic() < deadline and proc.poll() is None, head.decode()
             time.sleep(0.05)
         first = _status(port)["restored"]
-        while _status(port)["restored"] < first + 6:
+        while _status(port)["restored"] < first + 7:
             assert time.monotonic() < deadline and proc.poll() is None, head.decode()
             time.sleep(0.05)
         proc.send_signal(signal.SIGINT)  # murk live handles SIGINT itself, whatever it inherited

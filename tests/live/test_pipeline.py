@@ -16,7 +16,12 @@ from tests.live._live import WAIT_S, BurstRestorer, WatchedSource, clip, make_re
 
 
 def _views(p, n: int) -> list[LiveView]:
-    out, after = [], -1
+    return _views_after(p, -1, n)
+
+
+def _views_after(p, after: int, n: int) -> list[LiveView]:
+    """The next ``n`` views shown with an index above ``after``."""
+    out: list[LiveView] = []
     while len(out) < n:
         view = p.wait_view(after, WAIT_S)
         assert view is not None, p.status()
@@ -46,21 +51,25 @@ def test_frames_are_restored_in_order_and_shown_with_stamps(tmp_path: Path) -> N
 
 def test_slow_method_drops_frames_and_never_queues(tmp_path: Path) -> None:
     """A method slower than the source: every frame is either restored or counted as dropped. Restoring frame 0
-    takes until the source has delivered all 30 (events, not a slow method: the outcome is exact)."""
+    takes until the source has delivered all 30, and the next restoration waits until view 0 has been shown
+    (events, not a slow method: the outcome is exact however busy the machine is)."""
     source = WatchedSource(clip(tmp_path, n=30, fps=60.0))
     source.hold[1] = started = threading.Event()  # frame 1 comes once frame 0 is being restored
-    restorer = BurstRestorer(source, started)
-    p = LivePipeline(source, lambda spec: restorer, "burst", tmp_path / "out").start()
+    shown = threading.Event()
+    restorer = BurstRestorer(source, started, shown)
+    p = LivePipeline(source, lambda spec: restorer, "burst", tmp_path / "out", hooks=[lambda v: shown.set()]).start()
     try:
         while p.wait_view(10**9, WAIT_S) is None and p.ended is None:
             pass
         assert p.ended == "end"
     finally:
         p.stop()
-    # frame 0 restored; 1..28 each replaced by the next while it waited; 29, the newest, restored. Shown: both,
-    # or only 29 when the publish thread took 0 only after 29 was restored (newest wins there too: unshown)
-    assert (p.restored + p.unshown, p.dropped) == (2, 28) and p.restored >= 1
+    # frame 0 restored and shown; 1..28 each replaced by the next while it waited; 29, the newest, restored and
+    # shown (restored only once 0 was shown: no view was replaced before the publish thread took it)
+    assert (p.restored, p.unshown, p.dropped) == (2, 0, 28)
     assert p.status()["dropped"] == p.dropped and p.status()["unshown"] == p.unshown
+    view = p.latest()
+    assert view is not None and view.index == 29
 
 
 def test_method_switch_and_bad_method(tmp_path: Path) -> None:
@@ -73,14 +82,19 @@ def test_method_switch_and_bad_method(tmp_path: Path) -> None:
             p.set_method("post?lamb=0.2")
         assert p.method == "post"  # a refused method leaves the running one
         p.set_method("slow?delay=0")
-        after = _views(p, 1)[0].index
-        views = _views(p, 3)
+        # views restored before the switch may still be shown (one restoring, one waiting to be shown, one being
+        # shown): wait for the first of the new method, then every later view is of it
+        view = p.wait_view(-1, WAIT_S)
+        while view is not None and view.method != "slow?delay=0":
+            assert view.method == "post"
+            view = p.wait_view(view.index, WAIT_S)
+        assert view is not None, p.status()
+        views = [view, *_views_after(p, view.index, 2)]
     finally:
         p.stop()
-    switched = [v for v in views if v.index > after and v.method == "slow?delay=0"]
-    assert switched
-    v = switched[-1]
-    assert np.array_equal(v.restored.astype(int), 255 - v.raw.astype(int))  # the inverting method ran
+    assert [v.method for v in views] == ["slow?delay=0"] * 3
+    for v in views:
+        assert np.array_equal(v.restored.astype(int), 255 - v.raw.astype(int))  # the inverting method ran
 
 
 def test_snapshot_writes_full_resolution_pngs_and_a_sidecar(tmp_path: Path) -> None:
@@ -126,7 +140,7 @@ def test_recording_is_a_playable_video_of_restored_frames(tmp_path: Path) -> Non
         recordings = p.stop()  # the recording is still running: stop finishes it
     assert recordings == [path]
     frames = read_video(path)
-    assert len(frames) in (24, 25)  # frames 1..24, and frame 0 when the recording started before its turn
+    assert len(frames) == 24  # frames 1..24: frame 0 was shown, so past its recording, before the recording began
     # restored (inverted) frames: the red channel is 255 - (20 + 8 i), falling from frame to frame
     reds = [int(np.median(f[:, :, 0])) for f in frames]
     assert all(r <= 240 for r in reds) and reds[-1] < reds[0] - 20, reds
@@ -140,8 +154,11 @@ def test_end_of_source_is_reported(tmp_path: Path) -> None:
         assert p.wait_view(10**9, 5.0) is None  # ended: readers are not kept waiting
     finally:
         p.stop()
-    # every frame restored and shown, restored and replaced before it was shown, or dropped before restoration
+    # every frame restored and shown, restored and replaced before it was shown, or dropped before restoration;
+    # the last one is never replaced, and the end is reported once it has been shown
     assert p.status()["ended"] == "end" and p.restored + p.unshown + p.dropped == 5
+    last = p.latest()
+    assert last is not None and last.index == 4
 
 
 def test_an_unexpected_error_in_restoration_ends_the_run_visibly(tmp_path: Path) -> None:
