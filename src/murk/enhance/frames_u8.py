@@ -19,6 +19,14 @@ from murk.enhance.job import restore_batch
 from murk.enhance.restorer import Restored, Restorer, device_type
 from murk.io.images import to_float
 
+ALONE_MIN_PX = 1280 * 720 + 1
+"""Smallest frame (pixels) a method alone takes by its 8-bit path. That path uses less CPU per frame but runs on one
+thread, where the float32 path's torch steps use both. Measured file to file on the idle 2-core box (BENCHMARKS.md,
+"HD in real time", 2026-12-06, 05:18 and 05:22 UTC, against the previous tree in the same runs): `lite` alone at
+640x480 96.7 frames/s by the 8-bit path against 107.2 for the previous tree, then 103.7 by the float32 path against
+96.2 (runs spread by about 10 %); at 1280x720 37.0 and 36.5, no difference between the paths; at 1920x1080 the 8-bit
+path 22.3-23.5 against 20.0-20.7. A chain (``lite+post``) takes it at every size."""
+
 
 def restore_frames(restorer: Restorer, frames: np.ndarray) -> Restored:
     """Restore a batch of RGB frames (B, H, W, 3), uint8 (or uint16: the float32 path), into uint8 frames
@@ -32,6 +40,8 @@ def restore_frames(restorer: Restorer, frames: np.ndarray) -> Restored:
         if all(device_type(s) == "cpu" for s in stages):
             fast = getattr(stages[0], "restore_u8", None)
             alone = len(stages) == 1
+            if alone and frames.shape[1] * frames.shape[2] < ALONE_MIN_PX:
+                fast = None  # the float32 path is faster here (ALONE_MIN_PX)
             first = None if fast is None else fast(frames, np.uint8 if alone else np.float32)
             if first is not None:
                 if alone:
