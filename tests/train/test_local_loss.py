@@ -44,8 +44,8 @@ def test_the_term_is_added_inside_the_enhancement_term_only_when_asked_and_has_g
     w = LossWeights(local=2.0)
     terms = jointid_loss(enhanced, clean, None, clean[:, :1], w)
     assert terms.local is not None
-    expected = float(plain.total) + w.enhance * 2.0 * float(local_l2(enhanced, clean))
-    assert float(terms.total) == pytest.approx(expected, rel=1e-6)
+    expected = float(plain.total.detach()) + w.enhance * 2.0 * float(local_l2(enhanced, clean).detach())
+    assert float(terms.total.detach()) == pytest.approx(expected, rel=1e-6)
     terms.total.backward()
     assert enhanced.grad is not None and torch.isfinite(enhanced.grad).all()
     flat = torch.full((1, 3, 8, 8), 0.5, requires_grad=True)  # a flat output: finite gradient too
