@@ -18,6 +18,24 @@ T = TypeVar("T")
 ONE_CORE_ENV = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMEXPR_NUM_THREADS")
 
 
+def tree_envs(before_src: Any, *, warm: str) -> dict[str, dict[str, str]]:
+    """The environments of the trees a CLI benchmark compares: ``now`` (this tree) and, with ``before_src`` (the
+    ``src/`` folder of an earlier murk), ``before`` first. ``MURK_DEBUG`` is dropped; each tree imports ``warm``
+    once so that its .pyc files are compiled before any timed run."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    env = dict(os.environ)
+    env.pop("MURK_DEBUG", None)
+    trees = {"now": env}
+    if before_src is not None:
+        trees = {"before": {**env, "PYTHONPATH": str(Path(before_src).resolve())}, "now": env}
+    for tree_env in trees.values():
+        subprocess.run([sys.executable, "-c", f"import {warm}"], check=True, env=tree_env)
+    return trees
+
+
 def pin_one_core() -> None:
     """Restrict numpy/OpenCV/torch to one thread, and tune the allocator as the murk command line does
     (see murk/_perf.py)."""

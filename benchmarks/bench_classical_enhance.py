@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import filecmp
-import os
 import re
 import resource
 import shutil
@@ -37,6 +36,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from _common import tree_envs
 
 _PLAIN = (
     "import sys\n"
@@ -100,13 +101,10 @@ def main() -> None:
     ap.add_argument("--method", default="colorbalance")
     ap.add_argument("--before-src", type=Path, default=None, help="The src/ folder of an earlier murk.")
     args = ap.parse_args()
-    env = dict(os.environ)
-    env.pop("MURK_DEBUG", None)
-    trees = {"now": env}
-    if args.before_src is not None:
-        trees = {"before": {**env, "PYTHONPATH": str(args.before_src.resolve())}, "now": env}
-    for tree_env in trees.values():  # compile the .pyc files first, so that no round pays for it
-        subprocess.run([sys.executable, "-c", "import murk.cli.main, murk.enhance.run"], check=True, env=tree_env)
+    trees = tree_envs(
+        args.before_src, warm="murk.cli.main, murk.enhance.run"
+    )  # .pyc files compiled first: no round pays for it
+    env = trees["now"]
     with tempfile.TemporaryDirectory() as tmp_dir:
         tmp = Path(tmp_dir)
         images = args.images_dir

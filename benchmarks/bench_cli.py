@@ -17,7 +17,6 @@ part 6: ``git archive 4ecab2b src | tar -x -C /tmp/before`` then ``--before-src 
 from __future__ import annotations
 
 import argparse
-import os
 import resource
 import statistics
 import subprocess
@@ -25,6 +24,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from _common import tree_envs
 
 HEAVY = ("torch", "onnxruntime", "av", "rosbags", "ray")
 
@@ -160,13 +161,8 @@ def main() -> None:
         "in alternating runs, and both medians are printed side by side.",
     )
     args = ap.parse_args()
-    env = dict(os.environ)
-    env.pop("MURK_DEBUG", None)
-    trees = {"now": env}
-    if args.before_src is not None:
-        trees = {"before": {**env, "PYTHONPATH": str(args.before_src.resolve())}, "now": env}
-    for tree_env in trees.values():  # compile the .pyc files first, so that no case pays for it
-        subprocess.run([sys.executable, "-c", "import murk.cli.main"], check=True, env=tree_env)
+    trees = tree_envs(args.before_src, warm="murk.cli.main")  # .pyc files compiled first: no case pays for it
+    env = trees["now"]
     with tempfile.TemporaryDirectory() as tmp_dir:
         tmp = Path(tmp_dir)
         todo = [c for c in cases(tmp) if args.only in c[0]]
