@@ -47,22 +47,10 @@ SRC = HERE.parents[1] / "src"
 
 
 def make_clip(path: Path, w: int, h: int, n: int = FRAMES) -> Path:
-    """An MJPEG clip panning one pixel a frame over the shipped underwater photographs."""
-    import cv2
-    import numpy as np
+    """An MJPEG clip panning one pixel a frame over the shipped underwater photographs (the live tests' clip)."""
+    from tests.live._live import underwater_clip
 
-    from murk.data import sample_underwater_images
-    from murk.io import read_rgb
-
-    base = [
-        cv2.resize((read_rgb(p) * 255 + 0.5).astype(np.uint8)[:, :, ::-1], (w + 64, h), interpolation=cv2.INTER_AREA)
-        for p in sample_underwater_images()[:3]
-    ]
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), FPS, (w, h))
-    for i in range(n):
-        writer.write(np.ascontiguousarray(base[(i // 60) % len(base)][:, (i % 64) : (i % 64) + w]))
-    writer.release()
-    return path
+    return underwater_clip(path, n, fps=FPS, w=w, h=h)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -156,17 +144,9 @@ def run_worker(tree: Path, kind: str, threads: int, **kw: object) -> dict[str, f
 
 
 def read_frames(path: Path) -> list:
-    import cv2
+    from tests._video import read_video
 
-    cap = cv2.VideoCapture(str(path))
-    frames = []
-    while True:
-        ok, f = cap.read()
-        if not ok:
-            break
-        frames.append(f)
-    cap.release()
-    return frames
+    return read_video(path)
 
 
 def order_check(new: Path, old: Path) -> tuple[int, float, bool]:
@@ -308,6 +288,7 @@ def main() -> None:
         print(json.dumps(fn(threads=args.threads, **kw)))
         return
     sys.path.insert(0, str(HERE.parent))
+    sys.path.insert(0, str(HERE.parent.parent))  # tests/live/_live.py makes the clips, as for bench_live_view
     from _common import machine
 
     sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",")]

@@ -36,12 +36,7 @@ from murk.io import read_rgb
 from murk.io.images import list_images
 from murk.metrics import affine_fit_psnr, colour_exposure, psnr
 from murk.report.compare import downscale_to
-
-
-def _sets(root: Path) -> dict[str, Path]:
-    if (root / "input").is_dir():
-        return {root.name: root}
-    return {p.name: p for p in sorted(root.iterdir()) if (p / "input").is_dir()}
+from murk.report.study import pair_sets
 
 
 def _region_psnr(out: np.ndarray, ref: np.ndarray, mask: np.ndarray) -> float:
@@ -68,7 +63,7 @@ def main() -> None:
     restorers = {m: create(m) for m in ("colorbalance", *args.methods)}
     depth_net = create("jointid?refine=0,lite_blend=0")
     rows: list[dict[str, float | str]] = []
-    for set_name, folder in _sets(args.pairs).items():
+    for set_name, folder in pair_sets(args.pairs).items():
         refs = {p.stem: p for p in list_images(folder / "reference")}
         for path in list_images(folder / "input"):
             img = downscale_to(read_rgb(path), args.max_side)
