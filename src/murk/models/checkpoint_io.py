@@ -18,6 +18,7 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeGuard
 
+from murk._version import __version__
 from murk.errors import InputFileError
 
 if TYPE_CHECKING:
@@ -283,6 +284,27 @@ def write_checkpoint(path: str | Path, obj: dict[str, Any]) -> Path:
             f.flush()
             os.fsync(f.fileno())
     return path
+
+
+def write_network_checkpoint(
+    path: str | Path, net: Any, *, format_name: str, format_version: int, variant: str | None, meta: dict[str, Any]
+) -> Path:
+    """Write murk's own checkpoint of a network (Joint-ID, lite) atomically with :func:`write_checkpoint`:
+    ``{"format": format_name, "format_version", "murk_version", "variant", "config": net.config.to_dict(),
+    "state_dict"`` (detached, on the CPU, contiguous) ``, "meta"`` (with the network's input balance:
+    :func:`with_input_balance`) ``}``."""
+    return write_checkpoint(
+        path,
+        {
+            "format": format_name,
+            "format_version": format_version,
+            "murk_version": __version__,
+            "variant": variant,
+            "config": net.config.to_dict(),
+            "state_dict": {k: v.detach().cpu().contiguous() for k, v in net.state_dict().items()},
+            "meta": with_input_balance(net, meta),
+        },
+    )
 
 
 INPUT_BALANCE_KEY = "input_balance_pct"

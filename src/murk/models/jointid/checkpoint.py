@@ -24,12 +24,12 @@ from typing import Any, Literal
 import torch
 from torch import nn
 
-from murk._version import __version__
 from murk.errors import InputFileError
-from murk.models.checkpoint_io import input_balance_of, strip_prefixes, with_input_balance, write_checkpoint
+from murk.models.checkpoint_io import check_state_dict, input_balance_of, strip_prefixes, write_network_checkpoint
 from murk.models.checkpoint_io import is_state_dict as _is_state_dict
 from murk.models.checkpoint_io import torch_load as _torch_load_io
 from murk.models.jointid.network import VARIANTS, JointID, JointIDConfig, variant_name
+from murk.models.wrapped import unwrap_as
 
 FORMAT = "murk.jointid"
 FORMAT_VERSION = 1
@@ -58,14 +58,7 @@ def unwrap(model: nn.Module) -> JointID:
     Raises:
         TypeError: no JointID inside ``model``.
     """
-    m: Any = model
-    for _ in range(4):
-        if isinstance(m, JointID):
-            return m
-        m = getattr(m, "module", None) or getattr(m, "_orig_mod", None)
-        if m is None:
-            break
-    raise TypeError(f"model: expected a JointID (optionally wrapped by DDP or torch.compile), got {type(model)}")
+    return unwrap_as(model, JointID)
 
 
 def save_checkpoint(model: nn.Module, path: str | Path, **meta: Any) -> Path:
@@ -81,17 +74,8 @@ def save_checkpoint(model: nn.Module, path: str | Path, **meta: Any) -> Path:
         TypeError: ``model`` is not a JointID, or a metadata value has another type.
     """
     net = unwrap(model)
-    return write_checkpoint(
-        path,
-        {
-            "format": FORMAT,
-            "format_version": FORMAT_VERSION,
-            "murk_version": __version__,
-            "variant": variant_name(net.config),
-            "config": net.config.to_dict(),
-            "state_dict": {k: v.detach().cpu().contiguous() for k, v in net.state_dict().items()},
-            "meta": with_input_balance(net, meta),
-        },
+    return write_network_checkpoint(
+        path, net, format_name=FORMAT, format_version=FORMAT_VERSION, variant=variant_name(net.config), meta=meta
     )
 
 
@@ -114,24 +98,6 @@ def _match_variant(state: dict[str, torch.Tensor]) -> JointIDConfig:
         return len(expected.keys() ^ shapes.keys()) + sum(expected[k] != shapes[k] for k in expected.keys() & shapes)
 
     return min(VARIANTS.values(), key=distance)
-
-
-def _check_strict(path: Path, state: dict[str, torch.Tensor], config: JointIDConfig) -> None:
-    expected = _expected_shapes(config)
-    missing = [k for k in expected if k not in state]
-    unexpected = [k for k in state if k not in expected]
-    wrong = [k for k in expected if k in state and tuple(state[k].shape) != expected[k]]
-    if missing or unexpected or wrong:
-        parts = []
-        if missing:
-            parts.append(f"{len(missing)} missing keys (e.g. {', '.join(missing[:3])})")
-        if unexpected:
-            parts.append(f"{len(unexpected)} unexpected keys (e.g. {', '.join(unexpected[:3])})")
-        if wrong:
-            k = wrong[0]
-            parts.append(f"{len(wrong)} shape mismatches (e.g. {k}: {tuple(state[k].shape)} != {expected[k]})")
-        name = variant_name(config) or "custom"
-        raise InputFileError(path, f"not a Joint-ID ({name}) checkpoint: " + "; ".join(parts))
 
 
 def read_checkpoint(path: str | Path, *, trust: bool = False) -> tuple[dict[str, torch.Tensor], CheckpointInfo]:
@@ -170,7 +136,7 @@ def read_checkpoint(path: str | Path, *, trust: bool = False) -> tuple[dict[str,
     state = {_strip(k): v for k, v in raw.items()}
     if config is None:
         config = _match_variant(state)
-    _check_strict(path, state, config)
+    check_state_dict(path, state, _expected_shapes(config), f"Joint-ID ({variant_name(config) or 'custom'})")
     return state, CheckpointInfo(source, config, meta)  # type: ignore[arg-type]
 
 

@@ -14,14 +14,14 @@ height and width are multiples of 32, and returns depth in metres and the enhanc
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 from typing import Any, Literal, NamedTuple
 
 import numpy as np
 import torch
 from torch import Tensor, nn
 
-from murk._config import from_dict
+from murk._config import from_dict, to_dict
 from murk.errors import ShapeError
 from murk.models.jointid.decoder import Decoder, JointBlock, Task
 from murk.models.jointid.encoder import Encoder
@@ -66,7 +66,7 @@ class JointIDConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict (lists and numbers only), safe for ``torch.load(weights_only=True)`` and JSON."""
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+        return to_dict(self)
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> JointIDConfig:

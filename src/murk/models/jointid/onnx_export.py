@@ -26,6 +26,7 @@ from murk.io.atomic import atomic_path
 from murk.models.balance_graph import color_balance_graph
 from murk.models.jointid.checkpoint import unwrap
 from murk.models.jointid.network import INPUT_MEAN, INPUT_STD, SIZE_MULTIPLE, normalize_input
+from murk.models.onnx_session import onnx_session
 from murk.models.padding import pad_to_multiple, reflect_rows
 from murk.physics.balance import color_balance_torch
 
@@ -160,30 +161,8 @@ class OnnxJointID:
     """
 
     def __init__(self, path: str | Path, *, device: str = "cpu", threads: int | None = None) -> None:
-        try:
-            import onnxruntime as ort
-        except ImportError as exc:
-            raise ImportError("onnxruntime is needed to run .onnx models: pip install 'murk[onnx]'") from exc
         path = Path(path)
-        if not path.is_file():
-            raise InputFileError(path, "ONNX model not found")
-        providers = ["CPUExecutionProvider"]
-        if str(device).startswith("cuda"):
-            if "CUDAExecutionProvider" not in ort.get_available_providers():
-                raise ValueError(
-                    f"device: {device!r} needs onnxruntime-gpu (CUDAExecutionProvider); "
-                    f"available: {ort.get_available_providers()}"
-                )
-            providers.insert(0, "CUDAExecutionProvider")
-        opts = ort.SessionOptions()
-        opts.add_session_config_entry("session.set_denormal_as_zero", "1")  # see jointid_restorer: denormals
-        if threads is not None:
-            opts.intra_op_num_threads = threads
-            opts.inter_op_num_threads = 1
-        try:
-            self.session = ort.InferenceSession(str(path), opts, providers=providers)
-        except Exception as exc:
-            raise InputFileError(path, f"not a loadable ONNX model ({type(exc).__name__}: {exc})") from exc
+        self.session = onnx_session(path, device=device, threads=threads)
         names = [i.name for i in self.session.get_inputs()]
         outs = [o.name for o in self.session.get_outputs()]
         if names != [INPUT_NAME] or outs != list(OUTPUT_NAMES):

@@ -15,7 +15,6 @@ from typing import Any
 import torch
 from torch import nn
 
-from murk._version import __version__
 from murk.errors import InputFileError
 from murk.models.checkpoint_io import (
     check_state_dict,
@@ -23,8 +22,7 @@ from murk.models.checkpoint_io import (
     is_state_dict,
     strip_prefixes,
     torch_load,
-    with_input_balance,
-    write_checkpoint,
+    write_network_checkpoint,
 )
 from murk.models.lite.network import LiteConfig, LiteNet, reparameterize, unwrap, variant_name
 
@@ -63,17 +61,8 @@ def save_lite_checkpoint(model: nn.Module, path: str | Path, **meta: Any) -> Pat
     net = unwrap(model)
     if net.folded:
         raise ValueError("model: a folded (re-parameterised) lite network; save the training form instead")
-    return write_checkpoint(
-        path,
-        {
-            "format": FORMAT,
-            "format_version": FORMAT_VERSION,
-            "murk_version": __version__,
-            "variant": variant_name(net.config),
-            "config": net.config.to_dict(),
-            "state_dict": {k: v.detach().cpu().contiguous() for k, v in net.state_dict().items()},
-            "meta": with_input_balance(net, meta),
-        },
+    return write_network_checkpoint(
+        path, net, format_name=FORMAT, format_version=FORMAT_VERSION, variant=variant_name(net.config), meta=meta
     )
 
 

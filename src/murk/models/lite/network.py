@@ -44,16 +44,17 @@ References:
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any, Literal
 
 import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
-from murk._config import from_dict
+from murk._config import from_dict, to_dict
 from murk.errors import ShapeError
 from murk.models.lite.blocks import RepConv, conv_block, fold_rep_conv
+from murk.models.wrapped import unwrap_as
 
 LiteVariant = Literal["base", "tiny"]
 
@@ -101,7 +102,7 @@ class LiteConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict (lists and numbers only), safe for ``torch.load(weights_only=True)`` and JSON."""
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+        return to_dict(self)
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> LiteConfig:
@@ -344,14 +345,7 @@ def unwrap(model: nn.Module) -> LiteNet:
     Raises:
         TypeError: no LiteNet inside ``model``.
     """
-    m: Any = model
-    for _ in range(4):
-        if isinstance(m, LiteNet):
-            return m
-        m = getattr(m, "module", None) or getattr(m, "_orig_mod", None)
-        if m is None:
-            break
-    raise TypeError(f"model: expected a LiteNet (optionally wrapped by DDP or torch.compile), got {type(model)}")
+    return unwrap_as(model, LiteNet)
 
 
 @torch.no_grad()

@@ -33,6 +33,7 @@ from murk.errors import InputFileError
 from murk.io.atomic import atomic_path
 from murk.models.lite.graph import LiteImageGraph, LitePath, restore_reference
 from murk.models.lite.network import LiteNet, reparameterize, unwrap
+from murk.models.onnx_session import onnx_session
 
 INPUT_NAME = "image"
 OUTPUT_NAME = "enhanced"
@@ -187,22 +188,8 @@ class OnnxLite:
     """
 
     def __init__(self, path: str | Path, *, threads: int | None = None) -> None:
-        try:
-            import onnxruntime as ort
-        except ImportError as exc:
-            raise ImportError("onnxruntime is needed to run .onnx models: pip install 'murk[onnx]'") from exc
         path = Path(path)
-        if not path.is_file():
-            raise InputFileError(path, "ONNX model not found")
-        opts = ort.SessionOptions()
-        opts.add_session_config_entry("session.set_denormal_as_zero", "1")
-        if threads is not None:
-            opts.intra_op_num_threads = threads
-            opts.inter_op_num_threads = 1
-        try:
-            self.session = ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
-        except Exception as exc:
-            raise InputFileError(path, f"not a loadable ONNX model ({type(exc).__name__}: {exc})") from exc
+        self.session = onnx_session(path, threads=threads)
         ins = [i.name for i in self.session.get_inputs()]
         outs = [o.name for o in self.session.get_outputs()]
         meta = self.session.get_modelmeta().custom_metadata_map

@@ -15,14 +15,14 @@ no licence: it was not read; this module follows the spec only.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any
 
 import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
-from murk._config import from_dict
+from murk._config import from_dict, to_dict
 from murk.errors import ShapeError
 
 WINDOW = 8
@@ -56,9 +56,8 @@ class UDAformerConfig:
             raise ValueError(f"refinement_blocks: expected >= 0, got {self.refinement_blocks}")
 
     def to_dict(self) -> dict[str, Any]:
-        d = asdict(self)
-        d["blocks"] = list(self.blocks)
-        return d
+        """Plain dict (lists and numbers only), safe for ``torch.load(weights_only=True)`` and JSON."""
+        return to_dict(self)
 
 
 # ---------------------------------------------------------------------------------------------------------

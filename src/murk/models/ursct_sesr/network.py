@@ -25,14 +25,14 @@ Underwater Sensing Scene Image Enhancement and Super-resolution", IEEE Trans. Ge
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any
 
 import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
-from murk._config import from_dict
+from murk._config import from_dict, to_dict
 from murk.errors import ShapeError
 
 WINDOW = 8
@@ -71,9 +71,8 @@ class URSCTConfig:
             raise ValueError(f"mlp_ratio: expected >= 1, got {self.mlp_ratio}")
 
     def to_dict(self) -> dict[str, Any]:
-        d = asdict(self)
-        d["depths"] = list(self.depths)
-        return d
+        """Plain dict (lists and numbers only), safe for ``torch.load(weights_only=True)`` and JSON."""
+        return to_dict(self)
 
 
 # ---------------------------------------------------------------------------------------------------------
