@@ -23,7 +23,7 @@ import fnmatch
 import glob as globlib
 import os
 import stat
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 _MAGIC = set("*?[")
@@ -226,18 +226,24 @@ def _dir_key(path: str) -> tuple[int, int] | None:
     return st.st_dev, st.st_ino
 
 
+def _globstar(parts: Sequence[str], rest: Sequence[str], test: Callable[[Sequence[str], Sequence[str]], bool]) -> bool:
+    """``**`` followed by ``rest``: whether ``test(parts[i:], rest)`` holds for some i, ``**`` taking the
+    components before i, none of them hidden (glob.glob's rule)."""
+    for i in range(len(parts) + 1):
+        if test(parts[i:], rest):
+            return True
+        if i < len(parts) and parts[i].startswith("."):
+            return False
+    return False
+
+
 def _match(parts: Sequence[str], pats: Sequence[str]) -> bool:
     """Whether path components ``parts`` match pattern components ``pats`` (glob.glob's rules, see above)."""
     if not pats:
         return not parts
     head = pats[0]
     if head == "**":
-        for i in range(len(parts) + 1):
-            if _match(parts[i:], pats[1:]):
-                return True
-            if i < len(parts) and parts[i].startswith("."):
-                return False
-        return False
+        return _globstar(parts, pats[1:], _match)
     if not parts or (parts[0].startswith(".") and not head.startswith(".")):
         return False
     return fnmatch.fnmatch(parts[0], head) and _match(parts[1:], pats[1:])
@@ -253,12 +259,7 @@ def _enters(parts: Sequence[str], pats: Sequence[str]) -> bool:
     if head == "**":
         if len(pats) == 1:
             return not any(part.startswith(".") for part in parts)
-        for i in range(len(parts) + 1):
-            if _enters(parts[i:], pats[1:]):
-                return True
-            if i < len(parts) and parts[i].startswith("."):
-                return False
-        return False
+        return _globstar(parts, pats[1:], _enters)
     if parts[0].startswith(".") and not head.startswith("."):
         return False
     return fnmatch.fnmatch(parts[0], head) and _enters(parts[1:], pats[1:])
