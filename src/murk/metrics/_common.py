@@ -67,6 +67,20 @@ def _range_message(name: str, lo: float, hi: float, data_range: float) -> str:
     return f"{name}: expected values in [0, data_range={data_range:g}], got min {lo:g}, max {hi:g}{hint}"
 
 
+def check_real_array(name: str, a: Any, shape: str) -> np.ndarray:
+    """``a`` unchanged when it is a numpy array of an integer or float dtype.
+
+    Raises:
+        TypeError: not a numpy array (the message says the ``shape`` expected, e.g. ``"(H, W, 3)"``), or a
+            bool/complex/object dtype.
+    """
+    if not isinstance(a, np.ndarray):
+        raise TypeError(f"{name}: expected a numpy array of shape {shape}, got {type(a).__name__}")
+    if not (np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating)):
+        raise TypeError(f"{name}: expected an integer or float array, got dtype {a.dtype}")
+    return a
+
+
 def check_rgb_numpy(name: str, image: Any, data_range: float) -> np.ndarray:
     """Validate an RGB image (H, W, 3) of a real dtype with values in [0, data_range]; return it unchanged.
 
@@ -75,10 +89,7 @@ def check_rgb_numpy(name: str, image: Any, data_range: float) -> np.ndarray:
         ShapeError: not (H, W, 3) with H, W >= 1.
         ValueError: NaN/inf values, or values outside [0, data_range].
     """
-    if not isinstance(image, np.ndarray):
-        raise TypeError(f"{name}: expected a numpy array of shape (H, W, 3), got {type(image).__name__}")
-    if not (np.issubdtype(image.dtype, np.integer) or np.issubdtype(image.dtype, np.floating)):
-        raise TypeError(f"{name}: expected an integer or float array, got dtype {image.dtype}")
+    check_real_array(name, image, "(H, W, 3)")
     if image.ndim != 3 or image.shape[2] != 3 or image.shape[0] < 1 or image.shape[1] < 1:
         raise ShapeError(f"{name}: expected shape (H, W, 3) with H, W >= 1, got {image.shape}")
     lo, hi = float(image.min()), float(image.max())

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from murk.errors import ShapeError
-from murk.metrics._common import check_data_range
+from murk.metrics._common import check_data_range, check_real_array
 
 if TYPE_CHECKING:
     import torch
@@ -35,10 +35,7 @@ def affine_fit(pred: np.ndarray, ref: np.ndarray) -> np.ndarray:
         ShapeError: shapes differ or are not (H, W, C).
     """
     for name, a in (("pred", pred), ("ref", ref)):
-        if not isinstance(a, np.ndarray):
-            raise TypeError(f"{name}: expected a numpy array of shape (H, W, C), got {type(a).__name__}")
-        if not (np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating)):
-            raise TypeError(f"{name}: expected an integer or float array, got dtype {a.dtype}")
+        check_real_array(name, a, "(H, W, C)")
         if a.ndim != 3 or a.size == 0:
             raise ShapeError(f"{name}: expected shape (H, W, C), got {a.shape}")
     if pred.shape != ref.shape:

@@ -33,6 +33,7 @@ import numpy as np
 
 from murk._checks import check_positive
 from murk.errors import ShapeError
+from murk.metrics._common import check_real_array
 
 if TYPE_CHECKING:
     import torch
@@ -96,10 +97,7 @@ def _drop_channel_axis(a: np.ndarray) -> np.ndarray:
 
 def _check_depth_pair_numpy(pred_m: Any, gt_m: Any) -> tuple[np.ndarray, np.ndarray]:
     for name, a in (("pred_m", pred_m), ("gt_m", gt_m)):
-        if not isinstance(a, np.ndarray):
-            raise TypeError(f"{name}: expected a numpy array of shape (H, W) in metres, got {type(a).__name__}")
-        if not (np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating)):
-            raise TypeError(f"{name}: expected an integer or float array, got dtype {a.dtype}")
+        check_real_array(name, a, "(H, W) in metres")
     p, g = _drop_channel_axis(pred_m), _drop_channel_axis(gt_m)
     if g.ndim != 2:
         raise ShapeError(f"gt_m: expected shape (H, W), got {gt_m.shape}")

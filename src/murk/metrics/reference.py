@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from murk.errors import ShapeError
-from murk.metrics._common import check_choice, check_data_range, warn_metric
+from murk.metrics._common import check_choice, check_data_range, check_real_array, warn_metric
 
 if TYPE_CHECKING:
     import torch
@@ -47,10 +47,7 @@ _MSG_SMALL = "image {h}x{w} is smaller than the {size}x{size} SSIM window: a {fi
 
 def _check_pair_numpy(pred: Any, ref: Any) -> tuple[np.ndarray, np.ndarray]:
     for name, a in (("pred", pred), ("ref", ref)):
-        if not isinstance(a, np.ndarray):
-            raise TypeError(f"{name}: expected a numpy array of shape (H, W, C) or (H, W), got {type(a).__name__}")
-        if not (np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating)):
-            raise TypeError(f"{name}: expected an integer or float array, got dtype {a.dtype}")
+        check_real_array(name, a, "(H, W, C) or (H, W)")
         if a.ndim not in (2, 3) or a.size == 0:
             raise ShapeError(f"{name}: expected shape (H, W, C) or (H, W), got {a.shape}")
     if pred.shape != ref.shape:
