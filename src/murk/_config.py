@@ -38,6 +38,21 @@ def from_dict(cls: type[T], data: Any, *, where: str = "config") -> T:
     return _convert(cls, data, where)
 
 
+def as_config(cls: type[T], config: T | dict[str, Any] | None, *, where: str = "config") -> T | None:
+    """``config`` as a ``cls``: a dict is built with :func:`from_dict`, an instance and None (the caller's
+    default) are returned as they are.
+
+    Raises:
+        TypeError: ``config`` is neither a ``cls``, a dict nor None.
+        ValueError: invalid values or unknown keys in a dict.
+    """
+    if isinstance(config, dict):
+        config = from_dict(cls, config, where=where)
+    if config is not None and not isinstance(config, cls):
+        raise TypeError(f"{where}: expected a {cls.__name__}, a dict or None, got {type(config).__name__}")
+    return config
+
+
 def merge(base: T, overrides: dict[str, Any], *, where: str = "overrides") -> T:
     """A copy of ``base`` with nested ``overrides`` applied (keys validated like :func:`from_dict`)."""
     data = to_dict(base)

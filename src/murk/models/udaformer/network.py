@@ -22,7 +22,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
-from murk._config import from_dict, to_dict
+from murk._config import as_config, to_dict
 from murk.errors import ShapeError
 
 WINDOW = 8
@@ -403,8 +403,4 @@ def build_udaformer(config: UDAformerConfig | dict[str, Any] | None = None) -> U
         TypeError: ``config`` is neither a UDAformerConfig, a dict nor None.
         ValueError: invalid values or unknown keys in a dict.
     """
-    if isinstance(config, dict):
-        config = from_dict(UDAformerConfig, config, where="config")
-    if config is not None and not isinstance(config, UDAformerConfig):
-        raise TypeError(f"config: expected a UDAformerConfig, a dict or None, got {type(config).__name__}")
-    return UDAformer(config)
+    return UDAformer(as_config(UDAformerConfig, config))

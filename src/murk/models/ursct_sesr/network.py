@@ -32,7 +32,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
-from murk._config import from_dict, to_dict
+from murk._config import as_config, to_dict
 from murk.errors import ShapeError
 
 WINDOW = 8
@@ -406,11 +406,7 @@ def build_ursct(config: URSCTConfig | dict[str, Any] | None = None, *, init: boo
         TypeError: ``config`` is neither a URSCTConfig, a dict nor None.
         ValueError: invalid values or unknown keys in a dict.
     """
-    if isinstance(config, dict):
-        config = from_dict(URSCTConfig, config, where="config")
-    if config is not None and not isinstance(config, URSCTConfig):
-        raise TypeError(f"config: expected a URSCTConfig, a dict or None, got {type(config).__name__}")
-    model = URSCT(config)
+    model = URSCT(as_config(URSCTConfig, config))
     if init:
         init_weights(model)
     return model
