@@ -362,14 +362,14 @@ def part_jointid_lite(ctx: Ctx) -> None:
     import torch
     from _common import Figure, device_sync, median_s
 
-    from murk.enhance.restorer import create, weights_of
+    from murk.enhance.restorer import create, weights_used
 
     sizes = _inference_sizes(ctx)
     reps, warmup = sizes["repeats"], (1 if ctx.dry else 2)
     sync = device_sync(ctx.device)
     try:
         lite = create("lite", device=str(ctx.device))
-        ctx.rec.note(f"lite weights: {weights_of(lite)}")
+        ctx.rec.note(f"lite weights: {weights_used(lite).weights}")
     except ValueError as exc:  # no shipped weights yet: time the same network with random weights
         from murk.enhance.lite_restorer import LiteRestorer
         from murk.models.lite.network import build_lite

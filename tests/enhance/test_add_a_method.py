@@ -80,6 +80,24 @@ def test_the_toy_method_runs_through_murk_enhance(brighter: Method, tmp_path: Pa
     assert res.exit_code != 0 and "did you mean 'brighter'" in res.output
 
 
+def test_the_toy_method_blends_through_murk_enhance(brighter: Method, tmp_path: Path) -> None:
+    """A blend needs no code: ``brighter|colorbalance@0.25`` averages the two restorations of the same input."""
+    from murk.enhance.restorer import create
+
+    image = np.random.default_rng(1).uniform(0.1, 0.6, (12, 10, 3)).astype(np.float32)
+    write_rgb(tmp_path / "in.png", image)
+    spec = "brighter|colorbalance@0.25?gain=1.5"  # gain: brighter's option, given to the method that declares it
+    res = CliRunner().invoke(app, ["enhance", str(tmp_path / "in.png"), "-o", str(tmp_path / "out.png"), "-m", spec])
+    assert res.exit_code == 0, res.output
+    x = read_rgb(tmp_path / "in.png")[None]
+    want = 0.75 * np.clip(x * 1.5, 0, 1) + 0.25 * create("colorbalance").restore(x).images
+    assert np.abs(read_rgb(tmp_path / "out.png") - want[0]).max() <= 1 / 255 + 1e-6
+    res = CliRunner().invoke(
+        app, ["enhance", str(tmp_path / "in.png"), "-o", str(tmp_path / "x.png"), "-m", "brighter|@2"]
+    )
+    assert res.exit_code == 2 and "expected a method name after '|'" in res.output
+
+
 def test_the_toy_method_runs_through_the_live_method_switch(brighter: Method, tmp_path: Path) -> None:
     from tests.live._live import WAIT_S, clip, pipeline
 

@@ -1,4 +1,5 @@
-"""The ``jointid`` restorer (tiny variant): pad/crop, tiling, batching, precision, ONNX backend, options."""
+"""The ``jointid_net`` restorer (tiny variant): pad/crop, tiling, batching, precision, ONNX backend, options; and
+``jointid``, the preset that blends the shipped ``lite`` into it."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import torch
 
 from murk.data import sample_underwater_images
 from murk.enhance.jointid_restorer import JointIDRestorer
-from murk.enhance.restorer import available, create
+from murk.enhance.restorer import Blend, available, create, weights_used
 from murk.errors import InputFileError, ShapeError
 from murk.io import read_rgb
 from murk.models.jointid import JointID, build_jointid, normalize_input, save_checkpoint
@@ -35,14 +36,16 @@ def underwater() -> np.ndarray:
 
 
 def test_registered_and_created_from_a_checkpoint_rejecting_unknown_options(tiny_ckpt):
-    assert "jointid" in available()
-    r = create("jointid", checkpoint=tiny_ckpt, device="cpu", precision="fp32", shared={"he": "rgb", "lam": 0.1})
+    assert {"jointid", "jointid_net"} <= set(available())
+    r = create("jointid_net", checkpoint=tiny_ckpt, device="cpu", precision="fp32", shared={"he": "rgb", "lam": 0.1})
     assert isinstance(r, JointIDRestorer) and r.name == "jointid" and r.model.config.depths == (1, 1, 2, 1)
+    blended = create("jointid", checkpoint=tiny_ckpt, precision="fp32", shared={"he": "rgb", "lam": 0.1})
+    assert isinstance(blended, Blend) and blended.name == "jointid" and isinstance(blended.left, JointIDRestorer)
     with pytest.raises(ValueError, match=r"unknown option 'strength'; options of jointid: batch, checkpoint, "):
         create("jointid", checkpoint=tiny_ckpt, strength=0.7)
     with pytest.raises(ValueError, match=r"unknown option 'tiles' \(did you mean 'tile'\?\)"):
         create(f"jointid?tiles=64,checkpoint={tiny_ckpt}")
-    r = create(f"jointid?tile=64,overlap=16,checkpoint={tiny_ckpt}", tile=128)  # the spec's options win
+    r = create(f"jointid?tile=64,overlap=16,checkpoint={tiny_ckpt}", tile=128).left  # the spec's options win
     assert (r.tile, r.overlap) == (64, 16)
     with pytest.raises(ValueError, match=r"method jointid: option tile: expected int \| None, got 'big'"):
         create(f"jointid?tile=big,checkpoint={tiny_ckpt}")
@@ -52,7 +55,8 @@ def test_registered_and_created_from_a_checkpoint_rejecting_unknown_options(tiny
 def test_factory_defaults_to_shipped_weights_and_reports_bad_files(tmp_path, monkeypatch):
     from murk.data import shipped_jointid_weights
 
-    assert create("jointid").weights == str(shipped_jointid_weights())  # no checkpoint: the shipped model
+    assert create("jointid_net").weights == str(shipped_jointid_weights())  # no checkpoint: the shipped model
+    assert weights_used(create("jointid")).weights == str(shipped_jointid_weights())
     monkeypatch.setattr("murk.data.shipped_jointid_weights", lambda: tmp_path / "absent.pt")
     with pytest.raises(ValueError, match=r"shipped weights .* are missing.*--checkpoint"):
         create("jointid")
@@ -252,9 +256,9 @@ def test_refine_on_cuda_runs_the_torch_twins_on_the_device(tiny, underwater):
 def test_lite_blend_on_cuda_runs_lite_on_the_device(tiny_ckpt, underwater):
     x = torch.from_numpy(underwater).permute(2, 0, 1)[None].cuda()
     blended = create("jointid", checkpoint=tiny_ckpt, device="cuda")
-    assert blended.lite is not None and blended.lite.device.type == "cuda"
+    assert blended.right.name == "lite" and blended.right.device.type == "cuda"
     alone = create("jointid", checkpoint=tiny_ckpt, device="cuda", lite_blend=0).restore_tensor(x).images
-    lite = blended.lite.restore_tensor(x).images
+    lite = blended.right.restore_tensor(x).images
     out = blended.restore_tensor(x).images
     assert out.device.type == "cuda"
     torch.testing.assert_close(out, 0.5 * alone + 0.5 * lite, rtol=0, atol=1e-5)
@@ -307,7 +311,6 @@ def test_refine_transfers_the_restoration_onto_the_input_and_leaves_depth(tiny_c
 
 def test_lite_blend_averages_the_shipped_lite_in_and_leaves_depth(tiny, tiny_ckpt, underwater):
     from murk.data import shipped_lite_weights
-    from murk.enhance.restorer import blended_weights_of, weights_of
     from murk.enhance.run import weights_line
 
     x = np.stack([underwater, 0.6 * underwater]).astype(np.float32)
@@ -319,9 +322,10 @@ def test_lite_blend_averages_the_shipped_lite_in_and_leaves_depth(tiny, tiny_ckp
     lite = create("lite").restore(x).images  # the shipped lite, as the default blends it
     default = blended.restore(x)  # lite_blend 0.5
     # The weights an output came from: Joint-ID's file, and the lite blended in
-    assert weights_of(alone_restorer) == str(tiny_ckpt)
-    assert weights_of(blended) == str(tiny_ckpt) and blended_weights_of(blended) == str(shipped_lite_weights())
-    assert blended_weights_of(alone_restorer) is None
+    assert weights_used(alone_restorer).weights == str(tiny_ckpt)
+    used = weights_used(blended)
+    assert used.weights == str(tiny_ckpt) and used.blended_weights == str(shipped_lite_weights())
+    assert weights_used(alone_restorer).blended_weights is None
     assert weights_line(blended, shipped=False) == (
         f"jointid weights: {tiny_ckpt}; with lite's restoration blended in (lite_blend 0.5): {shipped_lite_weights()}"
     )
@@ -335,15 +339,12 @@ def test_lite_blend_averages_the_shipped_lite_in_and_leaves_depth(tiny, tiny_ckp
         with pytest.raises(ValueError, match=r"lite_blend: expected a number in \[0.0, 1.0\], got"):
             create("jointid", checkpoint=tiny_ckpt, lite_blend=bad)
     with pytest.raises(ValueError, match=r"lite_blend: expected a number in \[0.0, 1.0\], got nan"):
-        JointIDRestorer(copy.deepcopy(tiny), lite_blend=float("nan"))
-    for bad in (True, "0.5"):
-        with pytest.raises(TypeError, match=r"lite_blend: expected a number"):
-            JointIDRestorer(copy.deepcopy(tiny), lite_blend=bad)
+        create("jointid", checkpoint=tiny_ckpt, lite_blend=float("nan"))
     with pytest.raises(ValueError, match=r"option lite_blend: expected float, got True"):
         create("jointid", checkpoint=tiny_ckpt, lite_blend=True)
-    direct = JointIDRestorer(copy.deepcopy(tiny))  # built around a network: Joint-ID alone
-    assert direct.lite_blend == 0.0 and direct.lite is None
-    with pytest.raises(ValueError, match=r"lite_blend: needs the lite restorer"):
+    with pytest.raises(ValueError, match=r"option lite_blend: expected float, got '0.5x'"):
+        create(f"jointid?lite_blend=0.5x,checkpoint={tiny_ckpt}")
+    with pytest.raises(TypeError, match=r"lite_blend"):  # the blend is the spec's, not the network restorer's
         JointIDRestorer(copy.deepcopy(tiny), lite_blend=0.5)
 
 
@@ -361,3 +362,21 @@ def test_refine_on_a_batch_equals_frame_by_frame_and_leaves_the_inputs_alone(tin
     out = refine_restoration(images, enhanced, RefineSettings(0.125))
     assert out.shape == images.shape and torch.equal(images, before[0]) and torch.equal(enhanced, before[1])
     assert refine_restoration(images, enhanced, RefineSettings(0.0)) is enhanced  # off: untouched
+
+
+def test_the_jointid_preset_gives_the_bytes_of_the_blend_it_replaced(tiny_ckpt, underwater):
+    """``jointid`` (the preset ``jointid_net|lite@lite_blend``) computes what JointIDRestorer computed inside itself
+    before the blend moved into the spec grammar: ``torch.lerp`` of the refined network output and ``lite``'s
+    restoration of the same input tensor, bit for bit; ``lite_blend=0`` is ``jointid_net`` itself."""
+    x = np.stack([underwater, 0.6 * underwater]).astype(np.float32)
+    net, lite = create("jointid_net", checkpoint=tiny_ckpt), create("lite")
+    for w in (0.5, 0.3):
+        xt = torch.from_numpy(x).permute(0, 3, 1, 2).to(torch.float32)
+        with torch.inference_mode():
+            enhanced = net.restore_tensor(xt).images
+            before = torch.lerp(enhanced, lite.restore_tensor(xt).images, w).permute(0, 2, 3, 1).numpy()
+        now = create(f"jointid?lite_blend={w}", checkpoint=tiny_ckpt).restore(x)
+        assert np.array_equal(now.images, before)
+        assert np.array_equal(now.depth_m, net.restore(x).depth_m)
+    alone = create("jointid?lite_blend=0", checkpoint=tiny_ckpt)
+    assert isinstance(alone, JointIDRestorer) and np.array_equal(alone.restore(x).images, net.restore(x).images)

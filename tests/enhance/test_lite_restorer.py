@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from murk.enhance.post import post_process
-from murk.enhance.restorer import Chain, available, create, weights_of
+from murk.enhance.restorer import Chain, available, create, weights_used
 from murk.models.lite.checkpoint import save_lite_checkpoint
 from murk.models.lite.network import build_lite
 
@@ -33,7 +33,7 @@ def test_lite_restores_any_size_without_depth(lite_ckpt: Path) -> None:
     assert {"lite", "post"} <= set(available())
     r = create("lite", checkpoint=str(lite_ckpt))
     assert r.model is not None and r.model.folded  # re-parameterised for inference
-    assert weights_of(r) == str(lite_ckpt)
+    assert weights_used(r).weights == str(lite_ckpt)
     imgs = _images()
     out = r.restore(imgs)
     assert out.images.shape == imgs.shape and out.depth_m is None
@@ -67,7 +67,7 @@ def test_onnx_backend_matches_torch(lite_ckpt: Path, tmp_path: Path) -> None:
     imgs = _images()
     ref = create("lite", checkpoint=str(lite_ckpt)).restore(imgs).images
     via_onnx = create("lite", checkpoint=str(onnx_path), threads=1)
-    assert via_onnx.model is None and weights_of(via_onnx) == str(onnx_path)
+    assert via_onnx.model is None and weights_used(via_onnx).weights == str(onnx_path)
     np.testing.assert_allclose(via_onnx.restore(imgs).images, ref, atol=1e-4)
     np.testing.assert_allclose(create("lite", onnx=str(onnx_path)).restore(imgs).images, ref, atol=1e-4)
     large = _images(1, 150, 211)  # above the working area: a downsampled working image, no padding
@@ -86,7 +86,7 @@ def test_without_checkpoint_uses_the_shipped_file_or_says_there_is_none(
         create("lite")
     monkeypatch.setattr(murk.data, "shipped_lite_weights", lambda: lite_ckpt)
     r = create("lite+post")
-    assert weights_of(r) == str(lite_ckpt)
+    assert weights_used(r).weights == str(lite_ckpt)
 
 
 def test_errors(lite_ckpt: Path, tmp_path: Path) -> None:

@@ -15,11 +15,12 @@ from typing import Any
 import pytest
 
 from murk.enhance import methods
-from murk.enhance.declare import Method
+from murk.enhance.choices import DEFAULT_LITE_BLEND
+from murk.enhance.declare import Method, Preset
 from murk.enhance.restorer import Chain, Restorer, check, create, declaration, device_type, options_of
 
 
-@pytest.mark.parametrize("method", methods.BUILTIN, ids=lambda m: m.name)
+@pytest.mark.parametrize("method", [m for m in methods.BUILTIN if isinstance(m, Method)], ids=lambda m: m.name)
 def test_each_builtin_method_is_declared_once_and_served_by_the_registry(method: Method) -> None:
     assert options_of(method.name) == method.option_map and declaration(method.name) is method
     for option in method.options:
@@ -29,6 +30,15 @@ def test_each_builtin_method_is_declared_once_and_served_by_the_registry(method:
             assert option.annotation is not Any, (method.name, option.name)
     module, _, name = str(method.implementation).partition(":")
     assert callable(getattr(importlib.import_module(module), name))
+
+
+def test_jointid_is_a_preset_blending_the_shipped_lite_into_jointid_net() -> None:
+    preset = declaration("jointid")
+    assert isinstance(preset, Preset) and preset in methods.BUILTIN
+    assert (preset.spec, preset.passes, preset.first) == ("jointid_net|lite@lite_blend", ("device",), "jointid_net")
+    assert options_of("jointid") == {**options_of("jointid_net"), "lite_blend": preset.options[0]}
+    assert preset.options[0].default == DEFAULT_LITE_BLEND and "lite_blend" not in options_of("jointid_net")
+    assert "jointid = jointid_net|lite@lite_blend: " in methods.methods_help()
 
 
 def test_options_are_checked_against_their_declared_ranges() -> None:
@@ -53,7 +63,8 @@ def test_names_and_options_are_checked_without_torch() -> None:
         """
         import sys
         from murk.enhance.restorer import available, create, options_of
-        names = ["clahe", "colorbalance", "greyworld", "jointid", "lite", "post", "udaformer", "udcp", "ursct"]
+        names = ["clahe", "colorbalance", "greyworld", "jointid", "jointid_net", "lite", "post", "udaformer", "udcp",
+                 "ursct"]
         assert available() == names
         assert options_of("jointid")["overlap"].default == 64
         for spec, text in [
@@ -61,6 +72,8 @@ def test_names_and_options_are_checked_without_torch() -> None:
             ("post?lamda=1", "unknown option 'lamda' (did you mean 'lam'?)"),
             ("post?lam=abc", "option lam: expected float | None, got 'abc'"),
             ("jointid?precision=fp64", "option precision: expected one of 'fp32', 'bf16', 'fp16', got 'fp64'"),
+            ("jointid_net|lite@1.5", "expected a weight in [0, 1] after '@', got 1.5"),
+            ("jointid|lite", "the blend with 'lite' needs a weight"),
         ]:
             try:
                 create(spec)
@@ -88,6 +101,7 @@ def test_check_with_files_reports_a_missing_weights_file_without_torch(tmp_path:
             ("lite+post?onnx={missing}.onnx", "ONNX model not found"),
             ("ursct?checkpoint={missing}.pth", "checkpoint not found"),
             ("post+udaformer?checkpoint={missing}.pth", "checkpoint not found"),
+            ("colorbalance|jointid_net@0.5?checkpoint={missing}.pt", "checkpoint not found"),
         ]:
             try:
                 check(spec, files=True)

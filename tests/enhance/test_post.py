@@ -248,7 +248,8 @@ def test_misspelt_and_foreign_options_are_errors_naming_the_valid_ones() -> None
     with pytest.raises(ValueError, match=no_method):
         restorer_mod.create("post", shared={"devise": "cpu"})  # a shared setting no method declares
     # A shared setting the user set explicitly (``given``) must be taken by some stage; unset ones are ignored.
-    with pytest.raises(ValueError, match=r"--tile is an option of jointid, udaformer, ursct, not of the method 'post'"):
+    foreign = r"--tile is an option of jointid, jointid_net, udaformer, ursct, not of the method 'post'"
+    with pytest.raises(ValueError, match=foreign):
         restorer_mod.create("post", shared={"device": "cpu", "tile": 256}, given={"tile": "--tile"})
     assert restorer_mod.create("post", shared={"device": "cpu", "tile": 256}).params.lam == 0.1  # preset real
     chain = restorer_mod.create("lite+post", shared={"lam": 0.5}, given={"lam": "--lambda"})

@@ -75,11 +75,13 @@ def enhance(
             "--method",
             "-m",
             help="Restoration method (default lite, what murk recommends for real footage); chain with '+' (e.g. "
-            "jointid+post); method options after '?' "
+            "jointid+post); blend two restorations of the same input with '|' and the second one's weight (e.g. "
+            "jointid_net|lite@0.3; '|' binds tighter than '+', parentheses group); method options after '?' "
             "(e.g. post?lam=0.5,he=rgb; a misspelt one is an error). post?preset=paper is Eq. 9 exactly; the "
             "default preset 'real' applies 30 % of the equalisation. jointid re-expresses the network's output as a "
-            "local affine map of the input and averages lite's restoration in by default "
-            "(jointid?refine=0,lite_blend=0: the network alone; docs/enhance.md). Methods: " + methods_help() + ".",
+            "local affine map of the input and averages lite's restoration in by default (the preset "
+            "jointid_net|lite@lite_blend; jointid?refine=0,lite_blend=0: the network alone; docs/enhance.md). "
+            "Methods: " + methods_help() + ".",
         ),
     ] = "lite",
     recursive: Annotated[bool, typer.Option("--recursive", "-r", help="Include subfolders of a folder.")] = False,

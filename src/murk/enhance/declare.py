@@ -8,6 +8,9 @@ network is loaded; the built-in declarations are :data:`murk.enhance.methods.BUI
 The implementation is called with the options checked and completed (every declared option, its default where
 not given) as one :class:`Checked` mapping, read as attributes: ``def create_mine(o: Checked) -> Restorer:
 return Mine(o.strength)``. Adding a method is one declaration plus one implementation (docs/DESIGN.md).
+
+A :class:`Preset` is a method declared as a spec of other methods (:mod:`murk.enhance.spec`: chains ``a+b``, blends
+``a|b@w``): ``jointid`` is ``jointid_net|lite@lite_blend``. It needs no implementation of its own.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from murk.enhance import choices
+from murk.enhance.spec import names, parse_method, weight_names
 
 Need = Literal["torch", "weights", "onnxruntime"]
 """What a method needs: torch; a weights file (``weights``: shipped with murk or given); ONNX Runtime (only for an
@@ -97,6 +101,13 @@ class Checked(Mapping[str, Any]):
 
 
 Implementation = Callable[[Checked], Any]
+_RESERVED = "+|@()?,="
+
+
+def check_name(name: str) -> None:
+    """Raise ValueError unless ``name`` can stand in a spec: not empty, no white space, none of ``+|@()?,=``."""
+    if not name or name != "".join(name.split()) or any(c in name for c in _RESERVED):
+        raise ValueError(f"name: expected a non-empty name without white space or any of {_RESERVED!r}, got {name!r}")
 
 
 def _load(path: str | Callable[..., Any]) -> Callable[..., Any]:
@@ -112,7 +123,7 @@ class Method:
     """The one declaration of a restoration method.
 
     Attributes:
-        name: the name in a spec (``jointid``; no ``+``, ``?`` or ``|``).
+        name: the name in a spec (``jointid``; none of the grammar's characters, :func:`check_name`).
         implementation: ``"module:function"`` (imported when the method is built) or the function itself; called
             with the :class:`Checked` options, it returns the :class:`~murk.enhance.restorer.Restorer`.
         options: the declared options, in the order help and the live page show them.
@@ -133,8 +144,7 @@ class Method:
     _by_name: dict[str, Option] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        if not self.name or any(c in self.name for c in "+?|,=()"):
-            raise ValueError(f"name: expected a non-empty name without any of '+?|,=()', got {self.name!r}")
+        check_name(self.name)
         for what, path in (("implementation", self.implementation), ("preflight", self.preflight)):
             if isinstance(path, str) and path.count(":") != 1:
                 raise ValueError(f"{what}: expected 'module:function', got {path!r}")
@@ -166,3 +176,45 @@ class Method:
         if self.preflight is not None:
             _load(self.preflight)(**options)
         return _load(self.implementation)(options)
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A method declared as a spec of other methods (:mod:`murk.enhance.spec`): e.g. ``jointid`` is
+    ``jointid_net|lite@lite_blend``, Joint-ID with the shipped ``lite``'s restoration blended in.
+
+    Its options are every option of its first method plus its own, which name the spec's weights
+    (``lite_blend``). The first method takes every option given to the preset that it declares; the other methods
+    take only those listed in ``passes`` (``device``), and their defaults otherwise. A weight of 0 leaves its member
+    out (not built): ``jointid?lite_blend=0`` is ``jointid_net`` itself. What the preset builds is named after it.
+
+    Attributes:
+        name: the name in a spec.
+        spec: the methods it runs, in the spec grammar, without ``?`` options; a weight may name one of ``options``.
+        options: its own options: one for each weight the spec names, with its default, range and help.
+        help: one line on what it does.
+        passes: the preset's options that the methods after the first take (when they declare them).
+    """
+
+    name: str
+    spec: str
+    options: tuple[Option, ...] = ()
+    help: str = ""
+    passes: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        check_name(self.name)
+        tree = parse_method(self.spec, named_weights=True)
+        if self.name in names(tree):
+            raise ValueError(f"spec: the preset {self.name} cannot run itself, got {self.spec!r}")
+        own, named = {o.name for o in self.options}, set(weight_names(tree))
+        if own != named:
+            raise ValueError(
+                f"options: the options of the preset {self.name} are the weights its spec names "
+                f"({', '.join(sorted(named)) or 'none'}), got {', '.join(sorted(own)) or 'none'}"
+            )
+
+    @property
+    def first(self) -> str:
+        """The first method of the spec: the one whose options the preset takes."""
+        return names(parse_method(self.spec, named_weights=True))[0]

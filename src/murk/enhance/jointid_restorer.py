@@ -1,4 +1,6 @@
-"""The ``jointid`` restorer: Joint-ID enhancement + metric depth for images of any size, on CPU or GPU.
+"""The ``jointid_net`` restorer: Joint-ID enhancement + metric depth for images of any size, on CPU or GPU (the
+``jointid`` method is the preset ``jointid_net|lite@lite_blend``: this, with the shipped ``lite``'s restoration
+blended in; :mod:`murk.enhance.methods`).
 
 Pipeline per batch: the simplest colour balance when the checkpoint's network was trained on a balanced input
 (``input_balance_pct``, :mod:`murk.physics.balance`; the shipped weights since 2026-12-03) -> normalise
@@ -8,15 +10,16 @@ resized. Backends: a torch :class:`~murk.models.jointid.JointID` (fp32, or bf16/
 memory; optional ``torch.compile`` and CUDA-graph replay) or an exported ONNX file run by ONNX Runtime (its graph
 takes the frame in [0, 1] and normalises it itself; the restorer pads and tiles as for torch).
 
-Registry options (``murk.enhance.create("jointid", **options)``; any other option is an error):
+Registry options (``murk.enhance.create("jointid_net", **options)``, the same for ``jointid``; any other option is
+an error):
 ``checkpoint`` (murk or official ``.pth``/``.pt``, or an ``.onnx`` file; required), ``onnx`` (an ``.onnx``
 path, alternative to ``checkpoint``), ``device`` ("cpu", "cuda", "cuda:N"), ``precision`` ("fp32", "bf16",
 "fp16"), ``tile`` (pixels or None), ``overlap`` (pixels, default 64), ``trust_checkpoint`` (bool),
 ``batch`` (max frames or tiles per forward pass), ``compile`` and ``cuda_graph`` (bool, default False),
-``refine`` (0 = no transfer; with ``lite_blend`` 0 too, the network's output alone; the ``jointid`` method's default is
+``refine`` (0 = no transfer: the network's output alone; the method's default is
 :data:`murk.enhance.choices.DEFAULT_REFINE`, while a :class:`JointIDRestorer` built directly around a network
-defaults to 0), ``refine_eps``, ``refine_guard`` and ``lite_blend`` (the ``jointid`` method's default is
-:data:`murk.enhance.choices.DEFAULT_LITE_BLEND`; 0 for a :class:`JointIDRestorer` built directly).
+defaults to 0), ``refine_eps`` and ``refine_guard``; ``jointid`` adds ``lite_blend`` (the weight of its blend, default
+:data:`murk.enhance.choices.DEFAULT_LITE_BLEND`).
 
 ``refine`` re-expresses the network's restoration as a locally affine map of the input
 (:mod:`murk.physics.affine_transfer`). The window radius is ``refine`` times the frame's long side. The output
@@ -25,10 +28,10 @@ deblurring. ``refine_guard`` (a top-hat luma threshold, 0 = off) keeps the netwo
 small bright particle out of the input, so that the transfer does not bring marine snow back. Figures and the
 trade-off: docs/enhance.md, "jointid?refine".
 
-``lite_blend`` averages the shipped ``lite``'s restoration of the same frame into the output with that weight
-(``(1 - w) * jointid + w * lite``, after ``refine``): two restorers of different design, both trained on murk's
-water, err differently on real water, and their mean is closer to the references than either (figures:
-docs/enhance.md, "jointid?lite_blend"). Depth is Joint-ID's alone.
+``jointid``'s ``lite_blend`` averages the shipped ``lite``'s restoration of the same frame into this restorer's
+output with that weight (``(1 - w) * jointid_net + w * lite``, after ``refine``; :class:`murk.enhance.restorer.Blend`):
+two restorers of different design, both trained on murk's water, err differently on real water, and their mean is
+closer to the references than either (figures: docs/enhance.md, "jointid?lite_blend"). Depth is Joint-ID's alone.
 
 Reference: Yang, Kang, Lee, Cho, "Transformer-Based Joint Image Enhancement and Depth Estimation for
 Underwater Environments", IEEE Sensors Journal 23(24), 2023, doi:10.1109/JSEN.2023.3338730.
@@ -43,7 +46,6 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
-from murk._checks import check_range
 from murk.enhance.choices import DEFAULT_OVERLAP, DEFAULT_REFINE_GUARD, Precision
 from murk.enhance.declare import Checked
 from murk.enhance.refine import RefineSettings, refine_restoration
@@ -113,21 +115,15 @@ class JointIDRestorer(Restorer):
         compile: wrap the model with ``torch.compile`` (first call per shape compiles).
         cuda_graph: capture and replay a CUDA graph per input shape (CUDA only; for fixed-size video).
         refine: window radius of the affine transfer onto the input, as a fraction of the long side; 0 (the
-            default here: the network's output alone). The ``jointid`` method (:func:`create_jointid`) turns it
+            default here: the network's output alone). The ``jointid_net`` method (:func:`create_jointid`) turns it
             on (:data:`murk.enhance.choices.DEFAULT_REFINE`).
         refine_eps: the transfer's regulariser.
         refine_guard: top-hat luma from which the network's particle removal is kept against the transfer
             (0: off).
-        lite_blend: weight in [0, 1] of ``lite``'s restoration in the output (0, the default here: Joint-ID's
-            alone). The ``jointid`` method (:func:`create_jointid`) sets
-            :data:`murk.enhance.choices.DEFAULT_LITE_BLEND` with the shipped ``lite``.
-        lite: the ``lite`` restorer whose output is blended in; required when ``lite_blend`` > 0.
 
     Raises:
         TypeError: ``model`` is neither a JointID nor an ONNX runner.
-        ValueError: bad precision/tile/overlap/batch, ``lite_blend`` outside [0, 1] or without ``lite``,
-            CUDA-only options on the CPU, or CUDA not available.
-        TypeError: ``lite_blend`` is not a number.
+        ValueError: bad precision/tile/overlap/batch, CUDA-only options on the CPU, or CUDA not available.
     """
 
     name = "jointid"
@@ -147,8 +143,6 @@ class JointIDRestorer(Restorer):
         refine: float = 0.0,
         refine_eps: float = 1e-4,
         refine_guard: float = DEFAULT_REFINE_GUARD,
-        lite_blend: float = 0.0,
-        lite: Restorer | None = None,
     ) -> None:
         from murk.models.jointid.checkpoint import unwrap
         from murk.models.jointid.onnx_export import OnnxJointID
@@ -167,15 +161,9 @@ class JointIDRestorer(Restorer):
             raise ValueError(f"batch: expected None or a positive integer, got {batch!r}")
         self.refine_settings = RefineSettings(refine, refine_eps, refine_guard)
         """The ``refine`` step after the network (:mod:`murk.enhance.refine`)."""
-        self.lite_blend = check_range("lite_blend", lite_blend, 0.0, 1.0)
-        if self.lite_blend > 0 and lite is None:
-            raise ValueError("lite_blend: needs the lite restorer to blend in (lite=...)")
-        """Weight of :attr:`lite`'s restoration in the output (0: Joint-ID's alone)."""
-        self.lite = lite if self.lite_blend > 0 else None
-        """The ``lite`` restorer blended in (None when ``lite_blend`` is 0)."""
         self.precision = precision
         self.weights: str | None = None
-        """The weights file this restorer was loaded from (set by the ``jointid`` factory)."""
+        """The weights file this restorer was loaded from (set by :func:`create_jointid`)."""
         self._mean: Tensor | None = None
         self._std: Tensor | None = None
         self.tile = tile
@@ -272,23 +260,19 @@ class JointIDRestorer(Restorer):
             depth = pad.crop(depth).contiguous()
             enhanced = pad.crop(enhanced).clamp(0.0, 1.0).contiguous()
             enhanced = refine_restoration(images, enhanced, self.refine_settings)
-            if self.lite is not None:  # (1 - w) * jointid + w * lite
-                other = self.lite.restore_tensor(images).images.to(enhanced.device)
-                enhanced = torch.lerp(enhanced, other, self.lite_blend)
         return RestoredTensor(enhanced, depth)
 
     def __repr__(self) -> str:
         backend = self._backend if self.model is None else type(self.model).__name__
         return (
             f"JointIDRestorer({backend}, device={self.device}, precision={self.precision}, tile={self.tile}, "
-            f"overlap={self.overlap}, batch={self.batch}, refine={self.refine_settings.radius}, "
-            f"lite_blend={self.lite_blend})"
+            f"overlap={self.overlap}, batch={self.batch}, refine={self.refine_settings.radius})"
         )
 
 
 def create_jointid(o: Checked) -> JointIDRestorer:
-    """Implementation of ``jointid`` (declared in :mod:`murk.enhance.methods`): load ``checkpoint`` (or the
-    ``onnx`` file) and wrap it.
+    """Implementation of ``jointid_net`` (declared in :mod:`murk.enhance.methods`; ``jointid`` blends ``lite`` into
+    it): load ``checkpoint`` (or the ``onnx`` file) and wrap it.
 
     Without either, the weights shipped with murk are used (``murk.data.shipped_jointid_weights()``: the
     ``small`` Joint-ID murk trained itself, model card ``docs/models.md``). The restorer's ``weights``
@@ -299,7 +283,6 @@ def create_jointid(o: Checked) -> JointIDRestorer:
         ValueError: no checkpoint given, or bad options.
         InputFileError: the checkpoint cannot be loaded (see ``murk.models.jointid.load_checkpoint``).
     """
-    from murk.enhance.restorer import create
     from murk.models.jointid.checkpoint import load_checkpoint
     from murk.models.jointid.onnx_export import OnnxJointID
 
@@ -321,15 +304,9 @@ def create_jointid(o: Checked) -> JointIDRestorer:
     else:
         dev = _resolve_device(o.device)
         model = load_checkpoint(path, trust=o.trust_checkpoint, device="cpu")
-    settings = {k: o[k] for k in ("precision", "tile", "overlap", "batch", "compile", "cuda_graph", "lite_blend")}
+    settings = {k: o[k] for k in ("precision", "tile", "overlap", "batch", "compile", "cuda_graph")}
     restorer = JointIDRestorer(
-        model,
-        device=dev,
-        refine=o.refine,
-        refine_eps=o.refine_eps,
-        refine_guard=o.refine_guard,
-        lite=create("lite", device=dev) if check_range("lite_blend", o.lite_blend, 0.0, 1.0) > 0 else None,
-        **settings,
+        model, device=dev, refine=o.refine, refine_eps=o.refine_eps, refine_guard=o.refine_guard, **settings
     )
     restorer.weights = str(path)
     return restorer

@@ -19,7 +19,8 @@ from pathlib import Path
 from typing import Any
 
 from murk.enhance.choices import DEFAULT_LITE_BLEND, DEFAULT_OVERLAP, DEFAULT_REFINE, DEFAULT_REFINE_GUARD
-from murk.enhance.declare import Method, Need, Option, opt
+from murk.enhance.declare import NEEDS, Method, Need, Option, Preset, opt
+from murk.enhance.spec import names, parse_method
 
 
 def _check_weights(checkpoint: str | Path | None, onnx: str | Path | None, *, runs_onnx: bool) -> None:
@@ -116,7 +117,7 @@ CLASSICAL: tuple[Method, ...] = (
 )  # fmt: skip
 """The classical methods (numpy and OpenCV, never torch)."""
 
-BUILTIN: tuple[Method, ...] = (
+BUILTIN: tuple[Method | Preset, ...] = (
     *CLASSICAL,
     Method(
         "post",
@@ -135,7 +136,7 @@ BUILTIN: tuple[Method, ...] = (
         help="histogram equalisation + LoG edge enhancement (Eq. 9; torch only on CUDA)",
     ),
     Method(
-        "jointid",
+        "jointid_net",
         "murk.enhance.jointid_restorer:create_jointid",
         (
             CHECKPOINT,
@@ -151,11 +152,17 @@ BUILTIN: tuple[Method, ...] = (
             _refine(DEFAULT_REFINE),
             REFINE_EPS,
             REFINE_GUARD,
-            opt("lite_blend", "float", DEFAULT_LITE_BLEND, "weight of lite's restoration averaged in", low=0, high=1),
         ),
-        help="Joint-ID: restoration and metric depth (shipped weights; lite blended in)",
+        help="Joint-ID alone: restoration (with refine) and metric depth (shipped weights)",
         needs=NETWORK,
         preflight="murk.enhance.methods:network_weights",
+    ),
+    Preset(
+        "jointid",
+        "jointid_net|lite@lite_blend",
+        (opt("lite_blend", "float", DEFAULT_LITE_BLEND, "weight of lite's restoration averaged in", low=0, high=1),),
+        help="Joint-ID: restoration and metric depth (shipped weights; lite blended in)",
+        passes=("device",),
     ),
     Method(
         "lite",
@@ -194,26 +201,46 @@ BUILTIN: tuple[Method, ...] = (
         preflight="murk.enhance.methods:baseline_weights",
     ),
 )
-"""The built-in methods, registered by :mod:`murk.enhance.restorer` on first use."""
+"""The built-in methods and presets, registered by :mod:`murk.enhance.restorer` on first use."""
 
 
-def methods_help(methods: tuple[Method, ...] = BUILTIN) -> str:
-    """One line per method for ``--help``: ``name: what it does (needs ...)``."""
+def methods_help(methods: tuple[Method | Preset, ...] = BUILTIN) -> str:
+    """One line per method for ``--help``: ``name: what it does (needs ...)``; a preset: ``name = its spec: what
+    it does (needs what its methods need)``."""
+    by_name = {m.name: m for m in methods}
     lines = []
     for m in methods:
-        needs = f" (needs {', '.join(n for n in m.needs if n != 'onnxruntime')})" if m.needs else ""
-        lines.append(f"{m.name}: {m.help}{needs}")
+        needs = [n for n in _needs(m, by_name) if n != "onnxruntime"]
+        spec = f" = {m.spec}" if isinstance(m, Preset) else ""
+        lines.append(f"{m.name}{spec}: {m.help}" + (f" (needs {', '.join(needs)})" if needs else ""))
     return "; ".join(lines)
 
 
-def options_table(methods: tuple[Method, ...] = BUILTIN) -> str:
-    """The options of every method as the markdown table of docs/enhance.md."""
+def _needs(method: Method | Preset, by_name: dict[str, Method | Preset]) -> tuple[Need, ...]:
+    """What ``method`` needs; a preset, what the methods of its spec among ``by_name`` need."""
+    if isinstance(method, Method):
+        return method.needs
+    found = [n for name in names(parse_method(method.spec, named_weights=True)) if name in by_name
+             for n in _needs(by_name[name], by_name)]  # fmt: skip
+    return tuple(n for n in NEEDS if n in found)
+
+
+def options_table(methods: tuple[Method | Preset, ...] = BUILTIN) -> str:
+    """The options of every method as the markdown table of docs/enhance.md (a preset: its own options, after a row
+    saying that it takes those of its first method)."""
     rows = ["| method | option | type | default | range | what it does |", "|---|---|---|---|---|---|"]
     for m in methods:
-        for i, o in enumerate(m.options):
-            name = f"`{m.name}`" if i == 0 else ""
+        first = f"`{m.name}`"
+        if isinstance(m, Preset):
+            others = ", ".join(f"`{n}`" for n in dict.fromkeys(names(parse_method(m.spec, named_weights=True))[1:]))
+            passed = f", {', '.join(f'`{p}`' for p in m.passes)} also to {others}" if m.passes else ""
+            spec = m.spec.replace("|", "\\|")
+            rows.append(f"| {first} | those of `{m.first}` | | | | `{spec}`: its options go to `{m.first}`{passed} |")
+            first = ""
+        for o in m.options:
             kind = o.type.replace("|", "\\|")
-            rows.append(f"| {name} | `{o.name}` | `{kind}` | `{o.default!r}` | {_range(o)} | {o.help} |")
+            rows.append(f"| {first} | `{o.name}` | `{kind}` | `{o.default!r}` | {_range(o)} | {o.help} |")
+            first = ""
     return "\n".join(rows)
 
 

@@ -2,14 +2,17 @@
 
 A :class:`Restorer` takes a batch of float32 RGB images in [0, 1] and returns the enhanced batch, plus metric
 depth when the method estimates it (Joint-ID does). Methods are registered by name (``post``, ``jointid``,
-...); a spec ``"a+b"`` chains them left to right (``jointid+post`` = Joint-ID, then Eq. (9) on its output),
-and the depth of the chain is the last depth any stage produced. A spec may carry options after ``?``
-(``post?lam=0.9``). Each method is declared once (:class:`murk.enhance.declare.Method`: its options, what it
-needs, the import path of its implementation); an option no stage declares, or a value outside its declared type
-or range, is an error (:mod:`murk.enhance.options`). This is murk's one registry of methods (networks are built
-by their methods' implementations). Importing it imports neither torch nor OpenCV: the built-in declarations
-(:data:`murk.enhance.methods.BUILTIN`) name their implementations by import path, imported when a method is
-built, so names and options are checked before any network is loaded.
+...); a spec ``"a+b"`` chains them left to right (``jointid+post`` = Joint-ID, then Eq. (9) on its output; the
+depth of the chain is the last depth any stage produced), and ``"a|b@w"`` blends them: ``(1 - w) * a + w * b`` of
+two restorations of the same input (:class:`Blend`; the depth of ``a``, else of ``b``); ``|`` binds tighter than
+``+`` (the grammar: :mod:`murk.enhance.spec`). A spec may carry options after ``?`` (``post?lam=0.9``). A preset
+(:class:`murk.enhance.declare.Preset`) is a method declared as such a spec: ``jointid`` is
+``jointid_net|lite@lite_blend``. Each method is declared once (:class:`murk.enhance.declare.Method`: its
+options, what it needs, the import path of its implementation); an option no method of the spec declares, or a
+value outside its declared type or range, is an error (:mod:`murk.enhance.options`). This is murk's one registry of
+methods (networks are built by their methods' implementations). Importing it imports neither torch nor OpenCV: the
+built-in declarations (:data:`murk.enhance.methods.BUILTIN`) name their implementations by import path, imported
+when a method is built, so names and options are checked before any network is loaded.
 
 Two entry points per restorer:
 
@@ -29,9 +32,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from murk._checks import check_range
 from murk._suggest import did_you_mean
-from murk.enhance.declare import Method, Option
+from murk.enhance.declare import Method, Option, Preset
 from murk.enhance.options import check_given, declared_options, parse_spec, route_options
+from murk.enhance.spec import ChainSpec, Node, Term, names, parse_method
 from murk.enhance.temporal import FrameEMA
 
 if TYPE_CHECKING:
@@ -105,6 +110,8 @@ class Restorer:
 
     name: str = "restorer"
     device: torch.device = _CPUDevice()  # type: ignore[assignment]
+    weights: str | None = None
+    """The weights file the method loaded (set by the implementations of network methods); None without one."""
 
     def restore(self, images: np.ndarray) -> Restored:
         """Restore a numpy batch (B, H, W, 3) float32 in [0, 1].
@@ -164,7 +171,26 @@ class Restorer:
         return self.temporal_state if self._in_sequence else None
 
 
-class Chain(Restorer):
+class _Composite(Restorer):
+    """A restorer made of others (a chain's stages, a blend's members): their state over time is its own."""
+
+    @property
+    def parts(self) -> tuple[Restorer, ...]:
+        raise NotImplementedError
+
+    @property
+    def carries_state(self) -> bool:
+        return any(part.carries_state for part in self.parts)
+
+    @contextlib.contextmanager
+    def sequence(self) -> Iterator[None]:
+        with contextlib.ExitStack() as stack:
+            for part in self.parts:
+                stack.enter_context(part.sequence())
+            yield
+
+
+class Chain(_Composite):
     """Stages applied left to right; keeps the last depth any stage produced."""
 
     def __init__(self, stages: list[Restorer]) -> None:
@@ -175,6 +201,10 @@ class Chain(Restorer):
         device = _set_device(stages[0])  # a chain of methods that set no device keeps the lazy CPU default
         if device is not None:
             self.device = device
+
+    @property
+    def parts(self) -> tuple[Restorer, ...]:
+        return tuple(self.stages)
 
     def restore(self, images: np.ndarray) -> Restored:
         depth = None
@@ -190,26 +220,82 @@ class Chain(Restorer):
             images, depth = out.images, out.depth_m if out.depth_m is not None else depth
         return RestoredTensor(images, depth)
 
-    @property
-    def carries_state(self) -> bool:
-        return any(stage.carries_state for stage in self.stages)
 
-    @contextlib.contextmanager
-    def sequence(self) -> Iterator[None]:
-        with contextlib.ExitStack() as stack:
-            for stage in self.stages:
-                stack.enter_context(stage.sequence())
-            yield
+class Blend(_Composite):
+    """``(1 - weight) * left + weight * right`` of two restorations of the same input (the spec ``left|right@w``);
+    the depth of ``left``, else of ``right``.
+
+    Members that run on torch (they set a device: the networks) are blended on the device, with ``torch.lerp``,
+    also for numpy batches; members that do not (the classical methods, ``post`` on the CPU) are blended in numpy,
+    without importing torch.
+
+    Args:
+        left, right: the two restorers.
+        weight: ``right``'s share, in [0, 1].
+        weight_label: what the weight is called where it was set (a preset's option, ``lite_blend``); None for a
+            number in the spec. Shown in the weights line of ``murk enhance``.
+
+    Raises:
+        ValueError: a weight outside [0, 1].
+    """
+
+    def __init__(self, left: Restorer, right: Restorer, weight: float, weight_label: str | None = None) -> None:
+        self.left, self.right = left, right
+        self.weight = check_range("weight", weight, 0.0, 1.0)
+        self.weight_label = weight_label
+        self.name = f"{_grouped(left)}|{_grouped(right)}@{self.weight:g}"
+        device = _set_device(left)
+        device = _set_device(right) if device is None else device
+        if device is not None:
+            self.device = device
+
+    @property
+    def parts(self) -> tuple[Restorer, ...]:
+        return self.left, self.right
+
+    def restore(self, images: np.ndarray) -> Restored:
+        if _set_device(self.left) is not None or _set_device(self.right) is not None:
+            return super().restore(images)  # through restore_tensor: one lerp on the device
+        a, b = self.left.restore(images), self.right.restore(images)
+        return Restored(_lerp(a.images, b.images, self.weight), a.depth_m if a.depth_m is not None else b.depth_m)
+
+    def restore_tensor(self, images: torch.Tensor) -> RestoredTensor:
+        import torch
+
+        a = self.left.restore_tensor(images.to(self.left.device))
+        b = self.right.restore_tensor(images.to(self.right.device))
+        with torch.inference_mode():
+            blended = torch.lerp(a.images, b.images.to(a.images.device), self.weight)
+        depth = a.depth_m if a.depth_m is not None else b.depth_m
+        return RestoredTensor(blended, None if depth is None else depth.to(blended.device))
+
+    def __repr__(self) -> str:
+        return f"Blend({self.left!r}, {self.right!r}, weight={self.weight:g})"
+
+
+def _grouped(restorer: Restorer) -> str:
+    """A member's name in a blend's name: a chain in parentheses, as the spec writes it."""
+    return f"({restorer.name})" if isinstance(restorer, Chain) else restorer.name
+
+
+def _lerp(a: np.ndarray, b: np.ndarray, weight: float) -> np.ndarray:
+    """``(1 - weight) * a + weight * b`` in float32, in torch.lerp's two forms (exact at both ends)."""
+    diff = b - a
+    if weight < 0.5:
+        return a + np.float32(weight) * diff
+    return b - diff * np.float32(1.0 - weight)
 
 
 Factory = Callable[..., Restorer]
 Preflight = Callable[..., None]
-_REGISTRY: dict[str, Method | Factory] = {}
+Declaration = Method | Preset
+_REGISTRY: dict[str, Declaration | Factory] = {}
 
 
-def register(method: Method | str, *, preflight: Preflight | None = None) -> Any:
+def register(method: Declaration | str, *, preflight: Preflight | None = None) -> Any:
     """Register a method: its :class:`~murk.enhance.declare.Method` declaration (``register(Method(...))``, the
-    form of every built-in method, :mod:`murk.enhance.methods`), or, as a decorator, a factory
+    form of every built-in method, :mod:`murk.enhance.methods`) or :class:`~murk.enhance.declare.Preset`, or, as a
+    decorator, a factory
     ``f(*, option=default, ...) -> Restorer`` whose signature declares the options (``@register("mine")``; a quick
     form for tests and scripts: no help or ranges). A name registered again is replaced.
 
@@ -218,11 +304,11 @@ def register(method: Method | str, *, preflight: Preflight | None = None) -> Any
     file that is not there) without reading them or importing torch.
 
     Raises:
-        ValueError: an empty name, or one with ``+``, ``?``, ``|``, ``,``, ``=`` or parentheses.
+        ValueError: an empty name, or one with white space, ``+``, ``|``, ``@``, parentheses, ``?``, ``,`` or ``=``.
         TypeError: the factory does not declare its options as keyword-only parameters with defaults (e.g. it
             takes ``**kwargs``).
     """
-    if isinstance(method, Method):
+    if isinstance(method, (Method, Preset)):
         _REGISTRY[method.name] = method
         return method
     name = method
@@ -241,11 +327,26 @@ def _from_factory(name: str, factory: Factory, preflight: Preflight | None = Non
     return Method(name, lambda o: factory(**o), options, help=_first_line(factory), preflight=preflight)
 
 
-def _declared(name: str) -> Method:
+def _declared(name: str) -> Declaration:
     """The registered declaration of ``name``; a bare factory put into the registry (a test's monkeypatch) is read
-    through its signature."""
-    method = _REGISTRY[name]
-    return method if isinstance(method, Method) else _from_factory(name, method)
+    through its signature.
+
+    Raises:
+        ValueError: ``name`` is not registered (a preset that names a method nobody registered).
+    """
+    try:
+        method = _REGISTRY[name]
+    except KeyError:
+        raise ValueError(f"method: unknown {name!r}; available: {', '.join(sorted(_REGISTRY))}") from None
+    return method if isinstance(method, (Method, Preset)) else _from_factory(name, method)
+
+
+def _option_map(name: str) -> dict[str, Option]:
+    """The options of the method ``name``: its declaration's, or a preset's own and its first method's."""
+    method = _declared(name)
+    if isinstance(method, Preset):
+        return {**_option_map(method.first), **{o.name: o for o in method.options}}
+    return method.option_map
 
 
 def unregister(name: str) -> None:
@@ -263,8 +364,9 @@ def available() -> list[str]:
     return sorted(_REGISTRY)
 
 
-def declaration(name: str) -> Method:
-    """The declaration of the method ``name``.
+def declaration(name: str) -> Declaration:
+    """The declaration of the method ``name`` (a :class:`~murk.enhance.declare.Method` or a
+    :class:`~murk.enhance.declare.Preset`).
 
     Raises:
         ValueError: an unknown method name.
@@ -275,23 +377,51 @@ def declaration(name: str) -> Method:
     return _declared(name)
 
 
-def weighted_stage(restorer: Any) -> Any | None:
-    """The first stage of a restorer (itself, or a stage of a chain) that loaded weights; None without one."""
-    return next((s for s in getattr(restorer, "stages", [restorer]) if getattr(s, "weights", None)), None)
+@dataclass(frozen=True)
+class WeightsUsed:
+    """The weights files a restorer's output came from, found by walking the restorer a spec built (a chain's
+    stages, a blend's members) down to the methods that loaded weights.
+
+    Attributes:
+        first: the first of them (left to right), e.g. Joint-ID's in ``jointid+post``; None without any.
+        blended: the others that a blend averages into the output, each with its :class:`Blend` (the shipped
+            ``lite`` of ``jointid``, whose blend's weight is ``lite_blend``).
+    """
+
+    first: Restorer | None = None
+    blended: tuple[tuple[Restorer, Blend], ...] = ()
+
+    @property
+    def weights(self) -> str | None:
+        """The file of :attr:`first` (None without one): ``weights`` in ``murk compare``'s metrics.json."""
+        return None if self.first is None else str(self.first.weights)
+
+    @property
+    def blended_weights(self) -> str | None:
+        """The files of :attr:`blended`, joined with ``"; "`` (None without any): ``blended_weights`` in
+        ``murk compare``'s metrics.json."""
+        return "; ".join(str(stage.weights) for stage, _ in self.blended) or None
 
 
-def weights_of(restorer: Any) -> str | None:
-    """The weights file a restorer (or the first stage of a chain that has one) loaded, e.g. the shipped Joint-ID
-    when no checkpoint was given; None for methods without weights."""
-    stage = weighted_stage(restorer)
-    return None if stage is None else str(stage.weights)
+def weights_used(restorer: Restorer | None) -> WeightsUsed:
+    """Which weights files ``restorer``'s output came from (methods that loaded weights set ``weights``; None, the
+    input itself: none)."""
+    found: list[tuple[Restorer, Blend | None]] = []
 
+    def walk(r: Restorer | None, blend: Blend | None) -> None:
+        if isinstance(r, Chain):
+            for stage in r.stages:
+                walk(stage, blend)
+        elif isinstance(r, Blend):
+            walk(r.left, blend)
+            walk(r.right, r)
+        elif r is not None and r.weights:
+            found.append((r, blend))
 
-def blended_weights_of(restorer: Any) -> str | None:
-    """The weights file of the restorer blended into the output of the stage that :func:`weights_of` names (the
-    shipped ``lite`` of ``jointid?lite_blend``); None when nothing is blended in."""
-    blended = getattr(getattr(weighted_stage(restorer), "lite", None), "weights", None)
-    return None if blended is None else str(blended)
+    walk(restorer, None)
+    if not found:
+        return WeightsUsed()
+    return WeightsUsed(found[0][0], tuple((stage, blend) for stage, blend in found[1:] if blend is not None))
 
 
 def options_of(name: str) -> dict[str, Option]:
@@ -300,30 +430,34 @@ def options_of(name: str) -> dict[str, Option]:
     Raises:
         ValueError: an unknown method name.
     """
-    return declaration(name).option_map
+    declaration(name)
+    return _option_map(name)
 
 
 def create(
     spec: str, *, shared: dict[str, Any] | None = None, given: Mapping[str, str] | None = None, **options: Any
 ) -> Restorer:
-    """Build the restorer for ``spec`` (``"post"``, ``"jointid"``, ``"jointid+post"``, ``"post?lam=0.9"``, ...).
+    """Build the restorer for ``spec`` (``"post"``, ``"jointid"``, ``"jointid+post"``, ``"post?lam=0.9"``,
+    ``"jointid_net|lite@0.3"``, ...).
 
     Args:
-        spec: method names chained with ``+``, optionally followed by ``?KEY=VALUE,...`` options.
-        shared: settings of the calling command (device, batch size, ...); each stage takes the ones it
+        spec: method names chained with ``+`` and blended with ``|...@W`` (:mod:`murk.enhance.spec`), optionally
+            followed by ``?KEY=VALUE,...`` options.
+        shared: settings of the calling command (device, batch size, ...); each method takes the ones it
             declares. A name that no registered method declares is an error.
         given: names in ``shared`` that the user set explicitly, with how the user wrote them (``{"lam":
-            "--lambda"}``): each must be declared by a stage of ``spec`` (a flag the method ignores is an error).
+            "--lambda"}``): each must be declared by a method of ``spec`` (a flag the method ignores is an error).
         **options: method options (the spec's own win on a clash); each must be declared by at least one
-            stage, and goes to every stage that declares it.
+            method of the spec, and goes to every method that declares it.
 
     Raises:
-        ValueError: an unknown method name (the known ones are listed), or an unknown or misspelt option (named,
-            with the nearest valid name and the method's valid options).
+        ValueError: an unknown method name (the known ones are listed), a spec that does not parse (what was
+            expected where), or an unknown or misspelt option (named, with the nearest valid name and the method's
+            valid options).
     """
-    names, kwargs = _plan(spec, shared, given, options)
-    stages = [_declared(n).build(kw) for n, kw in zip(names, kwargs, strict=True)]
-    return stages[0] if len(stages) == 1 else Chain(stages)
+    tree, plan = _plan(spec, shared, given, options)
+    restorer: Restorer = _make(tree, iter(plan), {}, build=True)
+    return restorer
 
 
 def check(
@@ -342,32 +476,79 @@ def check(
     Raises:
         ValueError: as :func:`create`. InputFileError: with ``files``, a given weights file that is not there.
     """
-    names, kwargs = _plan(spec, shared, given, options)
+    tree, plan = _plan(spec, shared, given, options)
     if files:
-        for name, kw in zip(names, kwargs, strict=True):
-            _declared(name).check_files(kw)
+        _make(tree, iter(plan), {}, build=False)
+
+
+Plan = list[tuple[str, dict[str, Any]]]
+"""Each method of a spec, left to right, with the options it takes."""
 
 
 def _plan(
     spec: str, shared: dict[str, Any] | None, given: Mapping[str, str] | None, options: dict[str, Any]
-) -> tuple[list[str], list[dict[str, Any]]]:
-    """The method names of ``spec`` and the keyword arguments of each stage's factory (validated)."""
+) -> tuple[Node, Plan]:
+    """The tree of ``spec`` and each of its methods with its options (validated)."""
     _load_builtin()
     spec, spec_options = parse_spec(spec)
-    names = [n.strip() for n in spec.split("+")]
-    unknown = [n for n in names if n not in _REGISTRY]
-    if unknown or not all(names):
+    tree = parse_method(spec)
+    used = names(tree)
+    unknown = [n for n in dict.fromkeys(used) if n not in _REGISTRY]
+    if unknown:
         hint = did_you_mean(unknown[0], _REGISTRY) if len(unknown) == 1 else ""
         raise ValueError(
-            f"method: unknown {', '.join(repr(n) for n in unknown) or repr(spec)}{hint}; "
-            f"available: {', '.join(sorted(_REGISTRY))} (chain them with '+')"
+            f"method: unknown {', '.join(repr(n) for n in unknown)}{hint}; "
+            f"available: {', '.join(sorted(_REGISTRY))} (chain them with '+', blend them with 'A|B@W')"
         )
-    declared = [_declared(n).option_map for n in names]
-    every = {n: _declared(n).option_map for n in _REGISTRY}
+    declared = [_option_map(n) for n in used]
+    every = {n: _option_map(n) for n in _REGISTRY}
     known = {o for options in every.values() for o in options}
     check_given(spec, declared, given or {}, every)
     kwargs = route_options(spec, declared, {**options, **spec_options}, shared or {}, known)
-    return names, kwargs
+    return tree, list(zip(used, kwargs, strict=True))
+
+
+def _make(node: Node, plan: Iterator[tuple[str, dict[str, Any]]], weights: Mapping[str, float], *, build: bool) -> Any:
+    """Build the restorer of ``node`` (``build``), or run the preflights of its methods (None), taking each method's
+    options from ``plan`` in order. A blend's member of weight 0 is left out (neither built nor checked);
+    ``weights`` are the values of the weights a preset names."""
+    if isinstance(node, Term):
+        name, options = next(plan)
+        return _make_method(name, options, build=build)
+    if isinstance(node, ChainSpec):
+        stages = [_make(part, plan, weights, build=build) for part in node.parts]
+        return Chain(stages) if build else None
+    weight = weights[node.weight] if isinstance(node.weight, str) else node.weight
+    left = _make(node.left, plan, weights, build=build)
+    if weight == 0.0:
+        for _ in names(node.right):
+            next(plan)
+        return left
+    right = _make(node.right, plan, weights, build=build)
+    label = node.weight if isinstance(node.weight, str) else None
+    return Blend(left, right, weight, label) if build else None
+
+
+def _make_method(name: str, options: dict[str, Any], *, build: bool) -> Any:
+    """One method of a spec: its implementation (or preflight), or, for a preset, its spec's methods."""
+    method = _declared(name)
+    if isinstance(method, Method):
+        if build:
+            return method.build(options)
+        method.check_files(options)
+        return None
+    tree = parse_method(method.spec, named_weights=True)
+    own = {o.name: o for o in method.options}
+    weights = {w: check_range(w, options.get(w, o.default), 0.0, 1.0) for w, o in own.items()}
+    plan = []
+    for i, member in enumerate(names(tree)):
+        declared = _option_map(member)
+        takes = [k for k in options if k in declared and k not in own and (i == 0 or k in method.passes)]
+        plan.append((member, {k: options[k] for k in takes}))
+    made = _make(tree, iter(plan), weights, build=build)
+    if made is not None:
+        made.name = method.name  # what a preset builds is named after it
+    return made
 
 
 def _load_builtin() -> None:

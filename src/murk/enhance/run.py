@@ -14,7 +14,7 @@ from murk.enhance.frame_job import enhance_frames
 from murk.enhance.image_job import enhance_images
 from murk.enhance.inputs import EnhanceInput, plan_images, resolve_input
 from murk.enhance.job import EnhanceReport, OutputOptions, StopFn
-from murk.enhance.restorer import Restorer, blended_weights_of, weighted_stage
+from murk.enhance.restorer import Restorer, weights_used
 
 
 class ProgressDisplay(Protocol):
@@ -141,14 +141,15 @@ def _run_bag(
 
 def weights_line(restorer: Restorer, *, shipped: bool) -> str | None:
     """``<stage> weights: <file>`` for a method with learned weights (and, for the weights shipped with murk,
-    which network they are; for ``jointid``, the ``lite`` weights blended in); None for a method without
-    weights."""
-    stage = weighted_stage(restorer)
+    which network they are; then each restoration with weights that a blend averages in, with the blend's weight:
+    ``jointid``'s ``lite``); None for a method without weights (:func:`murk.enhance.restorer.weights_used`)."""
+    used = weights_used(restorer)
+    stage = used.first
     if stage is None:
         return None
     what = {"jointid": "the 'small' Joint-ID murk trained", "lite": "the 'lite' network murk trained"}.get(stage.name)
     note = f" (shipped with murk: {what}, docs/models.md)" if shipped and what else ""
-    blended = blended_weights_of(restorer)
-    if blended:  # jointid?lite_blend: the shipped lite's restoration averaged in
-        note += f"; with lite's restoration blended in (lite_blend {stage.lite_blend:g}): {blended}"
+    for other, blend in used.blended:
+        weight = f"{blend.weight_label or 'weight'} {blend.weight:g}"
+        note += f"; with {other.name}'s restoration blended in ({weight}): {other.weights}"
     return f"{stage.name} weights: {stage.weights}{note}"

@@ -412,10 +412,11 @@ def _run_compare(
             {"name": path.name, "grid_u8": _shrink(grid), "rows": rows, "boxes": [b.__dict__ for b in chosen]}
         )
     result.summary = summarise(result.rows, labels, reference=refs is not None)
-    from murk.enhance.restorer import blended_weights_of, weights_of
+    from murk.enhance.restorer import weights_used
 
-    weights = {m.label: weights_of(r) for m, r in zip(methods, restorers, strict=True)}
-    blended = {m.label: blended_weights_of(r) for m, r in zip(methods, restorers, strict=True)}
+    used = {m.label: weights_used(r) for m, r in zip(methods, restorers, strict=True)}
+    weights = {label: u.weights for label, u in used.items()}
+    blended = {label: u.blended_weights for label, u in used.items()}  # what a blend of the spec averages in
     _write_tables(
         out,
         result,
