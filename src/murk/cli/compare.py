@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from murk.cli._common import QuietOpt, make_console
+from murk.cli._common import DeviceOpt, QuietOpt, make_console
 from murk.cli._jobs import JobProgress, print_summary
 from murk.enhance.choices import Policy, Precision
 
@@ -32,7 +32,7 @@ def compare(
     recursive: Annotated[bool, typer.Option("--recursive", "-r", help="Search REAL_DIR recursively.")] = False,
     uiqm_preset: Annotated[str, typer.Option("--uiqm-preset", help="panetta2016, funie or jointid.")] = "panetta2016",
     uciqe_preset: Annotated[str, typer.Option("--uciqe-preset", help="uciqe_m or cielab_raw.")] = "uciqe_m",
-    device: Annotated[str, typer.Option("--device", help="cpu, cuda or cuda:N.")] = "cpu",
+    device: DeviceOpt = "cpu",
     precision: Annotated[
         Precision, typer.Option("--precision", help="Joint-ID precision: fp32, bf16 or fp16.")
     ] = "fp32",
