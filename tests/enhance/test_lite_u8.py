@@ -16,7 +16,7 @@ import torch.nn.functional as F
 
 from murk.data import sample_underwater_images
 from murk.enhance import lite_u8
-from murk.enhance.frames_u8 import ALONE_MIN_PX, restore_frames, to_u8
+from murk.enhance.frames_u8 import alone_takes_u8, restore_frames, to_u8
 from murk.enhance.job import restore_batch
 from murk.enhance.post import POST_PRESETS, PostParams, post_process, post_process_strips
 from murk.enhance.restorer import create
@@ -54,8 +54,8 @@ def test_lite_u8_within_one_grey_level_of_the_float_path(lite: object, w: int, h
     assert np.abs(new_u8.astype(np.int16) - old_u8).max() <= 1
     assert np.mean(new_u8 != old_u8) < 1e-4  # only values within float rounding of a tie differ
     assert np.abs(new_f - old_f).max() < 1e-4
-    # lite alone takes the 8-bit path from ALONE_MIN_PX up, the float32 path below (faster there on 2 threads)
-    expected = new_u8 if w * h >= ALONE_MIN_PX else old_u8
+    # lite alone takes the 8-bit path from ALONE_MIN_PX up (or on one torch thread), the float32 path below
+    expected = new_u8 if alone_takes_u8(w * h) else old_u8
     assert np.array_equal(restore_frames(lite, frames).images, expected)  # type: ignore[arg-type]
 
 

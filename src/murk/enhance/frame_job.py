@@ -8,6 +8,7 @@ directly and flushed (see :mod:`murk.io.video`); a full disk stops the run with 
 
 from __future__ import annotations
 
+import contextlib
 import time
 from dataclasses import dataclass
 from functools import partial
@@ -15,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from murk.enhance.frame_overlap import InOrder, one_thread_per_call, restore_threads
 from murk.enhance.frames_u8 import restore_frames, to_u8
 from murk.enhance.job import (
     INPUT_ERRORS,
@@ -158,7 +160,10 @@ def enhance_frames(
 
     With ``read_ahead`` (default) frames are decoded in a background thread while the previous ones are
     restored (:class:`murk.io.readahead.ReadAhead`); for a live source only the newest frame waits, and frames
-    the source delivered while restoration was busy are counted in ``report.dropped``.
+    the source delivered while restoration was busy are counted in ``report.dropped``. A file's frames are then
+    restored two at a time when the method allows it (:func:`murk.enhance.frame_overlap.restore_threads`: a
+    reentrant CPU method without state over time, torch and OpenCV on one thread per call meanwhile) and written
+    in frame order; the outputs are those of one frame at a time.
 
     Raises:
         ValueError: a live recording would replace an existing output without ``options.overwrite``.
@@ -206,24 +211,32 @@ def enhance_frames(
 
     items: list[_FrameItem] = []
     saw_depth = False
+    Outputs = dict[int, tuple[np.ndarray, np.ndarray | None]]
 
-    def flush() -> None:
-        nonlocal saw_depth
-        good = [it for it in items if it.image is not None]
-        outputs: dict[int, tuple[np.ndarray, np.ndarray | None]] = {}
+    def restore_items(batch_items: list[_FrameItem]) -> tuple[list[_FrameItem], Outputs, float]:
+        """Restore one batch (on a restore thread when frames overlap); a failed group marks its frames."""
+        outputs: Outputs = {}
         t0 = time.perf_counter()
-        for group in _same_shape_runs(good):
+        for group in _same_shape_runs([it for it in batch_items if it.image is not None]):
             try:
-                result = restore_frames(restorer, np.stack([it.image for it in group]))  # type: ignore[misc]
+                images = [it.image for it in group]
+                frames = images[0][None] if len(images) == 1 else np.stack(images)  # type: ignore[index,arg-type]
+                result = restore_frames(restorer, frames)
             except RESTORE_ERRORS as exc:
                 for it in group:
                     it.error = f"restore failed: {type(exc).__name__}: {exc}"
                 continue
             for j, it in enumerate(group):
                 outputs[it.index] = (result.images[j], None if result.depth_m is None else result.depth_m[j])
-        report.restore_s += time.perf_counter() - t0
+        return batch_items, outputs, time.perf_counter() - t0
+
+    def hand_on(done: tuple[list[_FrameItem], Outputs, float]) -> None:
+        """Queue a restored batch's frames for the writer, in frame order."""
+        nonlocal saw_depth
+        batch_items, outputs, restore_s = done
+        report.restore_s += restore_s
         t0 = time.perf_counter()
-        for it in items:
+        for it in batch_items:
             if it.replay:  # its file exists (counted as skipped); restoring it kept the temporal average exact
                 continue
             if it.index in outputs:
@@ -231,10 +244,17 @@ def enhance_frames(
             # encoded and written on the write-behind thread, in frame order, while the next frames restore
             behind.submit(partial(write_item, it, outputs.get(it.index)))
         report.write_s += time.perf_counter() - t0  # the wait for the writer, when it is the slowest stage
-        items.clear()
         report.tick()
         if on_progress:
             on_progress(report)
+
+    def flush() -> None:
+        if not items:
+            return
+        batch_items = items[:]
+        items.clear()
+        for done in restoring.submit(partial(restore_items, batch_items)):
+            hand_on(done)
 
     def write_item(it: _FrameItem, output: tuple[np.ndarray, np.ndarray | None] | None) -> None:
         """Write one frame (or repeat the previous one for a broken frame) and record what failed."""
@@ -256,10 +276,17 @@ def enhance_frames(
     complete = False
     n_read = 0
     reader: FrameSource = ReadAhead(source) if read_ahead else source
-    # decode (ReadAhead), restore (here) and encode (this write-behind thread) overlap; one thread keeps the
-    # frame order, and at most WRITE_BEHIND frames wait, so memory stays bounded and nothing is dropped
+    # decode (ReadAhead), restore (here or on the restore threads) and encode (this write-behind thread) overlap;
+    # one writer thread keeps the frame order, and at most WRITE_BEHIND frames wait, so memory stays bounded and
+    # nothing is dropped
     behind = BackgroundWriter(threads=1 if read_ahead else 0, max_pending=WRITE_BEHIND)
-    with restorer.sequence():  # one video: methods with state over time carry it from frame to frame
+    # a file's frames may restore two at a time (frame_overlap.restore_threads), the results taken in frame order;
+    # a live source restores one at a time, the newest frame each time
+    restoring: InOrder[tuple[list[_FrameItem], Outputs, float]] = InOrder(
+        restore_threads(restorer) if read_ahead and not source.live else 1
+    )
+    threads = one_thread_per_call() if restoring.threads > 1 else contextlib.nullcontext()
+    with threads, restorer.sequence():  # one video: methods with state over time carry it from frame to frame
         try:
             while True:
                 if should_end(report, should_stop, max_frames, n_read):
@@ -283,8 +310,11 @@ def enhance_frames(
                 if sum(it.image is not None for it in items) >= batch:
                     flush()
             flush()
+            for done in restoring.drain():
+                hand_on(done)
             complete = source.live or not report.stopped
         finally:
+            restoring.close()
             if isinstance(reader, ReadAhead):
                 reader.stop()
                 report.dropped = reader.dropped

@@ -11,6 +11,7 @@ float32 path.
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 import numpy as np
@@ -25,7 +26,17 @@ thread, where the float32 path's torch steps use both. Measured file to file on 
 "HD in real time", 2026-12-06, 05:18 and 05:22 UTC, against the previous tree in the same runs): `lite` alone at
 640x480 96.7 frames/s by the 8-bit path against 107.2 for the previous tree, then 103.7 by the float32 path against
 96.2 (runs spread by about 10 %); at 1280x720 37.0 and 36.5, no difference between the paths; at 1920x1080 the 8-bit
-path 22.3-23.5 against 20.0-20.7. A chain (``lite+post``) takes it at every size."""
+path 22.3-23.5 against 20.0-20.7. A chain (``lite+post``) takes it at every size, and so does a method alone when
+torch runs one thread per call (:func:`alone_takes_u8`: ``murk enhance`` restoring two frames of a video at once,
+:mod:`murk.enhance.frame_overlap`)."""
+
+
+def alone_takes_u8(pixels: int) -> bool:
+    """Whether a method alone (not a chain) takes its 8-bit path for frames of ``pixels`` pixels: from
+    :data:`ALONE_MIN_PX` up, or at any size when torch runs one thread per call (then the float32 path's torch
+    steps have no second thread either, and the 8-bit path costs less CPU)."""
+    torch = sys.modules.get("torch")
+    return pixels >= ALONE_MIN_PX or (torch is not None and torch.get_num_threads() == 1)
 
 
 def restore_frames(restorer: Restorer, frames: np.ndarray) -> Restored:
@@ -40,7 +51,7 @@ def restore_frames(restorer: Restorer, frames: np.ndarray) -> Restored:
         if all(device_type(s) == "cpu" for s in stages):
             fast = getattr(stages[0], "restore_u8", None)
             alone = len(stages) == 1
-            if alone and frames.shape[1] * frames.shape[2] < ALONE_MIN_PX:
+            if alone and not alone_takes_u8(frames.shape[1] * frames.shape[2]):
                 fast = None  # the float32 path is faster here (ALONE_MIN_PX)
             first = None if fast is None else fast(frames, np.uint8 if alone else np.float32)
             if first is not None:
