@@ -2,7 +2,7 @@
 side by side with a previous one, and where the time of one frame goes.
 
 Run: PYTHONPATH=src python benchmarks/bench_hd.py [--baseline OLD_SRC] [--tree SRC] [--sizes 1280x720,1920x1080]
-     [--methods lite,lite+post] [--rounds 5] [--threads 2] [--stages] [--file] [--live] [--seconds 10]
+     [--methods lite,lite+post] [--rounds 5] [--threads 2] [--stages] [--file] [--live] [--codecs] [--seconds 10]
 
 ``OLD_SRC`` is the ``src`` folder of the previous tree (``git archive COMMIT src | tar -x -C /tmp/old``). The
 clips are made here: MJPEG ``.avi`` files at 30 frames/s that pan one pixel a frame over the real underwater
@@ -20,6 +20,11 @@ photographs shipped in ``src/murk/data/underwater`` (a new photograph every 60 f
   Alternating trees as for ``--file``.
 - ``--stages``: this process's tree, stage by stage on one frame of each size, wall and CPU milliseconds (median
   of 15, after a warm-up): the previous float32 path's steps and this tree's 8-bit path's.
+- ``--codecs``: the writers ``murk enhance`` can write a video with (:class:`murk.io.video.VideoSink`: OpenCV's MJPEG
+  ``.avi`` and ``mp4v`` ``.mp4``, PyAV's MJPEG ``.avi`` and H.264 ``.mp4``), 60 decoded frames of the clip each, on
+  one thread as the write-behind thread runs them (OpenCV at 1 thread, as while frames restore two at a time): CPU
+  ms per frame (all threads, encoder threads included), wall ms, kB per frame and the PSNR of the video read back
+  against the frames written.
 
 Torch and OpenCV use ``--threads`` threads; workers run with ``OMP_WAIT_POLICY=PASSIVE``, as the ``murk`` command
 sets it (:mod:`murk._perf`). The script prints the machine's load (``os.getloadavg``) before and
@@ -48,7 +53,7 @@ SRC = HERE.parents[1] / "src"
 
 def make_clip(path: Path, w: int, h: int, n: int = FRAMES) -> Path:
     """An MJPEG clip panning one pixel a frame over the shipped underwater photographs (the live tests' clip)."""
-    from tests.live._live import underwater_clip
+    from testkit.video import underwater_clip
 
     return underwater_clip(path, n, fps=FPS, w=w, h=h)
 
@@ -144,7 +149,7 @@ def run_worker(tree: Path, kind: str, threads: int, **kw: object) -> dict[str, f
 
 
 def read_frames(path: Path) -> list:
-    from tests._video import read_video
+    from testkit.video import read_video
 
     return read_video(path)
 
@@ -259,6 +264,47 @@ def stages(sizes: list[tuple[int, int]], threads: int, tmp: Path) -> None:
 
 
 # ---------------------------------------------------------------------------------------------------------------
+# Encoders
+
+
+def codecs(clips: dict[tuple[int, int], Path], tmp: Path) -> None:
+    import cv2
+
+    cv2.setNumThreads(1)
+    from murk.io.video import CaptureSource, VideoSink, av_available
+
+    writers = [("OpenCV MJPG .avi (murk's default for .avi)", "opencv", ".avi")]
+    writers.append(("OpenCV mp4v .mp4 (murk's default for .mp4)", "opencv", ".mp4"))
+    if av_available():
+        writers += [("PyAV mjpeg q:v 3 .avi", "av", ".avi"), ("PyAV libx264 veryfast crf 18 .mp4", "av", ".mp4")]
+    print("\nencoders: 60 frames of the clip through VideoSink (OpenCV at 1 thread)")
+    print("| writer | size | CPU ms/frame | wall ms/frame | kB/frame | PSNR dB |")
+    print("|---|---|---|---|---|---|")
+    for (w, h), clip in clips.items():
+        with CaptureSource(clip) as source:
+            frames = [f.image for f, _ in zip(source, range(60), strict=False)]
+        for label, backend, suffix in writers:
+            path = tmp / f"codec_{w}x{h}_{backend}{suffix}"
+            sink = VideoSink(path, FPS, (w, h), backend=backend)  # type: ignore[arg-type]
+            sink.write(frames[0])  # the encoder's start-up
+            c0, t0 = time.process_time(), time.perf_counter()
+            for frame in frames[1:]:
+                sink.write(frame)
+            cpu, wall = time.process_time() - c0, time.perf_counter() - t0
+            sink.close()
+            back = read_frames(path)
+            assert len(back) == len(frames), f"{label}: {len(back)} frames read back of {len(frames)}"
+            psnr = statistics.mean(float(cv2.PSNR(a, b)) for a, b in zip(frames, back, strict=True))
+            n = len(frames) - 1
+            kb = path.stat().st_size / len(frames) / 1e3
+            print(
+                f"| {label} | {w}x{h} | {1e3 * cpu / n:.1f} | {1e3 * wall / n:.1f} | {kb:.0f} | {psnr:.1f} |",
+                flush=True,
+            )
+            del back
+
+
+# ---------------------------------------------------------------------------------------------------------------
 
 
 def load() -> str:
@@ -281,6 +327,7 @@ def main() -> None:
     ap.add_argument("--stages", action="store_true")
     ap.add_argument("--file", action="store_true")
     ap.add_argument("--live", action="store_true")
+    ap.add_argument("--codecs", action="store_true")
     args = ap.parse_args()
     if args.worker:
         kw = json.loads(args.args)
@@ -300,6 +347,8 @@ def main() -> None:
         clips = {(w, h): make_clip(tmp / f"clip_{w}x{h}.avi", w, h) for w, h in sizes}
         if args.stages:
             stages(sizes, args.threads, tmp)  # type: ignore[arg-type]
+        if args.codecs:
+            codecs(clips, tmp)
         if args.file:
             figures: dict[tuple, list[float]] = {}
             for r in range(args.rounds):
