@@ -56,8 +56,8 @@ browser-test: $(STAMP)
 	$(PY) -m pytest -q -m browser $(PYTEST_ARGS)
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check src tests benchmarks tools
-	$(VENV)/bin/ruff format --check src tests benchmarks tools
+	$(VENV)/bin/ruff check src tests testkit benchmarks tools
+	$(VENV)/bin/ruff format --check src tests testkit benchmarks tools
 
 bench: $(STAMP)
 	for b in benchmarks/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done

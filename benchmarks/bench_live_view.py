@@ -9,7 +9,7 @@ Per size and method:
 1. live: a 30 frames/s MJPEG clip of the shipped underwater samples (panning), played at its own rate and
    looped, through :class:`murk.live.pipeline.LivePipeline` and :class:`murk.live.server.LiveServer` (what
    ``murk live`` runs), watched by Debian's headless Chromium on the same machine (driven over the DevTools
-   protocol, tests/_chromium.py). Measured in the page over ``--seconds`` after a warm-up: frames drawn per
+   protocol, testkit/chromium.py). Measured in the page over ``--seconds`` after a warm-up: frames drawn per
    second, the median glass-to-page latency (capture time -> frame decoded in the page), frames dropped before
    restoration and frames the page skipped;
 2. file: ``enhance_frames`` (the function behind ``murk enhance``) of the same clip to an MJPEG ``.avi`` as fast
@@ -27,12 +27,10 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/_chromium.py drives Chromium
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # testkit/chromium.py drives Chromium
 import cv2
 import torch
 from _common import machine
-from tests._chromium import chromium
-from tests.live._live import underwater_clip
 
 from murk.enhance.pipeline import OutputOptions, enhance_frames
 from murk.enhance.restorer import create
@@ -40,6 +38,8 @@ from murk.io.video import CaptureSource
 from murk.live.pipeline import LivePipeline
 from murk.live.server import LiveServer, method_table
 from murk.live.source import PacedSource, open_live_source, reopener
+from testkit.chromium import chromium
+from testkit.video import underwater_clip
 
 
 def live_run(page, clip: Path, method: str, seconds: float, out: Path) -> dict[str, float]:

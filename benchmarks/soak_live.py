@@ -22,7 +22,7 @@ underwater samples, then, talking to it over 127.0.0.1 only and with loops that 
 5. a disk that fills during a recording: ``--out`` on a tmpfs of ``--disk-kb`` KiB (mounted in a private mount
    namespace with ``unshare``: as root, or as a user where user namespaces are allowed; skipped otherwise).
    The recording stops and the file that is left plays; ``/api/status`` and the terminal say why (no space);
-   the live view goes on. The page is checked in Chromium when one is installed (``tests/_chromium.py``).
+   the live view goes on. The page is checked in Chromium when one is installed (``testkit/chromium.py``).
 
 Figures and checks are printed as a table; the exit code is 1 when a check fails (0 when all pass or were
 skipped). The server's own timings depend on the machine: the method defaults to ``greyworld`` (the cheapest
@@ -54,7 +54,7 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))  # tests/live/_live.py makes the clip, tests/_chromium.py drives Chromium
+sys.path.insert(0, str(ROOT))  # testkit/video.py makes the clip, testkit/chromium.py drives Chromium
 HOST = "127.0.0.1"
 MIN_FPS = 20.0
 """Frames/s every viewer must keep while others misbehave."""
@@ -578,7 +578,7 @@ def playable(path: Path) -> int:
 def page_says_why(server: LiveProcess) -> tuple[str, bool | None, str]:
     """The live page's visible text in headless Chromium, when one is installed."""
     try:
-        from tests._chromium import CHROMIUM, chromium
+        from testkit.chromium import CHROMIUM, chromium
     except ImportError:
         CHROMIUM = None
     if CHROMIUM is None:
@@ -632,7 +632,7 @@ RESOURCES = ("rss_mib", "threads", "sockets")
 
 def soak(args: argparse.Namespace) -> Report:
     """Start ``murk live`` and its viewers, run the phases, stop it with Ctrl+C; the report."""
-    from tests.live._live import underwater_clip
+    from testkit.video import underwater_clip
 
     total_s = args.minutes * 60.0
     w, h = (int(v) for v in args.size.split("x"))

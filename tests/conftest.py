@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ._video import make_frames, mjpeg_camera
+from testkit.video import make_frames, mjpeg_camera
 
 TESTS_DATA = Path(__file__).resolve().parent / "data"
 

@@ -71,7 +71,8 @@ def expected_files(package: Path = PACKAGE) -> list[str]:
 
 
 def wheel_problems(wheel: Path, expected: Iterable[str]) -> list[str]:
-    """What is wrong with ``wheel``: files it lacks (``expected`` and the licence files), licence metadata."""
+    """What is wrong with ``wheel``: files it lacks (``expected`` and the licence files), files outside ``murk/``
+    (``testkit/``, ``tests/``: never shipped), licence metadata."""
     with zipfile.ZipFile(wheel) as z:
         names = set(z.namelist())
         dist_info = next((n.split("/")[0] for n in names if n.endswith(".dist-info/METADATA")), None)
@@ -79,6 +80,11 @@ def wheel_problems(wheel: Path, expected: Iterable[str]) -> list[str]:
             return ["no .dist-info/METADATA"]
         metadata = z.read(f"{dist_info}/METADATA").decode("utf-8")
     problems = [f"missing {name}" for name in expected if name not in names]
+    problems += [
+        f"ships {n} (only murk/ and its .dist-info belong in the wheel)"
+        for n in sorted(names)
+        if not n.startswith(("murk/", f"{dist_info}/"))
+    ]  # e.g. testkit/, the tests' and benchmarks' helpers
     problems += [f"missing licence file {f}" for f in LICENSE_FILES if f"{dist_info}/licenses/{f}" not in names]
     if not re.search(r"^License-Expression: \S", metadata, re.MULTILINE):
         problems.append("METADATA has no License-Expression (PEP 639)")

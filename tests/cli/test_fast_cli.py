@@ -127,7 +127,7 @@ def test_a_classical_enhance_command_does_not_import_torch(tmp_path: Path) -> No
 def test_classical_methods_run_without_torch_in_enhance_live_and_compare(tmp_path: Path) -> None:
     """Every classical method, a chain of them, and ``post`` on the CPU (its torch twin is imported only when
     used) restore through ``murk enhance``, ``murk live`` and ``murk compare`` without importing torch."""
-    from tests._video import make_video
+    from testkit.video import make_video
 
     folder = tmp_path / "in"
     folder.mkdir()

@@ -6,8 +6,7 @@ import numpy as np
 
 from murk.enhance.restorer import Restored, Restorer
 from murk.io.video import Frame, FrameSource
-
-from .._video import make_frames, make_video, read_video
+from testkit.video import make_frames, make_video, read_video
 
 __all__ = ["FakeDepth", "FakeSource", "make_frames", "make_video", "read_video"]
 

@@ -14,8 +14,7 @@ import pytest
 from murk.errors import InputFileError, ShapeError
 from murk.io.atomic import TMP_PREFIX
 from murk.io.video import CaptureSource, VideoSink, default_name, is_stream_url, open_source, redact_url
-
-from .._video import make_frames, read_video
+from testkit.video import make_frames, read_video
 
 REPO_SRC = Path(__file__).resolve().parents[2] / "src"
 

@@ -12,7 +12,7 @@ import numpy as np
 from murk.enhance.restorer import Restored, Restorer, create
 from murk.live.pipeline import LivePipeline, LiveView
 from murk.live.source import LiveFrame, PacedSource, open_live_source, reopener
-from tests._video import make_video
+from testkit.video import make_video
 
 
 class SlowRestorer(Restorer):
@@ -48,24 +48,6 @@ class BuggyRestorer(Restorer):
 
 def clip(folder: Path, n: int = 30, fps: float = 30.0, h: int = 48, w: int = 64) -> Path:
     return make_video(folder / "clip.avi", n, fps=fps, h=h, w=w)
-
-
-def underwater_clip(path: Path, n: int = 90, fps: float = 30.0, w: int = 640, h: int = 480) -> Path:
-    """An MJPEG clip of the shipped underwater samples panning slowly (real image content), ``n`` frames."""
-    import cv2
-
-    from murk.data import sample_underwater_images
-    from murk.io import read_rgb
-
-    base = [
-        cv2.resize((read_rgb(p) * 255 + 0.5).astype(np.uint8)[:, :, ::-1], (w + 64, h), interpolation=cv2.INTER_AREA)
-        for p in sample_underwater_images()[:3]
-    ]
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), fps, (w, h))
-    for i in range(n):
-        writer.write(np.ascontiguousarray(base[(i // 60) % len(base)][:, (i % 64) : (i % 64) + w]))
-    writer.release()
-    return path
 
 
 def make_restorer(spec: str) -> Restorer:

@@ -17,7 +17,7 @@ from urllib.parse import urlsplit
 from typer.testing import CliRunner
 
 from murk.cli.main import app
-from tests._video import read_video
+from testkit.video import read_video
 from tests.live._live import clip
 
 runner = CliRunner()

@@ -1,5 +1,5 @@
 """``murk live --foxglove``: a client speaking Foxglove's WebSocket protocol (subprotocol foxglove.sdk.v1, the
-one foxglove-sdk 0.30 accepts; plain WebSocket, tests/_ws.py)
+one foxglove-sdk 0.30 accepts; plain WebSocket, testkit/ws.py)
 receives raw, restored and depth CompressedImage messages stamped with the source's (a ROS bag's) header times."""
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ pytest.importorskip("rosbags")
 from murk.live.foxglove_publisher import TOPICS, FoxglovePublisher
 from murk.live.pipeline import LivePipeline
 from murk.live.source import PacedSource, open_live_source
+from testkit.ws import WebSocket
 from tests._rosbags import BagBuilder, frames, stamp_ns
-from tests._ws import WebSocket
 from tests.live._live import WAIT_S, make_restorer
 
 

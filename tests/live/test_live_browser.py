@@ -18,9 +18,9 @@ import cv2
 import pytest
 
 from murk.live.server import LiveServer, method_table
-from tests._chromium import CHROMIUM, chromium
-from tests._video import read_video
-from tests.live._live import pipeline, underwater_clip
+from testkit.chromium import CHROMIUM, chromium
+from testkit.video import read_video, underwater_clip
+from tests.live._live import pipeline
 
 DOCS_IMAGE = Path(__file__).parents[2] / "docs" / "images" / "live.png"
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from murk.live.pipeline import PAGE_WIDTH_PX, LivePipeline, LiveView, page_pair
-from tests._video import read_video
+from testkit.video import read_video
 from tests.live._live import WAIT_S, BurstRestorer, WatchedSource, clip, make_restorer, pipeline
 
 

@@ -15,8 +15,7 @@ import pytest
 from murk.data import sample_underwater_dir
 from murk.report.compare import run_compare
 from murk.report.methods import parse_method
-
-from .._chromium import HEADLESS_FLAGS
+from testkit.chromium import HEADLESS_FLAGS
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
 

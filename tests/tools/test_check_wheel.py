@@ -57,7 +57,9 @@ def test_the_shipped_files_are_listed_from_the_package_data_of_pyproject() -> No
     assert tuple(project["license-files"]) == cw.LICENSE_FILES and isinstance(project["license"], str)
 
 
-def test_a_wheel_without_a_shipped_file_or_with_old_licence_metadata_is_refused(tmp_path: Path) -> None:
+def test_a_wheel_without_a_shipped_file_with_another_package_or_with_old_licence_metadata_is_refused(
+    tmp_path: Path,
+) -> None:
     licences = [f"murk-0.1.0.dist-info/licenses/{f}" for f in cw.LICENSE_FILES]
     expected = ["murk/__init__.py", "murk/data/models/lite.pt", "murk/live/assets/live.js"]
     good = _wheel(tmp_path / "good.whl", [*expected, *licences])
@@ -66,6 +68,11 @@ def test_a_wheel_without_a_shipped_file_or_with_old_licence_metadata_is_refused(
     assert cw.wheel_problems(short, expected) == [
         "missing murk/data/models/lite.pt",
         "missing licence file src/murk/data/DATA_LICENSES.md",
+    ]
+    extra = _wheel(tmp_path / "extra.whl", [*expected, *licences, "testkit/__init__.py", "tests/conftest.py"])
+    assert cw.wheel_problems(extra, expected) == [
+        "ships testkit/__init__.py (only murk/ and its .dist-info belong in the wheel)",
+        "ships tests/conftest.py (only murk/ and its .dist-info belong in the wheel)",
     ]
     old = METADATA.replace("License-Expression: Apache-2.0 AND MIT AND CC-BY-3.0\n", "License: Apache-2.0\n")
     old += "Classifier: License :: OSI Approved :: Apache Software License\n"

@@ -1,4 +1,5 @@
-"""Video helpers shared by the io and enhance tests: synthetic frames, small video files, an MJPEG camera."""
+"""Video helpers of the tests and benchmarks: synthetic frames, small video files, an MJPEG camera, a clip of the
+shipped underwater photographs, and reading a video back."""
 
 from __future__ import annotations
 
@@ -31,6 +32,22 @@ def make_video(path: Path, n: int, fps: float = 10.0, h: int = 48, w: int = 64) 
     writer = cv2.VideoWriter(str(path), fourcc, fps, (w, h))
     for f in make_frames(n, h, w):
         writer.write(np.ascontiguousarray(f[:, :, ::-1]))
+    writer.release()
+    return path
+
+
+def underwater_clip(path: Path, n: int = 90, fps: float = 30.0, w: int = 640, h: int = 480) -> Path:
+    """An MJPEG clip of the shipped underwater samples panning slowly (real image content), ``n`` frames."""
+    from murk.data import sample_underwater_images
+    from murk.io import read_rgb
+
+    base = [
+        cv2.resize((read_rgb(p) * 255 + 0.5).astype(np.uint8)[:, :, ::-1], (w + 64, h), interpolation=cv2.INTER_AREA)
+        for p in sample_underwater_images()[:3]
+    ]
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), fps, (w, h))
+    for i in range(n):
+        writer.write(np.ascontiguousarray(base[(i // 60) % len(base)][:, (i % 64) : (i % 64) + w]))
     writer.release()
     return path
 

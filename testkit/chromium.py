@@ -1,6 +1,7 @@
 """Drive Debian's headless Chromium over its DevTools protocol (``--remote-debugging-port``) with the minimal
-WebSocket client of :mod:`tests._ws`: open a page, evaluate JavaScript, click, take a screenshot. No Playwright,
-no Selenium. Used by the browser tests (``-m browser``) and ``benchmarks/bench_live_view.py``."""
+WebSocket client of :mod:`testkit.ws`: open a page, evaluate JavaScript, click, take a screenshot. No Playwright,
+no Selenium. Used by the browser tests (``-m browser``), ``benchmarks/bench_live_view.py`` and
+``benchmarks/soak_live.py``."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from tests._ws import WebSocket
+from testkit.ws import WebSocket
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
 

@@ -1,4 +1,5 @@
-"""A minimal WebSocket client (RFC 6455) for tests: the Foxglove protocol and Chromium's DevTools protocol.
+"""A minimal WebSocket client (RFC 6455) for tests and benchmarks: the Foxglove protocol and Chromium's DevTools
+protocol.
 
 Only what those two need: a client handshake (optional subprotocol), masked text frames out, text/binary frames
 in (continuations joined, pings answered). No dependency beyond the standard library.
