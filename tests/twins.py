@@ -140,7 +140,8 @@ def _flat_in_batch(rng: np.random.Generator) -> Arrays:
 
 
 def _table() -> dict[str, Twin]:
-    from murk.enhance import post
+    from murk.enhance import equalize as eq
+    from murk.enhance import log_filter, post
     from murk.metrics import affine_psnr, reference
     from murk.metrics import depth as depth_metrics
     from murk.metrics.uciqe import uciqe, uciqe_torch
@@ -246,14 +247,14 @@ def _table() -> dict[str, Twin]:
         ),
         "enhance.laplacian_of_gaussian": Twin(
             _murky,
-            per_image(post.laplacian_of_gaussian, "images"),
-            lambda x: {"out": nhwc(post.laplacian_of_gaussian_torch(nchw(x["images"])))},
+            per_image(log_filter.laplacian_of_gaussian, "images"),
+            lambda x: {"out": nhwc(log_filter.laplacian_of_gaussian_torch(nchw(x["images"])))},
             atol=1e-6,
         ),
         "enhance.laplacian_of_gaussian (image smaller than the kernel)": Twin(
             _images(1, 3, 4),
-            per_image(post.laplacian_of_gaussian, "images"),
-            lambda x: {"out": nhwc(post.laplacian_of_gaussian_torch(nchw(x["images"])))},
+            per_image(log_filter.laplacian_of_gaussian, "images"),
+            lambda x: {"out": nhwc(log_filter.laplacian_of_gaussian_torch(nchw(x["images"])))},
             atol=1e-6,
         ),
         "metrics.psnr": Twin(
@@ -316,8 +317,8 @@ def _table() -> dict[str, Twin]:
     for he in ("y", "rgb", "clahe"):
         twins[f"enhance.equalize ({he})"] = Twin(
             _murky,
-            lambda x, he=he: {"out": np.stack([post.equalize(im, he) for im in x["images"]])},
-            lambda x, he=he: {"out": nhwc(post.equalize_torch(nchw(x["images"]), he))},
+            lambda x, he=he: {"out": np.stack([eq.equalize(im, he) for im in x["images"]])},
+            lambda x, he=he: {"out": nhwc(eq.equalize_torch(nchw(x["images"]), he))},
             atol=0.0,  # the same 8-bit lookup tables: bit-identical
         )
         twins[f"enhance.post_process ({he})"] = Twin(

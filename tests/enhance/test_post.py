@@ -8,16 +8,11 @@ import pytest
 import torch
 
 from murk.enhance import restorer as restorer_mod
+from murk.enhance.equalize import _clahe_torch, equalize, equalize_lut, equalize_torch
+from murk.enhance.log_filter import laplacian_of_gaussian, laplacian_of_gaussian_torch, log_kernels
 from murk.enhance.post import (
     PostParams,
     PostRestorer,
-    _clahe_torch,
-    equalize,
-    equalize_lut,
-    equalize_torch,
-    laplacian_of_gaussian,
-    laplacian_of_gaussian_torch,
-    log_kernels,
     post_process,
     post_process_torch,
 )

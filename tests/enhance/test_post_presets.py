@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from murk.enhance import restorer as restorer_mod
-from murk.enhance.post import POST_PRESETS, PostParams, equalize, post_process
+from murk.enhance.equalize import equalize
+from murk.enhance.post import POST_PRESETS, PostParams, post_process
 
 
 def _murky(rng: np.random.Generator) -> np.ndarray:

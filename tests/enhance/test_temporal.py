@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 import torch
 
+from murk.enhance.equalize import equalize_lut
 from murk.enhance.frame_job import enhance_frames
 from murk.enhance.job import OutputOptions
-from murk.enhance.post import PostRestorer, equalize_lut, post_process, post_process_torch
+from murk.enhance.post import PostRestorer, post_process, post_process_torch
 from murk.enhance.restorer import create
 from murk.enhance.temporal import FrameEMA
 
