@@ -26,9 +26,10 @@ photographs shipped in ``src/murk/data/underwater`` (a new photograph every 60 f
   ms per frame (all threads, encoder threads included), wall ms, kB per frame and the PSNR of the video read back
   against the frames written.
 
-Torch and OpenCV use ``--threads`` threads; workers run with ``OMP_WAIT_POLICY=PASSIVE``, as the ``murk`` command
-sets it (:mod:`murk._perf`). The script prints the machine's load (``os.getloadavg``) before and
-after: on a busy machine figures are only comparable within one run.
+Torch and OpenCV use ``--threads`` threads; workers run with ``OMP_WAIT_POLICY=PASSIVE`` and glibc's allocator
+tuned (:func:`murk._perf.tune_allocator`), as the ``murk`` command sets them (:mod:`murk._perf`). The script prints
+the machine's load (``os.getloadavg``) before and after: on a busy machine figures are only comparable within one
+run.
 """
 
 from __future__ import annotations
@@ -63,11 +64,18 @@ def make_clip(path: Path, w: int, h: int, n: int = FRAMES) -> Path:
 
 
 def _threads(n: int) -> None:
+    """Torch and OpenCV on ``n`` threads, and glibc's allocator tuned as the ``murk`` command tunes it (trees
+    without :func:`murk._perf.tune_allocator` keep glibc's defaults)."""
     import cv2
     import torch
 
     torch.set_num_threads(n)
     cv2.setNumThreads(n)
+    try:
+        from murk._perf import tune_allocator
+    except ImportError:
+        return
+    tune_allocator()
 
 
 def worker_file(src: str, method: str, out: str, threads: int) -> dict[str, float]:
@@ -187,7 +195,7 @@ def stages(sizes: list[tuple[int, int]], threads: int, tmp: Path) -> None:
     from murk.io.video import VideoSink
     from murk.live.pipeline import encode_jpeg, page_pair
     from murk.models.lite.network import work_image, work_size
-    from murk.physics.balance import apply_levels, balance_levels
+    from murk.restore_ops.balance import apply_levels, balance_levels
 
     lite, post, chain = create("lite"), create("post"), create("lite+post")
     pct = lite.input_balance_pct
