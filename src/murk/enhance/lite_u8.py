@@ -126,11 +126,11 @@ def restore_frame(
         luma = torch.from_numpy(cv2.transform(xb, _LUMA3))  # the guide's luma in each of the 3 channels
         torch.addcmul(m[:, 2], m[:, 0], luma, out=gain[:n])  # coefficients = a * luma + b
         torch.addcmul(m[:, 3], m[:, 1], luma, out=offset[:n])
-        torch.addcmul(offset[:n], gain[:n], torch.from_numpy(xb), out=res[:n]).clamp_(0.0, 1.0)
         if out_dtype == np.uint8:  # to_uint's rounding: times 255, plus 0.5, truncated
+            torch.addcmul(offset[:n], gain[:n], torch.from_numpy(xb), out=res[:n]).clamp_(0.0, 1.0)
             out_t[r0:r1].copy_(res[:n].mul_(255.0).add_(0.5))
-        else:
-            out[r0:r1] = res[:n].numpy()
+        else:  # float32 (a chain's next stage): straight into the output's rows
+            torch.addcmul(offset[:n], gain[:n], torch.from_numpy(xb), out=out_t[r0:r1]).clamp_(0.0, 1.0)
         r0 = r1
     return out
 
