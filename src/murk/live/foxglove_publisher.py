@@ -5,12 +5,11 @@ live as ``foxglove.CompressedImage`` messages over Foxglove's WebSocket protocol
 Topics: ``/murk/raw``, ``/murk/restored`` and ``/murk/depth`` (the depth colour preview of
 :func:`murk.enhance.preview.colorize_depth`, 0-15 m, near = warm). Each message carries the frame's source time
 (a ROS bag message's header stamp, a file's playback time, a camera's capture time) as its ``timestamp`` and as
-its log time, and the source's ``frame_id`` (``camera`` when the source has none).
+its log time, and the source's ``frame_id`` (``camera`` when the source has none). Only the topics some client
+subscribes to are encoded: with Foxglove on and nobody watching, a view costs nothing more than the page's.
 """
 
 from __future__ import annotations
-
-from typing import Any
 
 from murk.enhance.preview import colorize_depth
 from murk.io.images import to_uint
@@ -67,11 +66,14 @@ class FoxglovePublisher:
 
         stamp = Timestamp(view.source_ns // 1_000_000_000, view.source_ns % 1_000_000_000)
         frame_id = view.frame_id or "camera"
-        images: dict[str, Any] = {"raw": view.raw, "restored": view.restored}
-        if view.depth_m is not None:
-            images["depth"] = to_uint(colorize_depth(view.depth_m), 8)
-        for key, image in images.items():
-            data = view.jpeg(key, self.quality) if key != "depth" else encode_jpeg(image, self.quality)
+        keys = [key for key in ("raw", "restored", "depth") if self._channels[key].has_sinks()]
+        for key in keys:  # a topic no client subscribes to is not encoded (at 1920x1080 ~8 ms of CPU per JPEG)
+            if key == "depth":
+                if view.depth_m is None:
+                    continue
+                data = encode_jpeg(to_uint(colorize_depth(view.depth_m), 8), self.quality)
+            else:
+                data = view.jpeg(key, self.quality)  # shared with any other reader of the same view
             message = CompressedImage(timestamp=stamp, frame_id=frame_id, data=data, format="jpeg")
             self._channels[key].log(message, log_time=view.source_ns)
 
