@@ -6,7 +6,8 @@ tar-shard writer (:mod:`murk.synth.shards`, also run by :mod:`murk.synth.ray_bac
   renders it) with :func:`fit_size` (``--size``),
   :func:`depth_range_note`, :func:`variant_info` and :func:`manifest_record` (one manifest line);
 - the checks of the output folder: :func:`input_locations` with :data:`OVERLAP_WHY` (the output may not overlap
-  the inputs) and :func:`check_config_compatible` (no mixing of two configurations in one folder).
+  the inputs) and :func:`check_config_compatible` (no mixing of two configurations in one folder);
+- the particle bank: :func:`check_snow_bank` (before any output) and :func:`setup_worker` (each worker process).
 
 Imports flow one way (pyproject's import-linter contract): runner -> shards -> ray_backend, and each of them ->
 this module -> params -> config; nothing here imports a writer.
@@ -220,3 +221,33 @@ def check_config_compatible(out_dir: Path, config: SynthConfig) -> None:
             f"{out_dir}: this folder was generated with a different configuration (differs in: "
             f"{', '.join(diffs)}); use a new output folder, or delete this one to start over"
         )
+
+
+def check_snow_bank(config: SynthConfig, bank_path: str | None) -> None:
+    """Refuse the marine_snow stage without a particle bank, and read the bank once, so that a bad one fails here
+    (an ``InputFileError`` naming it) before any output is written or any worker started.
+
+    Raises:
+        ValueError: marine_snow without a bank.
+        InputFileError: the bank cannot be read.
+    """
+    if "marine_snow" in config.stages and not bank_path:
+        raise ValueError("stages: marine_snow needs a particle bank (--snow-bank)")
+    if bank_path:
+        from murk.snow.bank import load_bank
+
+        load_bank(bank_path)
+
+
+def setup_worker(bank_path: str | None) -> Any:
+    """Per-process set-up of a synthesis worker (or of the one process of a run without workers): the allocator
+    tuned, one OpenCV thread; returns the particle bank at ``bank_path``, loaded once (None without one)."""
+    from murk._perf import tune_allocator
+
+    tune_allocator()
+    cv2.setNumThreads(1)
+    if not bank_path:
+        return None
+    from murk.snow.bank import load_bank
+
+    return load_bank(bank_path)

@@ -35,7 +35,6 @@ from functools import partial
 from pathlib import Path
 from typing import Any, Literal
 
-import cv2
 import numpy as np
 
 from murk._config import dump_yaml
@@ -55,10 +54,12 @@ from murk.synth.common import (
     OVERLAP_WHY,
     Shard,
     check_config_compatible,
+    check_snow_bank,
     depth_range_note,
     input_locations,
     load_source,
     manifest_record,
+    setup_worker,
     variant_info,
 )
 from murk.synth.config import SynthConfig
@@ -114,14 +115,7 @@ _WORKER_BANK: Any = None
 
 def _init_worker(bank_path: str | None) -> None:
     global _WORKER_BANK
-    from murk._perf import tune_allocator
-
-    tune_allocator()
-    cv2.setNumThreads(1)
-    if bank_path:
-        from murk.snow.bank import load_bank
-
-        _WORKER_BANK = load_bank(bank_path)
+    _WORKER_BANK = setup_worker(bank_path)
 
 
 def _init_pool_worker(bank_path: str | None) -> None:
@@ -274,12 +268,7 @@ def run_synthesis(
     """
     out = Path(out_dir)
     check_output_location(out, input_locations(sources), option="OUT_DIR", writes=OUTPUT_FOLDERS, why=OVERLAP_WHY)
-    if "marine_snow" in config.stages and not bank_path:
-        raise ValueError("stages: marine_snow needs a particle bank (--snow-bank)")
-    if bank_path:
-        from murk.snow.bank import load_bank
-
-        load_bank(bank_path)  # a bad bank fails here (InputFileError naming it), before any output or worker
+    check_snow_bank(config, bank_path)
     make_output_folder(out)
     check_config_compatible(out, config)
     remove_stale_temporaries(out)

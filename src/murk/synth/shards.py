@@ -52,10 +52,12 @@ from murk.synth.common import (
     OVERLAP_WHY,
     Shard,
     check_config_compatible,
+    check_snow_bank,
     depth_range_note,
     input_locations,
     load_source,
     manifest_record,
+    setup_worker,
     variant_info,
 )
 from murk.synth.config import SynthConfig
@@ -265,19 +267,11 @@ _WORKER_BANK: Any = None
 def init_shard_worker(bank_path: str | None, die_with_parent: bool = True) -> None:
     """Per-process set-up of a shard worker: one OpenCV thread, the particle bank loaded once."""
     global _WORKER_BANK
-    from murk._perf import tune_allocator
-
     if die_with_parent:
         from murk._workers import die_with_parent as _die
 
         _die()
-    tune_allocator()
-    cv2.setNumThreads(1)
-    _WORKER_BANK = None
-    if bank_path:
-        from murk.snow.bank import load_bank
-
-        _WORKER_BANK = load_bank(bank_path)
+    _WORKER_BANK = setup_worker(bank_path)
 
 
 def build_shard_in_worker(plan: ShardPlan, config: SynthConfig, out_dir: str) -> ShardResult:
@@ -424,12 +418,7 @@ def write_shards(
     check_output_location(
         out, input_locations(sources), option="OUT_DIR", writes=(SHARDS_DIR, ".murk"), why=OVERLAP_WHY
     )
-    if "marine_snow" in config.stages and not bank_path:
-        raise ValueError("stages: marine_snow needs a particle bank (--snow-bank)")
-    if bank_path:
-        from murk.snow.bank import load_bank
-
-        load_bank(bank_path)  # a bad bank fails here, before any output or worker
+    check_snow_bank(config, bank_path)
     plans = plan_shards(sources, config.variants, samples_per_shard)
     make_output_folder(out)
     check_shard_folder(out, config, samples_per_shard)
