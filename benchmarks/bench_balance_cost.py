@@ -64,7 +64,7 @@ def levels_ab(restorer: object, rounds: int) -> None:
     """The shipped lite restorer with its levels from the torch twin (``topk``, what it uses) and from the numpy twin
     (a sort of the sample, per frame), alternately: the same levels, bit for bit."""
     from murk.enhance import lite_restorer
-    from murk.physics.balance import balance_levels
+    from murk.restore_ops.balance import balance_levels
 
     torch_levels = lite_restorer.balance_levels_torch
 

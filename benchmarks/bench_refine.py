@@ -26,7 +26,7 @@ import torch
 from murk.data import sample_underwater_images
 from murk.enhance.restorer import create
 from murk.io.images import read_image, to_float
-from murk.physics import affine_transfer as at
+from murk.restore_ops import affine_transfer as at
 
 PAIRS = (("jointid?lite_blend=0", "jointid?refine=0,lite_blend=0"), ("lite?refine=0.125", "lite"))
 

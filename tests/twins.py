@@ -147,9 +147,10 @@ def _table() -> dict[str, Twin]:
     from murk.metrics.uciqe import uciqe, uciqe_torch
     from murk.metrics.uiqm import uiqm, uiqm_torch
     from murk.models.jointid import decoder
-    from murk.physics import affine_transfer as at
-    from murk.physics import balance, camera, medium
+    from murk.physics import camera, medium
     from murk.physics import forward_scatter as fs
+    from murk.restore_ops import affine_transfer as at
+    from murk.restore_ops import balance
     from murk.scenes.textures import TILE_PX, lookup_numpy, lookup_torch, noise_tile
     from murk.snow.composite import composite_snow, composite_snow_torch
 
@@ -190,13 +191,13 @@ def _table() -> dict[str, Twin]:
             lambda x: {"out": nhwc(at.affine_transfer_torch(nchw(x["images"]), nchw(x["restored"]), 40, 1e-3))},
             atol=1e-6,
         ),
-        "physics.affine_transfer (step 3, the fast guided filter)": Twin(
+        "restore_ops.affine_transfer (step 3, the fast guided filter)": Twin(
             _transfer_inputs,
             per_image(lambda im, r: at.affine_transfer(im, r, 12, 1e-4, step=3), *_IR),
             lambda x: {"out": nhwc(at.affine_transfer_torch(nchw(x["images"]), nchw(x["restored"]), 12, 1e-4, 3))},
             atol=1e-6,
         ),
-        "physics.guard_particle_removal": Twin(
+        "restore_ops.guard_particle_removal": Twin(
             _transfer_inputs,
             per_image(
                 lambda im, r: at.guard_particle_removal(im, at.affine_transfer(im, r, 6), r, 0.04, 7),
@@ -216,13 +217,13 @@ def _table() -> dict[str, Twin]:
             },
             atol=1e-6,
         ),
-        "physics.color_balance": Twin(
+        "restore_ops.color_balance": Twin(
             _murky,
             per_image(lambda im: balance.color_balance(im, 1.0, 2.5), "images"),
             lambda x: {"out": nhwc(balance.color_balance_torch(nchw(x["images"]), 1.0, 2.5))},
             atol=1e-6,
         ),
-        "physics.color_balance (a flat channel)": Twin(
+        "restore_ops.color_balance (a flat channel)": Twin(
             _flat_in_batch,
             per_image(balance.color_balance, "images"),
             lambda x: {"out": nhwc(balance.color_balance_torch(nchw(x["images"])))},

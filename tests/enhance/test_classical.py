@@ -9,8 +9,8 @@ import pytest
 from murk.enhance import restorer as restorer_mod
 from murk.enhance.classical import clahe_lab, grey_world, udcp
 from murk.errors import ShapeError
-from murk.physics.affine_transfer import guided_filter
-from murk.physics.balance import color_balance
+from murk.restore_ops.affine_transfer import guided_filter
+from murk.restore_ops.balance import color_balance
 
 
 def _cast_scene(rng: np.random.Generator, h: int = 48, w: int = 64) -> np.ndarray:

@@ -239,7 +239,7 @@ def test_cuda_matches_cpu_and_cuda_graph_matches_eager(tiny, underwater):
 @pytest.mark.gpu
 @needs_cuda
 def test_refine_on_cuda_runs_the_torch_twins_on_the_device(tiny, underwater):
-    from murk.physics import affine_transfer as at
+    from murk.restore_ops import affine_transfer as at
 
     x = torch.from_numpy(underwater).permute(2, 0, 1)[None].cuda()
     net = JointIDRestorer(copy.deepcopy(tiny), device="cuda").restore_tensor(x).images  # refine 0
@@ -277,7 +277,7 @@ def test_bf16_base_model_stays_within_40_db_of_fp32(underwater):
 
 
 def test_refine_transfers_the_restoration_onto_the_input_and_leaves_depth(tiny_ckpt, underwater):
-    from murk.physics.affine_transfer import (
+    from murk.restore_ops.affine_transfer import (
         affine_transfer,
         guard_particle_removal,
         guard_size_px,

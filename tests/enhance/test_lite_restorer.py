@@ -140,7 +140,7 @@ def test_the_opencv_upsampling_path_equals_the_network(lite_ckpt: Path, hw: tupl
 
 
 def test_refine_is_an_option_after_the_network_for_torch_and_onnx(lite_ckpt: Path, tmp_path: Path) -> None:
-    from murk.physics import affine_transfer as at
+    from murk.restore_ops import affine_transfer as at
 
     imgs = _images(1, 150, 211)
     plain = create("lite", checkpoint=str(lite_ckpt)).restore(imgs).images  # refine is off by default

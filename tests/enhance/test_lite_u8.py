@@ -22,7 +22,7 @@ from murk.enhance.post import POST_PRESETS, PostParams, post_process, post_proce
 from murk.enhance.restorer import create
 from murk.io import read_rgb
 from murk.io.images import to_float, to_uint
-from murk.physics.balance import apply_levels, balance_levels
+from murk.restore_ops.balance import apply_levels, balance_levels
 
 SIZES = [(640, 480), (1280, 720), (1920, 1080)]
 

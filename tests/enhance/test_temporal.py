@@ -178,7 +178,7 @@ def test_lite_averages_its_maps_inside_a_sequence_only() -> None:
     import torch.nn.functional as F
 
     from murk.models.lite.network import apply_maps, work_image
-    from murk.physics.balance import apply_levels_torch, balance_levels_torch
+    from murk.restore_ops.balance import apply_levels_torch, balance_levels_torch
 
     frames = _pan(8)  # 150x200: larger than the working area, so the maps come from a downsampled image
     plain = create("lite").restore(frames).images

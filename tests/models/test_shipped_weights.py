@@ -10,7 +10,7 @@ import numpy as np
 import torch
 
 from murk.data import sample_underwater_images, shipped_jointid_weights
-from murk.enhance.restorer import create
+from murk.enhance.restorer import create, weights_used
 from murk.io import read_rgb
 from murk.metrics import restoration_measures
 
@@ -41,7 +41,7 @@ def test_shipped_model_restores_heldout_scenes_and_keeps_real_images_sane() -> N
 
     torch.set_num_threads(2)
     restorer = create("jointid")
-    assert restorer.weights == str(shipped_jointid_weights())
+    assert weights_used(restorer).weights == str(shipped_jointid_weights())
     synthesis = merge(
         SynthConfig(medium=SynthConfig().medium, marine_snow=SnowConfig(reference_area_px=307200)),
         {"medium": {"vertical_depth_m": [2.0, 10.0]}},

@@ -1,4 +1,4 @@
-"""The locally affine transfer of a restoration onto its input (murk.physics.affine_transfer)."""
+"""The locally affine transfer of a restoration onto its input (murk.restore_ops.affine_transfer)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from murk.physics.affine_transfer import affine_transfer, guard_particle_removal, guard_size_px, transfer_radius_px
+from murk.restore_ops.affine_transfer import affine_transfer, guard_particle_removal, guard_size_px, transfer_radius_px
 
 
 def _textured(h: int = 60, w: int = 80, seed: int = 0) -> np.ndarray:
@@ -47,7 +47,7 @@ def test_radius_is_a_fraction_of_the_long_side_kept_inside_the_image() -> None:
 def test_bad_arguments_are_named_by_both_twins() -> None:
     import torch
 
-    from murk.physics.affine_transfer import affine_transfer_torch, guard_particle_removal_torch
+    from murk.restore_ops.affine_transfer import affine_transfer_torch, guard_particle_removal_torch
 
     img = _textured()  # 60 x 80
     t = torch.from_numpy(img).permute(2, 0, 1)[None]
@@ -111,7 +111,7 @@ def test_guard_size_and_errors() -> None:
 def test_any_frame_size_works_and_the_twins_agree(hw: tuple[int, int]) -> None:
     import torch
 
-    from murk.physics.affine_transfer import affine_transfer_torch, guard_particle_removal_torch
+    from murk.restore_ops.affine_transfer import affine_transfer_torch, guard_particle_removal_torch
 
     rng = np.random.default_rng(sum(hw))
     img = rng.random((*hw, 3)).astype(np.float32)
@@ -125,7 +125,7 @@ def test_any_frame_size_works_and_the_twins_agree(hw: tuple[int, int]) -> None:
 
 
 def test_the_fast_guided_filter_step_rule_and_how_close_it_stays() -> None:
-    from murk.physics.affine_transfer import transfer_step
+    from murk.restore_ops.affine_transfer import transfer_step
 
     assert [transfer_step(r) for r in (1, 15, 16, 24, 32, 40, 80)] == [1, 1, 1, 3, 3, 5, 9]
     # Eq. (1) inverted exactly: the subsampled fit finds the same map.

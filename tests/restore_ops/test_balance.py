@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from murk.physics.balance import FLAT_RANGE, color_balance
+from murk.restore_ops.balance import FLAT_RANGE, color_balance
 
 
 def _full_range_scene(rng: np.random.Generator, h: int = 60, w: int = 80) -> np.ndarray:
@@ -51,7 +51,7 @@ def test_the_numpy_levels_equal_the_torch_twins_bit_for_bit() -> None:
     values, for frames of any layout (NCHW or channels-last views) and sizes on both sides of the sampling stride."""
     import torch
 
-    from murk.physics.balance import balance_levels, balance_levels_torch
+    from murk.restore_ops.balance import balance_levels, balance_levels_torch
 
     rng = np.random.default_rng(8)
     for h, w in ((1, 1), (7, 5), (97, 131), (480, 640), (720, 1280)):

@@ -17,7 +17,7 @@ from murk.models.jointid import build_jointid, save_checkpoint
 from murk.models.jointid.checkpoint import load_checkpoint, slim_checkpoint
 from murk.models.lite.checkpoint import load_lite, save_lite_checkpoint, slim_lite_checkpoint
 from murk.models.lite.network import build_lite
-from murk.physics.balance import color_balance
+from murk.restore_ops.balance import color_balance
 from murk.train.config import DataConfig, ModelConfig
 from murk.train.scenes_source import SceneDataset
 from tests.train._cli import train_cli
@@ -127,8 +127,9 @@ def test_an_onnx_export_of_a_balanced_network_balances_inside_its_graph(kind: st
         ckpt = save_checkpoint(net, tmp_path / "net.pt")
     r = runner.invoke(app, ["export", "--checkpoint", str(ckpt), "--out", str(tmp_path / "net.onnx")])
     assert r.exit_code == 0, r.output
-    torch_restorer = create(kind, checkpoint=str(ckpt))
-    onnx_restorer = create(kind, checkpoint=str(tmp_path / "net.onnx"))
+    method = "jointid_net" if kind == "jointid" else kind  # the network alone (jointid blends the shipped lite in)
+    torch_restorer = create(method, checkpoint=str(ckpt))
+    onnx_restorer = create(method, checkpoint=str(tmp_path / "net.onnx"))
     assert onnx_restorer.input_balance_pct is None  # type: ignore[attr-defined]  # not applied twice
     for h, w in [(37, 53), (96, 128), (200, 300)]:
         imgs = _murky(1, h, w)
@@ -139,7 +140,7 @@ def test_an_onnx_export_of_a_balanced_network_balances_inside_its_graph(kind: st
 def test_in_a_video_the_balance_levels_are_averaged_with_the_temporal_weight(tmp_path: Path) -> None:
     """A per-frame balance flickers when the scene's extremes move; --temporal averages its levels as it averages
     lite's maps (frame 0 as on its own, later frames pulled towards the earlier levels)."""
-    from murk.physics.balance import apply_levels, balance_levels
+    from murk.restore_ops.balance import apply_levels, balance_levels
 
     torch.manual_seed(0)
     net = build_lite("tiny")

@@ -10,7 +10,7 @@ Every report should show the learned models beside them (``murk compare ... --me
   On Line 1, 2011, doi:10.5201/ipol.2011.llmps-scb): each channel is stretched affinely so that its ``low`` %
   darkest pixels become 0 and its ``high`` % brightest become 1 (saturated), ``out_c = clip((I_c - q_c) /
   (Q_c - q_c), 0, 1)`` with ``q_c``, ``Q_c`` the channel's ``low`` and ``100 - high`` percentiles
-  (:mod:`murk.physics.balance`, which says why it fits water).
+  (:mod:`murk.restore_ops.balance`, which says why it fits water).
 - ``clahe``: contrast-limited adaptive histogram equalisation (Zuiderveld, Graphics Gems IV, 1994) of the
   CIE L* channel of the 8-bit image (OpenCV's Lab conversion and CLAHE), a* and b* kept; ``clip`` (OpenCV's
   clip limit) and ``tiles`` (tiles per side) as options. The output is 8-bit.
@@ -33,8 +33,8 @@ import numpy as np
 from murk._checks import check_positive, check_range
 from murk.enhance.declare import Checked
 from murk.enhance.restorer import Restored, Restorer, as_batch
-from murk.physics.affine_transfer import guided_filter
-from murk.physics.balance import color_balance
+from murk.restore_ops.affine_transfer import guided_filter
+from murk.restore_ops.balance import color_balance
 
 
 def _check(images: np.ndarray) -> np.ndarray:

@@ -3,7 +3,7 @@
 blended in; :mod:`murk.enhance.methods`).
 
 Pipeline per batch: the simplest colour balance when the checkpoint's network was trained on a balanced input
-(``input_balance_pct``, :mod:`murk.physics.balance`; the shipped weights since 2026-12-03) -> normalise
+(``input_balance_pct``, :mod:`murk.restore_ops.balance`; the shipped weights since 2026-12-03) -> normalise
 (training recipe's mean/std) -> reflect-pad to multiples of 32 -> the network
 (whole frame, or overlapping tiles blended at the seams when ``tile`` is set) -> crop back. Frames are never
 resized. Backends: a torch :class:`~murk.models.jointid.JointID` (fp32, or bf16/fp16 autocast; channels-last
@@ -22,7 +22,7 @@ defaults to 0), ``refine_eps`` and ``refine_guard``; ``jointid`` adds ``lite_ble
 :data:`murk.enhance.choices.DEFAULT_LITE_BLEND`).
 
 ``refine`` re-expresses the network's restoration as a locally affine map of the input
-(:mod:`murk.physics.affine_transfer`). The window radius is ``refine`` times the frame's long side. The output
+(:mod:`murk.restore_ops.affine_transfer`). The window radius is ``refine`` times the frame's long side. The output
 then has the restoration's colours and the input's structure: what Eq. (1)'s inverse can do, without the network's
 deblurring. ``refine_guard`` (a top-hat luma threshold, 0 = off) keeps the network's own output where it took a
 small bright particle out of the input, so that the transfer does not bring marine snow back. Figures and the
@@ -53,7 +53,7 @@ from murk.enhance.restorer import RestoredTensor, Restorer
 from murk.enhance.tiling import pad_to_multiple, tiled_apply
 from murk.errors import ShapeError
 from murk.models.jointid.network import INPUT_MEAN, INPUT_STD, SIZE_MULTIPLE
-from murk.physics.balance import color_balance_torch
+from murk.restore_ops.balance import color_balance_torch
 
 _DTYPES: dict[str, torch.dtype] = {"bf16": torch.bfloat16, "fp16": torch.float16}
 

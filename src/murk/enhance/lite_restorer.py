@@ -1,7 +1,7 @@
 """The ``lite`` restorer: the small real-time network (:mod:`murk.models.lite`) for images of any size.
 
 Pipeline per batch: the simplest colour balance when the checkpoint's network was trained on a balanced input
-(``input_balance_pct``, :mod:`murk.physics.balance`; the shipped weights since 2026-12-03; with ``temporal`` its
+(``input_balance_pct``, :mod:`murk.restore_ops.balance`; the shipped weights since 2026-12-03; with ``temporal`` its
 levels are averaged over a video's frames like the maps) -> the working image (a frame larger than the network's
 ``work_area_px``, 128x160 for the shipped weights, is area-downsampled to about that many pixels; a smaller frame
 is reflect-padded to multiples of 16 and used itself) -> the folded (re-parameterised) network computes gain and
@@ -49,7 +49,7 @@ from murk.models.lite.network import (
     work_size,
 )
 from murk.models.padding import pad_to_multiple
-from murk.physics.balance import apply_levels, apply_levels_torch, balance_levels, balance_levels_torch
+from murk.restore_ops.balance import apply_levels, apply_levels_torch, balance_levels, balance_levels_torch
 
 
 class LiteRestorer(Restorer):

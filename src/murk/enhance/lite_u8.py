@@ -29,7 +29,7 @@ import torch
 
 from murk.io.images import to_float
 from murk.models.lite.network import LUMA, work_size
-from murk.physics.balance import apply_levels, sample_levels, sample_of
+from murk.restore_ops.balance import apply_levels, sample_levels, sample_of
 
 STRIP_ROWS = 32
 """Rows per strip of the apply pass (at 1920x1080 with 1 thread: 4 rows 29 ms, 8 rows 23.5, 16 rows 22.1,

@@ -1,8 +1,8 @@
 """The ``refine`` step of the network restorers (``jointid``, ``lite``): the restoration re-expressed as a locally
-affine map of its input, with the particle guard (:mod:`murk.physics.affine_transfer`).
+affine map of its input, with the particle guard (:mod:`murk.restore_ops.affine_transfer`).
 
 :class:`RefineSettings` holds the three options; :func:`refine_restoration` applies them to a batch, with the
-coefficients fitted on a subsample (the fast guided filter, :func:`murk.physics.affine_transfer.transfer_step`). On
+coefficients fitted on a subsample (the fast guided filter, :func:`murk.restore_ops.affine_transfer.transfer_step`). On
 the CPU it runs the OpenCV functions frame by frame; on another device the torch twins, on the device (equal,
 tests/twins.py). Figures and the trade-off: docs/enhance.md, "`jointid?refine`".
 """
@@ -45,7 +45,7 @@ def refine_restoration(images: Tensor, enhanced: Tensor, settings: RefineSetting
     """The transfer of each restoration in ``enhanced`` (B, 3, H, W) onto its input in ``images`` (same shape, any
     device), with the guard; float32 in [0, 1] on ``enhanced``'s device, in channels-last memory on the CPU (what a
     numpy frame converts to without a copy). ``enhanced`` itself when off; neither input is modified."""
-    from murk.physics import affine_transfer as at
+    from murk.restore_ops import affine_transfer as at
 
     if not settings.on:
         return enhanced

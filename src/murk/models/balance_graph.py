@@ -1,7 +1,7 @@
-"""The simplest colour balance (:mod:`murk.physics.balance`) written to trace into an ONNX graph with dynamic
+"""The simplest colour balance (:mod:`murk.restore_ops.balance`) written to trace into an ONNX graph with dynamic
 batch, height and width, for exports of networks trained on balanced inputs (``model.input_balance_pct``).
 
-The same computation as :func:`murk.physics.balance.color_balance_torch`, with the size arithmetic on tensors
+The same computation as :func:`murk.restore_ops.balance.color_balance_torch`, with the size arithmetic on tensors
 (so that the graph follows each frame's size): the stride of the sampled pixels (``ceil(sqrt(H W / STATS_PX))``,
 at least 1), the rows and columns sampled, a full sort of the sample (ONNX TopK; about 20,000 values per channel
 at most) and the two order statistics each percentile interpolates between, gathered by index.
@@ -12,7 +12,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
-from murk.physics.balance import FLAT_RANGE, STATS_PX
+from murk.restore_ops.balance import FLAT_RANGE, STATS_PX
 
 
 def _percentile(ordered: Tensor, n: Tensor, pct: float) -> Tensor:

@@ -309,7 +309,7 @@ def write_network_checkpoint(
 
 INPUT_BALANCE_KEY = "input_balance_pct"
 """The checkpoint metadata key (and the network attribute) of the simplest colour balance a network's input takes
-(``model.input_balance_pct`` of ``murk train``; :mod:`murk.physics.balance`): the percentage saturated at each
+(``model.input_balance_pct`` of ``murk train``; :mod:`murk.restore_ops.balance`): the percentage saturated at each
 end of each channel, or None."""
 
 

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from murk.physics.balance import color_balance
+from murk.restore_ops.balance import color_balance
 from murk.rng import derive_seed
 
 
@@ -40,7 +40,7 @@ def make_heldout(
     n: int, *, seed: int, size_hw: tuple[int, int], synthesis: Any, balance_pct: float | None = None
 ) -> HeldoutSet:
     """Render and degrade ``n`` held-out scenes (deterministic in ``seed``). ``balance_pct``: each clean scene
-    first goes through the simplest colour balance (:mod:`murk.physics.balance`), as the training scenes of
+    first goes through the simplest colour balance (:mod:`murk.restore_ops.balance`), as the training scenes of
     ``data.scene_balance_pct`` do (the "photographic" held-out set: targets that span the range in every channel,
     as photographs and the references of real pairs do); None: the procedural scenes as rendered."""
     from murk.scenes import render_scene, sample_scene

@@ -94,7 +94,7 @@ class ModelConfig:
     ``init_checkpoint`` may hold weights of the same variant without the head (they load, the head starts at
     zero). False: the network as the paper has it."""
     input_balance_pct: float | None = None
-    """Take the network's input through the simplest colour balance (:mod:`murk.physics.balance`) with this
+    """Take the network's input through the simplest colour balance (:mod:`murk.restore_ops.balance`) with this
     percentage saturated at each end of each channel, in training and in every restorer of the checkpoint
     (recorded in it as ``input_balance_pct``): the network restores what one global affine map per channel
     cannot. None: the input as it is (the paper's recipe)."""
@@ -169,7 +169,7 @@ class DataConfig:
     scenes are flatter than photographs (luma std 0.11 against 0.18-0.21 for the shipped real RGB-D photos),
     so a restorer trained on them returns flat images. (1, 1): off."""
     scene_balance_pct: float | None = None
-    """``source: scenes``: the clean scene goes through the simplest colour balance (:mod:`murk.physics.balance`)
+    """``source: scenes``: the clean scene goes through the simplest colour balance (:mod:`murk.restore_ops.balance`)
     with this percentage saturated at each end of each channel, after ``scene_contrast`` and
     ``scene_saturation`` and before the water, so every target spans the range in each channel as photographs
     (and the references of real pairs) do. None: off."""

@@ -20,7 +20,7 @@ from torch.utils.data import DataLoader
 
 from murk.io.jobs import ErrorLog
 from murk.metrics import table
-from murk.physics.balance import color_balance_torch
+from murk.restore_ops.balance import color_balance_torch
 from murk.train.config import TrainConfig
 from murk.train.data import record_unreadable
 from murk.train.losses import jointid_loss

@@ -133,7 +133,7 @@ def run_network(
     """``(enhanced, depth_m or None)`` of ``net`` for a batch (B, 3, H, W) of RGB in [0, 1], taken first through
     the simplest colour balance when ``balance_pct`` is set (``model.input_balance_pct``)."""
     if balance_pct is not None:
-        from murk.physics.balance import color_balance_torch
+        from murk.restore_ops.balance import color_balance_torch
 
         images = color_balance_torch(images, balance_pct, balance_pct).to(images.dtype)
     if kind == "lite":

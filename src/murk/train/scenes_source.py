@@ -113,7 +113,7 @@ class SceneDataset(Dataset):
             s = np.random.default_rng(derive_seed(self.seed, index, "saturation")).uniform(*self.saturation)
             rgb = scale_saturation(rgb, float(s))
         if self.balance_pct is not None:
-            from murk.physics.balance import color_balance
+            from murk.restore_ops.balance import color_balance
 
             rgb = color_balance(rgb, self.balance_pct, self.balance_pct)
         d = torch.from_numpy(np.ascontiguousarray(dist.transpose(2, 0, 1)))

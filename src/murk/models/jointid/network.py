@@ -160,7 +160,7 @@ class JointID(nn.Module):
     """
 
     input_balance_pct: float | None = None
-    """Not part of the network: the simplest colour balance (:mod:`murk.physics.balance`) its input takes in
+    """Not part of the network: the simplest colour balance (:mod:`murk.restore_ops.balance`) its input takes in
     training and in the restorers, read from and written to checkpoints (``model.input_balance_pct``)."""
 
     def __init__(self, config: JointIDConfig | None = None) -> None:

@@ -28,7 +28,7 @@ from murk.models.jointid.checkpoint import unwrap
 from murk.models.jointid.network import INPUT_MEAN, INPUT_STD, SIZE_MULTIPLE, normalize_input
 from murk.models.onnx_session import onnx_session
 from murk.models.padding import pad_to_multiple, reflect_rows
-from murk.physics.balance import color_balance_torch
+from murk.restore_ops.balance import color_balance_torch
 
 INPUT_NAME = "image"
 OUTPUT_NAMES = ("depth_m", "enhanced")

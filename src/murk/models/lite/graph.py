@@ -35,7 +35,7 @@ from torch import Tensor, nn
 from murk.models.balance_graph import color_balance_graph
 from murk.models.lite.network import LUMA, SIZE_MULTIPLE, LiteNet, work_image, work_size, work_size_tensor
 from murk.models.padding import pad_to_multiple, reflect_rows
-from murk.physics.balance import color_balance_torch
+from murk.restore_ops.balance import color_balance_torch
 
 LitePath = Literal["native", "downsample"]
 

@@ -240,7 +240,7 @@ class LiteNet(nn.Module):
     """
 
     input_balance_pct: float | None = None
-    """Not part of the network: the simplest colour balance (:mod:`murk.physics.balance`) its input takes in
+    """Not part of the network: the simplest colour balance (:mod:`murk.restore_ops.balance`) its input takes in
     training and in the restorers, read from and written to checkpoints (``model.input_balance_pct``)."""
 
     def __init__(self, config: LiteConfig | None = None, *, folded: bool = False) -> None:
