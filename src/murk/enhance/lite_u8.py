@@ -6,8 +6,8 @@ resolution (4 frame-sized float32 maps of 3 channels), applies them and clamps, 
 back to 8 bits: at 1920x1080 that is about 15 passes over a float32 frame. This path computes the same output from
 a uint8 frame in two passes:
 
-1. the balance (``input_balance_pct``, :mod:`murk.physics.balance`) as a 256-entry float32 table per channel
-   (the same float32 operations as :func:`~murk.physics.balance.apply_levels` on the 256 possible values, so the
+1. the balance (``input_balance_pct``, :mod:`murk.restore_ops.balance`) as a 256-entry float32 table per channel
+   (the same float32 operations as :func:`~murk.restore_ops.balance.apply_levels` on the 256 possible values, so the
    balanced frame is bit for bit the general path's), looked up by ``cv2.LUT`` (8 bits in, float32 out), and the
    working image pooled from it with the windows of torch's ``area`` interpolation (:func:`area_pool`);
 2. after the network: in strips of rows, the coefficient maps interpolated vertically between two rows of maps
@@ -42,14 +42,14 @@ _LUMA3 = np.array([LUMA] * 3, np.float32)
 
 def balance_table(levels: np.ndarray | None) -> np.ndarray:
     """The float32 value (1, 256, 3) of each 8-bit level of each channel after ``to_float`` and, when ``levels``
-    (2, 3) is given, :func:`~murk.physics.balance.apply_levels` (the same float32 operations, so looking a frame
+    (2, 3) is given, :func:`~murk.restore_ops.balance.apply_levels` (the same float32 operations, so looking a frame
     up in it is bit for bit the general path)."""
     ramp = np.repeat(_RAMP, 3, axis=2)
     return ramp if levels is None else apply_levels(ramp, levels)
 
 
 def frame_levels(frame_u8: np.ndarray, pct: float) -> np.ndarray:
-    """:func:`~murk.physics.balance.balance_levels` of ``to_float(frame_u8)`` (float32 (2, 3)), from the frame's
+    """:func:`~murk.restore_ops.balance.balance_levels` of ``to_float(frame_u8)`` (float32 (2, 3)), from the frame's
     8-bit sample (only the sampled pixels are converted; the same values, so the same levels)."""
     return sample_levels(to_float(np.ascontiguousarray(sample_of(frame_u8))), pct, pct)
 
