@@ -3,6 +3,7 @@ side by side with a previous one, and where the time of one frame goes.
 
 Run: PYTHONPATH=src python benchmarks/bench_hd.py [--baseline OLD_SRC] [--tree SRC] [--sizes 1280x720,1920x1080]
      [--methods lite,lite+post] [--rounds 5] [--threads 2] [--stages] [--file] [--live] [--codecs] [--seconds 10]
+     [--foxglove off,idle,subscribed]
 
 ``OLD_SRC`` is the ``src`` folder of the previous tree (``git archive COMMIT src | tar -x -C /tmp/old``). The
 clips are made here: MJPEG ``.avi`` files at 30 frames/s that pan one pixel a frame over the real underwater
@@ -17,7 +18,8 @@ photographs shipped in ``src/murk/data/underwater`` (a new photograph every 60 f
 - ``--live``: what ``murk live CLIP --loop --method M`` runs (the clip paced at its 30 frames/s, looped, the frame
   pipeline and the web server) with a client that pulls ``/api/frame?after=N`` as the page does, for
   ``--seconds`` after 2 s of warm-up: frames/s received and the median latency from capture to receipt.
-  Alternating trees as for ``--file``.
+  Alternating trees as for ``--file``. ``--foxglove off,idle,subscribed`` also runs it with ``murk live
+  --foxglove``'s publisher, with no client (idle) or a client subscribed to ``/murk/raw`` and ``/murk/restored``.
 - ``--stages``: this process's tree, stage by stage on one frame of each size, wall and CPU milliseconds (median
   of 15, after a warm-up): the previous float32 path's steps and this tree's 8-bit path's.
 - ``--codecs``: the writers ``murk enhance`` can write a video with (:class:`murk.io.video.VideoSink`: OpenCV's MJPEG
@@ -35,6 +37,7 @@ run.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import statistics
@@ -45,6 +48,7 @@ import threading
 import time
 import urllib.request
 from pathlib import Path
+from typing import Any
 
 FRAMES = 160
 FPS = 30.0
@@ -99,7 +103,40 @@ def worker_file(src: str, method: str, out: str, threads: int) -> dict[str, floa
     return {"fps": 140.0 / (t150 - t10), "cpu_ms": 1e3 * (c150 - c10) / 140.0, "processed": report.processed}
 
 
-def worker_live(src: str, method: str, seconds: float, threads: int) -> dict[str, float]:
+def _foxglove(mode: str) -> tuple[Any, Any]:
+    """``murk live --foxglove``'s publisher (``mode`` "idle": no client; "subscribed": a client subscribed to
+    ``/murk/raw`` and ``/murk/restored``, its messages read and dropped on a thread), or (None, None) for "off"."""
+    if mode == "off":
+        return None, None
+    from murk.live.foxglove_publisher import FoxglovePublisher
+
+    publisher = FoxglovePublisher("127.0.0.1", 0)
+    if mode == "idle":
+        return publisher, None
+    sys.path.insert(0, str(HERE.parents[1]))
+    from testkit.ws import WebSocket
+
+    ws = WebSocket(f"ws://127.0.0.1:{publisher.port}/", subprotocol="foxglove.sdk.v1", timeout_s=30)
+    channels: dict[str, int] = {}
+    while not {"/murk/raw", "/murk/restored"} <= set(channels):
+        opcode, payload = ws.recv()
+        if opcode == 1 and json.loads(payload).get("op") == "advertise":
+            channels |= {ch["topic"]: ch["id"] for ch in json.loads(payload)["channels"]}
+    subs = [{"id": i, "channelId": channels[t]} for i, t in enumerate(["/murk/raw", "/murk/restored"], 1)]
+    ws.send_text(json.dumps({"op": "subscribe", "subscriptions": subs}))
+    while len(publisher.subscribed()) < 2:
+        time.sleep(0.01)
+
+    def drain() -> None:
+        with contextlib.suppress(OSError, ValueError):
+            while True:
+                ws.recv()
+
+    threading.Thread(target=drain, daemon=True).start()
+    return publisher, ws
+
+
+def worker_live(src: str, method: str, seconds: float, threads: int, foxglove: str = "off") -> dict[str, float]:
     _threads(threads)
     from murk.enhance.restorer import create
     from murk.live.pipeline import LivePipeline
@@ -107,8 +144,11 @@ def worker_live(src: str, method: str, seconds: float, threads: int) -> dict[str
     from murk.live.source import PacedSource, open_live_source, reopener
 
     source = PacedSource(open_live_source(src), reopen=reopener(src, None), loop=True)
+    publisher, ws = _foxglove(foxglove)
     with tempfile.TemporaryDirectory() as tmp:
-        pipeline = LivePipeline(source, lambda s: create(s, shared={"device": "cpu", "batch": 1}), method, Path(tmp))
+        make = lambda s: create(s, shared={"device": "cpu", "batch": 1})  # noqa: E731
+        hooks = [publisher] if publisher is not None else []
+        pipeline = LivePipeline(source, make, method, Path(tmp), hooks=hooks)
         pipeline.start()
         server = LiveServer(pipeline, "127.0.0.1", 0, methods=method_table()).start()
         received: list[tuple[float, float]] = []  # (receipt s, latency ms)
@@ -135,6 +175,10 @@ def worker_live(src: str, method: str, seconds: float, threads: int) -> dict[str
         thread.join(15)
         server.stop()
         pipeline.stop()
+    if ws is not None:
+        ws.close()
+    if publisher is not None:
+        publisher.close()
     window = [lat for t, lat in received if t0 <= t < t1]
     return {
         "fps": len(window) / (t1 - t0),
@@ -329,6 +373,11 @@ def main() -> None:
     ap.add_argument("--sizes", default="1280x720,1920x1080")
     ap.add_argument("--methods", default="lite,lite+post")
     ap.add_argument("--live-methods", default="lite")
+    ap.add_argument(
+        "--foxglove",
+        default="off",
+        help="--live with murk live --foxglove: comma-separated modes off, idle (no client), subscribed (raw+restored)",
+    )
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--seconds", type=float, default=10.0)
@@ -394,11 +443,14 @@ def main() -> None:
             for r in range(max(1, args.rounds // 2)):
                 for (w, h), clip in clips.items():
                     for method in args.live_methods.split(","):
-                        for tree, path in trees.items() if r % 2 == 0 else reversed(trees.items()):
-                            res = run_worker(
-                                path, "live", args.threads, src=str(clip), method=method, seconds=args.seconds
-                            )
-                            figures_live.setdefault((w, h, method, tree), []).append(res)
+                        for fox in args.foxglove.split(","):
+                            for tree, path in trees.items() if r % 2 == 0 else reversed(trees.items()):
+                                kw: dict[str, object] = {"src": str(clip), "method": method, "seconds": args.seconds}
+                                if fox != "off":
+                                    kw["foxglove"] = fox
+                                res = run_worker(path, "live", args.threads, **kw)
+                                label = method if fox == "off" else f"{method} foxglove {fox}"
+                                figures_live.setdefault((w, h, label, tree), []).append(res)
                 print(f"live round {r + 1} done; {load()}", flush=True)
             print(f"\nmurk live, a client pulling /api/frame?after=N for {args.seconds:g} s (median of the rounds)")
             for (w, h, method, tree), runs in figures_live.items():

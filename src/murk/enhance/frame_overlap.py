@@ -67,6 +67,14 @@ def restore_threads(restorer: Restorer) -> int:
     return max(1, min(MAX_RESTORE_THREADS, os.cpu_count() or 1))
 
 
+def one_thread_suits(restorer: Restorer) -> bool:
+    """Whether ``restorer`` should run each call on one torch and OpenCV thread while other threads decode and encode
+    beside it (``murk live``: the capture and publish threads): a reentrant CPU method (:data:`REENTRANT`: ``lite``,
+    ``post`` and chains of them, with or without a ``temporal`` weight), whose steps are too short to gain from a
+    second thread that the decoder or the encoder holds. Heavier networks keep torch's threads."""
+    return reentrant(restorer) and _on_cpu(restorer)
+
+
 @contextlib.contextmanager
 def one_thread_per_call() -> Iterator[None]:
     """Inside: torch (when it is loaded) and OpenCV use one thread per call; their previous settings after."""

@@ -13,6 +13,13 @@ The method can be switched while running (:meth:`LivePipeline.set_method`): the 
 caller's thread (a bad method or option raises ``ValueError`` there and the running one stays) and swapped in
 between two frames; methods with a ``temporal`` weight start their average afresh.
 
+Threads: while the method is a light one (``lite``, ``post`` and chains of them:
+:func:`murk.enhance.frame_overlap.one_thread_suits`), torch and OpenCV run each call on one thread: the restore thread
+holds one core and the capture and publish threads the other. Split over two threads, every step of a 1920x1080
+``lite`` frame waited for the core the decoder or the JPEG encoder held (issue 48: 22.7 frames/s to the page
+against 30.0, and 19.9 against 29.9 with a Foxglove client subscribed; BENCHMARKS.md). Other methods keep the
+process's threads; the previous settings come back when the method changes or the pipeline stops.
+
 Publish: a third thread encodes the page's JPEG of each restored view (:meth:`LiveView.jpeg`), then hands the view
 to the readers and to the hooks, while the restore thread restores the next frame (issue 48: at 1920x1080 the
 page's JPEG costs about as much as restoring with ``lite``; in one thread the two costs added up). Newest wins here
@@ -38,6 +45,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from murk.enhance.frame_overlap import one_thread_per_call, one_thread_suits
 from murk.enhance.frames_u8 import restore_frames
 from murk.enhance.job import RESTORE_ERRORS
 from murk.enhance.options import parse_spec
@@ -210,6 +218,8 @@ class LivePipeline:
                     restorer, method = self._restorer, self.method
                 if restorer is not active:  # a new method: its average over time starts with this frame
                     sequence.close()
+                    if one_thread_suits(restorer):  # lite, post: one thread per call beside capture and publish
+                        sequence.enter_context(one_thread_per_call())
                     sequence.enter_context(restorer.sequence())
                     active = restorer
                 self._restore(frame, restorer, method)  # type: ignore[arg-type]
