@@ -98,7 +98,7 @@ def speed(checkpoint: str, repeats: int, spec: str = "jointid") -> dict[str, flo
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--method", choices=["jointid", "lite"], default="jointid")
+    ap.add_argument("--method", choices=["jointid", "lite", "water"], default="jointid")
     ap.add_argument("--options", default="", help="method options KEY=VALUE,... (e.g. refine=0.125)")
     ap.add_argument("--checkpoint", default=None, help="default: the shipped weights of --method")
     ap.add_argument("--scenes", type=int, default=64)
@@ -108,13 +108,14 @@ def main() -> None:
     ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
     args = ap.parse_args()
     if args.checkpoint is None:
-        args.checkpoint = str(shipped_jointid_weights() if args.method == "jointid" else shipped_lite_weights())
+        args.checkpoint = str(shipped_lite_weights() if args.method == "lite" else shipped_jointid_weights())
     torch.set_num_threads(2)
     spec = f"{args.method}?{args.options}" if args.options else args.method
     figures: dict[str, object] = {"method": spec, "checkpoint": args.checkpoint}
 
     data = heldout_scenes(args.scenes, args.heldout_balance_pct)
-    restorer = create(spec, checkpoint=args.checkpoint)
+    # water reads Joint-ID's weights through its base method (the shipped ones); --checkpoint is for the networks
+    restorer = create(spec) if args.method == "water" else create(spec, checkpoint=args.checkpoint)
     restorers = {"model": restorer}
     if args.heldout_balance_pct is not None:
         restorers["colorbalance"] = create("colorbalance")

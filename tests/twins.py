@@ -139,6 +139,14 @@ def _flat_in_batch(rng: np.random.Generator) -> Arrays:
 # --- the table ---------------------------------------------------------------------------------------------------
 
 
+def _water_inputs(rng: np.random.Generator) -> Arrays:
+    images = rng.uniform(0.0, 1.0, (2, 12, 16, 3)).astype(np.float32)
+    dist = rng.uniform(0.3, 12.0, (2, 12, 16)).astype(np.float32)
+    veil = rng.uniform(0.05, 1.2, (2, 3)).astype(np.float32)
+    att = rng.uniform(0.01, 0.8, (2, 3)).astype(np.float32)
+    return {"images": images, "dist": dist, "veil": veil, "att": att}
+
+
 def _table() -> dict[str, Twin]:
     from murk.enhance import equalize as eq
     from murk.enhance import log_filter, post
@@ -150,12 +158,24 @@ def _table() -> dict[str, Twin]:
     from murk.physics import camera, medium
     from murk.physics import forward_scatter as fs
     from murk.restore_ops import affine_transfer as at
-    from murk.restore_ops import balance
+    from murk.restore_ops import balance, water
     from murk.scenes.textures import TILE_PX, lookup_numpy, lookup_torch, noise_tile
     from murk.snow.composite import composite_snow, composite_snow_torch
 
     t = torch.from_numpy
     twins: dict[str, Twin] = {
+        "restore_ops.invert_eq1": Twin(
+            _water_inputs,
+            lambda x: {
+                "out": np.stack(
+                    [water.invert_eq1(x["images"][i], x["dist"][i], x["veil"][i], x["att"][i], 0.1) for i in range(2)]
+                )
+            },
+            lambda x: {
+                "out": water.invert_eq1_torch(t(x["images"]), t(x["dist"]), t(x["veil"]), t(x["att"]), 0.1).numpy()
+            },
+            atol=2e-6,
+        ),
         "physics.distance_map": Twin(
             _medium_inputs,
             lambda x: {"out": x["dist"]},  # made by the numpy twin in _medium_inputs

@@ -18,6 +18,7 @@ from murk.cli import snow as _snow
 from murk.cli import study as _study
 from murk.cli import synth as _synth
 from murk.cli import train as _train
+from murk.cli import water as _water
 from murk.cli._common import MurkGroup
 
 app = typer.Typer(
@@ -63,6 +64,7 @@ def _root(
 
 app.command("synth")(_synth.synth)
 app.add_typer(_snow.app, name="snow")
+app.add_typer(_water.app, name="water")
 app.command("scenes")(_scenes.scenes)
 app.command("train")(_train.train)
 app.command("study")(_study.study)

@@ -58,6 +58,12 @@ def shipped_lite_weights() -> Path:
     return _HERE / "models" / SHIPPED_LITE
 
 
+def shipped_water_weights() -> Path:
+    """Path of the water estimator shipped with murk (``water.npz``, :mod:`murk.models.water`; model card
+    ``docs/models/water.md``), read by the ``water`` method and ``murk water``."""
+    return _HERE / "models" / "water.npz"
+
+
 def default_snow_bank() -> Path:
     """Path of the default marine-snow particle bank shipped with murk (``builtin:snow``): the particles of
     :func:`real_footage_snow_bank` relit to a mean luma of 120-230 (``murk snow relight``; docs/snow.md)."""

@@ -54,6 +54,14 @@ def baseline_weights(*, checkpoint: str | Path | None = None, onnx: str | Path |
         _check_weights(checkpoint, None, runs_onnx=False)
 
 
+def water_weights(*, estimator: str | Path | None = None, **_: Any) -> None:
+    """Preflight of ``water``: a given estimator file is there."""
+    from murk.errors import InputFileError
+
+    if estimator is not None and not Path(estimator).is_file():
+        raise InputFileError(estimator, "water estimator weights not found")
+
+
 # ----------------------------------------------------------------------------- options several methods share
 
 DEVICE = opt("device", "str | torch.device", "cpu", "where it runs: cpu, cuda or cuda:N")
@@ -183,6 +191,29 @@ BUILTIN: tuple[Method | Preset, ...] = (
         help="the small real-time restorer (shipped weights; murk's default)",
         needs=NETWORK,
         preflight="murk.enhance.methods:network_weights",
+    ),
+    Method(
+        "water",
+        "murk.enhance.water_restorer:create_water",
+        (
+            opt(
+                "base", "str", "jointid", "the method that gives the distance map and the colour (jointid, jointid_net)"
+            ),
+            opt(
+                "strength",
+                "float",
+                0.25,
+                "share of Eq. (1)'s inversion applied (0: the base's colour only)",
+                low=0,
+                high=1,
+            ),
+            opt("t_min", "float", 0.1, "floor of the transmission exp(-a d) in the inversion", low=1e-3, high=1),
+            opt("estimator", "str | Path | None", None, "water estimator weights (.npz); default: shipped"),
+            DEVICE,
+        ),
+        help="Eq. (1) inverted with the estimated water and Joint-ID's distance, in the network's colour",
+        needs=("torch", "weights"),
+        preflight="murk.enhance.methods:water_weights",
     ),
     Method(
         "udaformer",

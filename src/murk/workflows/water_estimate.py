@@ -1,0 +1,74 @@
+"""``murk water estimate`` as a library call: the water of each image (veil colour, attenuation per channel,
+visibility in metres), estimated from the image and Joint-ID's distance map (:mod:`murk.models.water`).
+
+An image that cannot be read is one error record (the :mod:`murk.io.jobs` schema); the others are estimated.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from murk.io.jobs import ErrorRecord
+from murk.models.water import Water
+
+
+@dataclass(frozen=True)
+class WaterOfImage:
+    """One image's estimate and the median of its distance map (metres)."""
+
+    path: Path
+    water: Water
+    median_distance_m: float
+
+    def as_dict(self) -> dict[str, object]:
+        return {"image": str(self.path), **self.water.as_dict(), "median_distance_m": round(self.median_distance_m, 2)}
+
+
+def estimate_water(
+    paths: Sequence[Path],
+    *,
+    depth_method: str = "jointid_net",
+    estimator: Path | None = None,
+    on_image: Callable[[WaterOfImage | ErrorRecord], None] | None = None,
+) -> list[WaterOfImage | ErrorRecord]:
+    """Estimate the water of every image of ``paths`` (files, or folders of images), in order.
+
+    Raises:
+        InputFileError: the estimator file cannot be read.
+        ValueError: ``depth_method`` gives no distance map.
+    """
+    import numpy as np
+
+    from murk.enhance.restorer import create
+    from murk.io.images import list_images, read_rgb
+    from murk.models.water import load_water_estimator
+
+    model = load_water_estimator(estimator)
+    depth_net = create(depth_method)
+    files: list[Path] = []
+    results: list[WaterOfImage | ErrorRecord] = []
+    for p in paths:
+        if p.is_dir():
+            found = list_images(p, recursive=True)
+            files.extend(found)
+            if not found:
+                results.append(ErrorRecord(str(p), "list", f"{p}: folder holds no images"))
+        else:
+            files.append(p)
+    for path in files:
+        result: WaterOfImage | ErrorRecord
+        try:
+            image = read_rgb(path)
+        except (OSError, ValueError) as exc:
+            result = ErrorRecord(str(path), "read", str(exc))
+        else:
+            dist = depth_net.restore(image[None]).depth_m
+            if dist is None:
+                raise ValueError(f"depth_method: {depth_method!r} gives no distance map; use jointid_net")
+            result = WaterOfImage(path, model.estimate(image, dist[0]), float(np.median(dist[0])))
+        results.append(result)
+        if on_image is not None:
+            on_image(result)
+    return results

@@ -1,0 +1,101 @@
+"""The ``water`` method (Eq. (1) inverted with the estimated water and Joint-ID's distance, in the base's colour)
+and ``murk water estimate``, with a small estimator made here (the shipped one is tested in
+tests/models/test_water_estimator.py)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import torch
+from torch import nn
+from typer.testing import CliRunner
+
+from murk.cli.main import app
+from murk.data import sample_underwater_images
+from murk.enhance.restorer import create
+from murk.io import read_rgb, write_rgb
+from murk.models.water import WaterEstimator, load_water_estimator
+from murk.restore_ops.water import FEATURES, global_colour_map, invert_eq1
+from murk.train.water import water_network
+
+
+@pytest.fixture(scope="module")
+def estimator_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    torch.manual_seed(0)
+    layers = [m for m in water_network() if isinstance(m, nn.Linear)]
+    arrays = {"mu": np.zeros(FEATURES), "sd": np.ones(FEATURES)}
+    for k, layer in enumerate(layers, 1):
+        arrays[f"w{k}"] = layer.weight.detach().numpy().T.astype(np.float64)
+        arrays[f"b{k}"] = layer.bias.detach().numpy().astype(np.float64)
+    arrays["b3"][3:] = -1.0  # attenuation about exp(-1) = 0.37 /m: a visible inversion
+    path = tmp_path_factory.mktemp("water") / "water.npz"
+    WaterEstimator(arrays, meta={"test": True}).save(path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def image() -> np.ndarray:
+    img = read_rgb(sample_underwater_images()[0])
+    return cv2.resize(img, (96, 72), interpolation=cv2.INTER_AREA)
+
+
+def test_water_inverts_eq1_in_the_base_colour(estimator_file: Path, image: np.ndarray) -> None:
+    base = create("jointid").restore(image[None])
+    est = load_water_estimator(estimator_file)
+    for strength in (0.0, 0.25, 1.0):
+        out = create("water", estimator=str(estimator_file), strength=strength).restore(image[None])
+        water = est.estimate(image, base.depth_m[0])
+        inverted = invert_eq1(image, base.depth_m[0], np.asarray(water.veil), np.asarray(water.attenuation_per_m))
+        expect = global_colour_map(image + np.float32(strength) * (inverted - image), np.clip(base.images[0], 0, 1))
+        np.testing.assert_allclose(out.images[0], expect, atol=1e-6)
+        np.testing.assert_array_equal(out.depth_m, base.depth_m)
+    zero = create("water", estimator=str(estimator_file), strength=0.0).restore(image[None]).images[0]
+    np.testing.assert_allclose(zero, global_colour_map(image, np.clip(base.images[0], 0, 1)), atol=1e-6)
+
+
+def test_water_keeps_the_estimate_and_refuses_a_base_without_depth(estimator_file: Path, image: np.ndarray) -> None:
+    r = create("water", estimator=str(estimator_file))
+    r.restore(np.stack([image, image[::-1]]))
+    assert len(r.last_water) == 2 and r.last_water[0].visibility_m > 0
+    with pytest.raises(ValueError, match="no distance map"):
+        create("water", estimator=str(estimator_file), base="lite").restore(image[None])
+
+
+def test_murk_enhance_runs_water_and_checks_its_options(
+    estimator_file: Path, image: np.ndarray, tmp_path: Path
+) -> None:
+    write_rgb(tmp_path / "in.png", image)
+    spec = f"water?strength=0.5,estimator={estimator_file}"
+    res = CliRunner().invoke(app, ["enhance", str(tmp_path / "in.png"), "-o", str(tmp_path / "out.png"), "-m", spec])
+    assert res.exit_code == 0, res.output
+    assert read_rgb(tmp_path / "out.png").shape == image.shape
+    bad = CliRunner().invoke(
+        app, ["enhance", str(tmp_path / "in.png"), "-o", str(tmp_path / "x.png"), "-m", "water?strength=2"]
+    )
+    assert bad.exit_code == 2 and "strength" in bad.output
+    gone = CliRunner().invoke(
+        app, ["enhance", str(tmp_path / "in.png"), "-o", str(tmp_path / "x.png"), "-m", "water?estimator=/no/w.npz"]
+    )
+    assert gone.exit_code == 2 and "/no/w.npz" in gone.output
+
+
+def test_murk_water_estimate_reports_every_image_and_names_a_broken_one(
+    estimator_file: Path, image: np.ndarray, tmp_path: Path
+) -> None:
+    write_rgb(tmp_path / "a.png", image)
+    (tmp_path / "broken.png").write_bytes(b"no image")
+    out = tmp_path / "water.jsonl"
+    res = CliRunner().invoke(
+        app,
+        ["water", "estimate", str(tmp_path / "a.png"), str(tmp_path / "broken.png"), "--json", str(out),
+         "--estimator", str(estimator_file)],
+    )  # fmt: skip
+    assert res.exit_code == 1
+    assert "broken.png" in res.output and "visibility" in res.output
+    rows = [json.loads(line) for line in out.read_text().splitlines()]
+    assert len(rows) == 1 and rows[0]["image"].endswith("a.png")
+    assert len(rows[0]["veil_rgb"]) == 3 and rows[0]["visibility_m"] > 0
