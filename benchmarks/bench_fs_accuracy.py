@@ -23,7 +23,7 @@ from murk.data import sample_rgbd_dir  # noqa: E402
 from murk.io import DepthOptions, discover, load_pair  # noqa: E402
 from murk.synth.config import SynthConfig  # noqa: E402
 from murk.synth.params import sample_variant  # noqa: E402
-from murk.synth.pipeline import render  # noqa: E402
+from murk.synth.render import render  # noqa: E402
 
 
 def main() -> None:

@@ -37,7 +37,7 @@ from murk.io.images import png_params, to_uint  # noqa: E402
 from murk.io.png import encode_png_isal  # noqa: E402
 from murk.synth.config import SynthConfig  # noqa: E402
 from murk.synth.params import sample_variant  # noqa: E402
-from murk.synth.pipeline import render  # noqa: E402
+from murk.synth.render import render  # noqa: E402
 
 CANDIDATES: dict[str, list[int]] = {
     "murk before (l3, libpng defaults)": [cv2.IMWRITE_PNG_COMPRESSION, 3],

@@ -97,7 +97,7 @@ def synth_site_stats(config_path: Path, variants: int) -> tuple[dict[str, np.nda
     from murk.snow.bank import load_bank
     from murk.synth.config import SynthConfig
     from murk.synth.params import sample_variant, snow_sampler_for
-    from murk.synth.pipeline import render
+    from murk.synth.render import render
 
     cfg = load_yaml(SynthConfig, config_path)
     if "marine_snow" not in cfg.stages:

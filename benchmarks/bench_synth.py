@@ -28,7 +28,7 @@ from murk.data import sample_rgbd_dir  # noqa: E402
 from murk.io import DepthOptions, discover, load_pair  # noqa: E402
 from murk.synth.config import SynthConfig  # noqa: E402
 from murk.synth.params import sample_variant  # noqa: E402
-from murk.synth.pipeline import render, render_batch_torch  # noqa: E402
+from murk.synth.render import render, render_batch_torch  # noqa: E402
 
 
 def baseline(clean_u8: np.ndarray, depth_mm: np.ndarray, p, forward_scatter: bool) -> np.ndarray:

@@ -20,9 +20,9 @@ from murk._version import __version__
 
 _LAZY = {
     # synthesis
-    "synthesize": "murk.synth.pipeline",
-    "render": "murk.synth.pipeline",
-    "render_batch_torch": "murk.synth.pipeline",
+    "synthesize": "murk.synth.render",
+    "render": "murk.synth.render",
+    "render_batch_torch": "murk.synth.render",
     "sample_variant": "murk.synth.params",
     "SynthConfig": "murk.synth.config",
     "run_synthesis": "murk.synth.runner",

@@ -22,7 +22,7 @@ from murk.snow.composite import (
 )
 from murk.synth.config import SnowConfig, SynthConfig
 from murk.synth.params import sample_variant, snow_sampler_for
-from murk.synth.pipeline import render, render_batch_torch
+from murk.synth.render import render, render_batch_torch
 
 from .conftest import make_bank
 

@@ -16,7 +16,7 @@ from murk.snow.bank import load_bank
 from murk.synth.common import Shard, depth_range_note, fit_size
 from murk.synth.config import SynthConfig
 from murk.synth.params import variant_from_dict
-from murk.synth.pipeline import render
+from murk.synth.render import render
 from murk.synth.runner import run_synthesis
 
 

@@ -10,7 +10,7 @@ from murk._config import merge
 from murk.errors import InputFileError
 from murk.io import DepthOptions, discover
 from murk.synth.config import SynthConfig
-from murk.synth.pipeline import render
+from murk.synth.render import render
 from murk.synth.runner import run_synthesis
 from murk.train.augment import AugmentConfig, AugmentParams, apply_augment, centre_crop, sample_augment
 from murk.train.data import (

@@ -1,7 +1,7 @@
 """Sampled parameters of one synthetic variant, and the sampling step (randomness lives only here).
 
 ``params = sample_variant(rng, config)`` draws everything random; ``render(clean, depth, params)`` in
-:mod:`murk.synth.pipeline` is then deterministic. A variant's parameters are JSON-serialisable (they form its
+:mod:`murk.synth.render` is then deterministic. A variant's parameters are JSON-serialisable (they form its
 ``manifest.jsonl`` line) and :func:`variant_from_dict` rebuilds them, so any variant can be re-rendered
 exactly from its manifest line.
 """

@@ -64,7 +64,7 @@ from murk.synth.common import (
 )
 from murk.synth.config import SynthConfig
 from murk.synth.params import sample_variant, snow_sampler_for
-from murk.synth.pipeline import depth_range, render
+from murk.synth.render import depth_range, render
 
 DataFormat = Literal["files", "webdataset"]
 """``murk synth --format``: loose PNG folders or tar shards (:mod:`murk.synth.shards`)."""

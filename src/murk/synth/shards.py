@@ -175,7 +175,7 @@ def render_source_samples(
     depth-range note).
     """
     from murk.synth.params import sample_variant, snow_sampler_for
-    from murk.synth.pipeline import depth_range, render
+    from murk.synth.render import depth_range, render
 
     try:
         rgb, depth, valid = load_source(source, config)

@@ -256,8 +256,8 @@ class OnlineDegrader:
         return self.render(clean, depth_filled, epoch, indices).degraded
 
     def render(self, clean: torch.Tensor, depth_filled: torch.Tensor, epoch: int, indices: Sequence[int]) -> Any:
-        """The whole rendered batch (:class:`murk.synth.pipeline.BatchResult`: the degraded inputs and, with marine
+        """The whole rendered batch (:class:`murk.synth.render.BatchResult`: the degraded inputs and, with marine
         snow, each input's particle alpha, which ``loss.snow`` weights)."""
-        from murk.synth.pipeline import render_batch_torch
+        from murk.synth.render import render_batch_torch
 
         return render_batch_torch(clean, depth_filled, self.params(epoch, indices), bank=self.bank)

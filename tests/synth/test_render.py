@@ -11,7 +11,7 @@ from murk.snow.bank import load_bank
 from murk.snow.composite import sample_snow
 from murk.synth.config import SynthConfig
 from murk.synth.params import sample_variant
-from murk.synth.pipeline import depth_range, render, render_batch_torch
+from murk.synth.render import depth_range, render, render_batch_torch
 
 
 @pytest.fixture(scope="module")
