@@ -139,7 +139,7 @@ def _foxglove(mode: str) -> tuple[Any, Any]:
 def worker_live(src: str, method: str, seconds: float, threads: int, foxglove: str = "off") -> dict[str, float]:
     _threads(threads)
     from murk.enhance.restorer import create
-    from murk.live.pipeline import LivePipeline
+    from murk.live.restore_loop import LivePipeline
     from murk.live.server import LiveServer, method_table
     from murk.live.source import PacedSource, open_live_source, reopener
 
@@ -237,7 +237,7 @@ def stages(sizes: list[tuple[int, int]], threads: int, tmp: Path) -> None:
     from murk.enhance.restorer import create
     from murk.io.images import swap_red_blue, to_float, to_uint
     from murk.io.video import VideoSink
-    from murk.live.pipeline import encode_jpeg, page_pair
+    from murk.live.restore_loop import encode_jpeg, page_pair
     from murk.models.lite.network import work_image, work_size
     from murk.restore_ops.balance import apply_levels, balance_levels
 

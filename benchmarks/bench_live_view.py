@@ -7,7 +7,7 @@ Run: PYTHONPATH=src python benchmarks/bench_live_view.py [--seconds 10] [--threa
 Per size and method:
 
 1. live: a 30 frames/s MJPEG clip of the shipped underwater samples (panning), played at its own rate and
-   looped, through :class:`murk.live.pipeline.LivePipeline` and :class:`murk.live.server.LiveServer` (what
+   looped, through :class:`murk.live.restore_loop.LivePipeline` and :class:`murk.live.server.LiveServer` (what
    ``murk live`` runs), watched by Debian's headless Chromium on the same machine (driven over the DevTools
    protocol, testkit/chromium.py). Measured in the page over ``--seconds`` after a warm-up: frames drawn per
    second, the median glass-to-page latency (capture time -> frame decoded in the page), frames dropped before
@@ -35,7 +35,7 @@ from _common import machine
 from murk.enhance.pipeline import OutputOptions, enhance_frames
 from murk.enhance.restorer import create
 from murk.io.video import CaptureSource
-from murk.live.pipeline import LivePipeline
+from murk.live.restore_loop import LivePipeline
 from murk.live.server import LiveServer, method_table
 from murk.live.source import PacedSource, open_live_source, reopener
 from testkit.chromium import chromium

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from murk.enhance.restorer import Restored, Restorer, create
-from murk.live.pipeline import LivePipeline, LiveView
+from murk.live.restore_loop import LivePipeline, LiveView
 from murk.live.source import LiveFrame, PacedSource, open_live_source, reopener
 from testkit.video import make_video
 

@@ -17,7 +17,7 @@ pytest.importorskip("foxglove")
 pytest.importorskip("rosbags")
 
 from murk.live.foxglove_publisher import TOPICS, FoxglovePublisher
-from murk.live.pipeline import LivePipeline
+from murk.live.restore_loop import LivePipeline
 from murk.live.source import PacedSource, open_live_source
 from testkit.ws import WebSocket
 from tests._rosbags import BagBuilder, frames, stamp_ns

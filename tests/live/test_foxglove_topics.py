@@ -12,7 +12,7 @@ import pytest
 pytest.importorskip("foxglove")
 
 from murk.live.foxglove_publisher import FoxglovePublisher
-from murk.live.pipeline import LiveView
+from murk.live.restore_loop import LiveView
 
 
 class _Channel:

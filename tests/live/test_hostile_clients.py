@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from murk.live import outputs
-from murk.live.pipeline import LivePipeline
+from murk.live.restore_loop import LivePipeline
 from murk.live.run import LiveOptions, run_live
 from murk.live.server import LiveServer
 from tests.live._live import WAIT_S, clip, pipeline

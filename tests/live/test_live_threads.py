@@ -14,7 +14,7 @@ import torch
 from murk.enhance.frame_overlap import one_thread_suits
 from murk.enhance.post import PostRestorer
 from murk.enhance.restorer import Restored, Restorer, create
-from murk.live.pipeline import LivePipeline
+from murk.live.restore_loop import LivePipeline
 from murk.live.source import PacedSource, open_live_source, reopener
 from tests.live._live import WAIT_S, clip
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from murk.enhance.preview import colorize_depth
 from murk.io.images import to_uint
-from murk.live.pipeline import LiveView, encode_jpeg
+from murk.live.restore_loop import LiveView, encode_jpeg
 
 TOPICS = {"raw": "/murk/raw", "restored": "/murk/restored", "depth": "/murk/depth"}
 INSTALL_HINT = "--foxglove needs the optional 'foxglove' extra: pip install 'murk[foxglove]' (foxglove-sdk)"

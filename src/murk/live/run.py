@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from murk.live.pipeline import FrameHook, LivePipeline
+from murk.live.restore_loop import FrameHook, LivePipeline
 from murk.live.server import LiveServer, method_table
 from murk.live.source import PacedSource, describe, open_live_source, reopener
 

@@ -44,7 +44,7 @@ from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
 from murk.live.page import asset
-from murk.live.pipeline import LivePipeline
+from murk.live.restore_loop import LivePipeline
 
 FRAME_WAIT_S = 2.0
 """How long ``/api/frame`` waits for a newer frame before answering 204."""

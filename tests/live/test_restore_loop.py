@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
-from murk.live.pipeline import PAGE_WIDTH_PX, LivePipeline, LiveView, page_pair
+from murk.live.restore_loop import PAGE_WIDTH_PX, LivePipeline, LiveView, page_pair
 from testkit.video import read_video
 from tests.live._live import WAIT_S, BurstRestorer, WatchedSource, clip, make_restorer, pipeline
 
