@@ -29,8 +29,8 @@ import torch
 from _common import Figure, Recorder
 
 from murk.data import sample_underwater_images
-from murk.enhance.pipeline import OutputOptions, enhance_frames
-from murk.enhance.pipeline import restore_batch as _restore
+from murk.enhance.api import OutputOptions, enhance_frames
+from murk.enhance.api import restore_batch as _restore
 from murk.enhance.post import PostRestorer, post_process, post_process_torch
 from murk.io import read_rgb
 from murk.io.video import CaptureSource

@@ -84,7 +84,7 @@ def _threads(n: int) -> None:
 
 def worker_file(src: str, method: str, out: str, threads: int) -> dict[str, float]:
     _threads(threads)
-    from murk.enhance.pipeline import OutputOptions, enhance_frames
+    from murk.enhance.api import OutputOptions, enhance_frames
     from murk.enhance.restorer import create
     from murk.io.video import CaptureSource
 

@@ -2,7 +2,7 @@
 
 Run: PYTHONPATH=src python benchmarks/bench_live.py [--frames 300] [--threads 2] [--methods lite,lite+post,post]
 
-Two measurements per method, both through :func:`murk.enhance.pipeline.enhance_frames` (the function behind
+Two measurements per method, both through :func:`murk.enhance.api.enhance_frames` (the function behind
 ``murk enhance``) with the shipped weights:
 
 1. a 640x480 MJPEG ``.avi`` file -> ``.avi`` (as fast as possible): frames/s end to end, and the wall time per
@@ -39,7 +39,7 @@ import torch
 from _common import machine
 
 from murk.data import sample_underwater_images
-from murk.enhance.pipeline import EnhanceReport, OutputOptions, enhance_frames
+from murk.enhance.api import EnhanceReport, OutputOptions, enhance_frames
 from murk.enhance.restorer import create
 from murk.io import read_rgb
 from murk.io.video import CaptureSource

@@ -32,7 +32,7 @@ import cv2
 import torch
 from _common import machine
 
-from murk.enhance.pipeline import OutputOptions, enhance_frames
+from murk.enhance.api import OutputOptions, enhance_frames
 from murk.enhance.restorer import create
 from murk.io.video import CaptureSource
 from murk.live.restore_loop import LivePipeline

@@ -7,7 +7,7 @@ Needs the ``ros`` extra (rosbags). CPU, ONE core (cv2.setNumThreads(1), torch.se
 ROS 2 MCAP bag of JPEG CompressedImages, and (the baselines) a folder of PNG files (lossless, like raw Images) and
 a folder of JPEG files (like CompressedImages). Each is restored end to end with the ``post`` method by the
 library function ``murk enhance`` calls (:func:`murk.enhance.bag.enhance_bag_to_bag`,
-:func:`murk.enhance.pipeline.enhance_images`), output in the same form (bag -> bag, files -> files), in
+:func:`murk.enhance.api.enhance_images`), output in the same form (bag -> bag, files -> files), in
 alternating rounds; the figure is the median frames/s over the rounds, the ratio bag / files of the same
 encoding.
 """
@@ -29,8 +29,8 @@ import numpy as np
 from _common import machine, pin_one_core
 
 from murk.data import sample_underwater_images
+from murk.enhance.api import OutputOptions, enhance_images, plan_images, resolve_input
 from murk.enhance.bag import enhance_bag_to_bag
-from murk.enhance.pipeline import OutputOptions, enhance_images, plan_images, resolve_input
 from murk.enhance.post import PostRestorer
 from murk.io.images import read_rgb, to_uint
 

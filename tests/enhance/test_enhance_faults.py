@@ -11,7 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 from murk.cli.main import app
-from murk.enhance.pipeline import OutputOptions, enhance_frames
+from murk.enhance.api import OutputOptions, enhance_frames
 from murk.enhance.post import PostRestorer
 from murk.io import read_jsonl
 from murk.io import video as video_mod

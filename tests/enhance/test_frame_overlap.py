@@ -12,10 +12,10 @@ import pytest
 
 from murk.data import sample_underwater_images
 from murk.enhance import frame_job
+from murk.enhance.api import OutputOptions, enhance_frames
 from murk.enhance.frame_overlap import InOrder, one_thread_per_call, reentrant, restore_threads
 from murk.enhance.frames_u8 import restore_frames
-from murk.enhance.job import restore_batch
-from murk.enhance.pipeline import OutputOptions, enhance_frames
+from murk.enhance.job_common import restore_batch
 from murk.enhance.post import PostRestorer
 from murk.enhance.restorer import Chain, Restored, Restorer, create
 from murk.io import read_jsonl

@@ -17,7 +17,7 @@ import torch.nn.functional as F
 from murk.data import sample_underwater_images
 from murk.enhance import lite_u8
 from murk.enhance.frames_u8 import alone_takes_u8, restore_frames, to_u8
-from murk.enhance.job import restore_batch
+from murk.enhance.job_common import restore_batch
 from murk.enhance.post import POST_PRESETS, PostParams, post_process, post_process_strips
 from murk.enhance.restorer import create
 from murk.io import read_rgb
@@ -139,7 +139,7 @@ def test_post_strips_use_the_tables_hook() -> None:
 
 def test_enhance_writes_every_frame_in_order(tmp_path: Path) -> None:
     """File to file: every frame restored from its own input, none lost or reordered (lossless PNG outputs)."""
-    from murk.enhance.pipeline import OutputOptions, enhance_frames
+    from murk.enhance.api import OutputOptions, enhance_frames
     from murk.io.video import CaptureSource
 
     clip = tmp_path / "clip.avi"

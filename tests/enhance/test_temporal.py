@@ -13,7 +13,7 @@ import torch
 
 from murk.enhance.equalize import equalize_lut
 from murk.enhance.frame_job import enhance_frames
-from murk.enhance.job import OutputOptions
+from murk.enhance.job_common import OutputOptions
 from murk.enhance.post import PostRestorer, post_process, post_process_torch
 from murk.enhance.restorer import create
 from murk.enhance.temporal import FrameEMA

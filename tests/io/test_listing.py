@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 import pytest
 
-from murk.enhance.pipeline import resolve_input
+from murk.enhance.api import resolve_input
 from murk.io import list_images
 from murk.io.listing import describe_unusable, glob_files, is_folder_loop, real_path, walk_files
 

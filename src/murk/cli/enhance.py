@@ -210,7 +210,7 @@ def enhance(
     Prints processed/skipped/failed counts, frames per second and read/restore/write milliseconds per frame.
     Unreadable inputs go to errors.jsonl in the output folder (exit code 1); reruns skip finished outputs.
     """
-    from murk.enhance.job import OutputOptions
+    from murk.enhance.job_common import OutputOptions
     from murk.enhance.restorer import check, create
     from murk.enhance.run import BagOptions, run_enhance, weights_line
 

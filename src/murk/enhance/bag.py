@@ -9,7 +9,7 @@ metres; and, when asked, other topics copied unchanged (``camera_info``: every `
 topic; ``all``: every topic).
 
 Frames output (:func:`enhance_bag_to_frames`): numbered images ``<bag>_<index:06d>.<format>`` written by
-:func:`murk.enhance.pipeline.enhance_frames` (same depth outputs, same per-frame resume) plus ``frames.jsonl``
+:func:`murk.enhance.api.enhance_frames` (same depth outputs, same per-frame resume) plus ``frames.jsonl``
 (one line per written image: ``file_name``, ``index``, ``message``, ``stamp_ns``, ``frame_id``,
 ``log_time_ns``, ``topic``), rewritten atomically at the end of every run.
 
@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from murk.enhance.frame_job import enhance_frames
-from murk.enhance.job import EnhanceReport, OutputOptions, ProgressFn, StopFn, restore_batch, should_end
+from murk.enhance.job_common import EnhanceReport, OutputOptions, ProgressFn, StopFn, restore_batch, should_end
 from murk.enhance.preview import side_by_side
 from murk.enhance.restorer import Restorer
 from murk.errors import InputFileError

@@ -18,7 +18,7 @@ import numpy as np
 
 from murk.enhance.frame_overlap import InOrder, one_thread_per_call, restore_threads
 from murk.enhance.frames_u8 import restore_frames, to_u8
-from murk.enhance.job import (
+from murk.enhance.job_common import (
     INPUT_ERRORS,
     RESTORE_ERRORS,
     EnhanceReport,

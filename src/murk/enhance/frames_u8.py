@@ -2,7 +2,7 @@
 ``murk live`` write and show (issue 48).
 
 :func:`restore_frames` gives the same frames as converting to float32 (:func:`murk.io.images.to_float`),
-restoring (:func:`murk.enhance.job.restore_batch`) and converting back (:func:`to_u8`), within one grey level,
+restoring (:func:`murk.enhance.job_common.restore_batch`) and converting back (:func:`to_u8`), within one grey level,
 but lets a method take the 8-bit frames itself: a restorer (or the first stage of a chain) with a ``restore_u8``
 method (``lite``: :mod:`murk.enhance.lite_u8`) restores them without float32 copies of the frame, and the stages
 after it take its float32 output as in a chain. A method without one, on CUDA, or a frame it declines, takes the
@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from murk.enhance.job import restore_batch
+from murk.enhance.job_common import restore_batch
 from murk.enhance.restorer import Restored, Restorer, device_type
 from murk.io.images import to_float
 
@@ -44,7 +44,7 @@ def restore_frames(restorer: Restorer, frames: np.ndarray) -> Restored:
     (``Restored.images`` uint8; ``depth_m`` as the method gives it).
 
     Raises:
-        what :func:`murk.enhance.job.restore_batch` raises.
+        what :func:`murk.enhance.job_common.restore_batch` raises.
     """
     if frames.dtype == np.uint8 and device_type(restorer) == "cpu":
         stages: list[Any] = list(getattr(restorer, "stages", [restorer]))

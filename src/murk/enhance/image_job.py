@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from murk.enhance.inputs import ImageJob
-from murk.enhance.job import (
+from murk.enhance.job_common import (
     INPUT_ERRORS,
     RESTORE_ERRORS,
     SIXTEEN_BIT_SUFFIXES,

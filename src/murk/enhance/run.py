@@ -13,7 +13,7 @@ from murk.enhance.bag import BagOptions
 from murk.enhance.frame_job import enhance_frames
 from murk.enhance.image_job import enhance_images
 from murk.enhance.inputs import EnhanceInput, plan_images, resolve_input
-from murk.enhance.job import EnhanceReport, OutputOptions, StopFn
+from murk.enhance.job_common import EnhanceReport, OutputOptions, StopFn
 from murk.enhance.restorer import Restorer, weights_used
 
 

@@ -4,7 +4,7 @@ Capture: :class:`murk.io.readahead.ReadAhead` over a :class:`murk.live.source.Pa
 (``drop_late``): only the newest captured frame waits; when restoration is slower than the source, the frame
 that was waiting is replaced and counted as dropped. Nothing is ever queued without bound.
 
-Restore: one thread restores each frame it takes with the current method (:func:`murk.enhance.job.
+Restore: one thread restores each frame it takes with the current method (:func:`murk.enhance.job_common.
 restore_batch`, as ``murk enhance`` does) and publishes a :class:`LiveView` (raw and restored uint8, depth,
 stamps). Readers (the web server, one thread per page) wait for a view newer than the one they have
 (:meth:`LivePipeline.wait_view`) and so also skip frames when they are slower: newest wins everywhere.
@@ -47,7 +47,7 @@ import numpy as np
 
 from murk.enhance.frame_overlap import one_thread_per_call, one_thread_suits
 from murk.enhance.frames_u8 import restore_frames
-from murk.enhance.job import RESTORE_ERRORS
+from murk.enhance.job_common import RESTORE_ERRORS
 from murk.enhance.options import parse_spec
 from murk.enhance.restorer import Restorer
 from murk.io.images import swap_red_blue, to_float, to_uint

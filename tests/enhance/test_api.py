@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
-from murk.enhance.pipeline import (
+from murk.enhance.api import (
     OutputOptions,
     enhance_frames,
     enhance_images,

@@ -1,7 +1,7 @@
 """Running a restorer over images, video files and live streams (what ``murk enhance`` delegates to).
 
 This module gathers the public names of the modules that do the work, one job each: :mod:`murk.enhance.inputs`
-(input classification, output planning), :mod:`murk.enhance.job` (options, report, restore call, depth outputs),
+(input classification, output planning), :mod:`murk.enhance.job_common` (options, report, restore call, depth outputs),
 :mod:`murk.enhance.image_job` (image files) and :mod:`murk.enhance.frame_job` (videos, cameras, streams).
 
 Inputs: an image, a folder of images (optionally recursive), a glob, a video file, a camera index or a stream
@@ -28,7 +28,7 @@ seconds, reported as milliseconds per frame, and frames per second over the wall
 from murk.enhance.frame_job import enhance_frames
 from murk.enhance.image_job import enhance_images
 from murk.enhance.inputs import EnhanceInput, ImageFormat, ImageJob, InputKind, plan_images, resolve_input
-from murk.enhance.job import (
+from murk.enhance.job_common import (
     SIXTEEN_BIT_SUFFIXES,
     EnhanceReport,
     OutputOptions,
