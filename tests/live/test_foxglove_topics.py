@@ -54,3 +54,27 @@ def test_only_subscribed_topics_are_encoded_and_published(subscribed: tuple[str,
             assert view.jpeg("restored", publisher.quality) in channels["restored"].logged[0][0].encode()
     finally:
         publisher.close()
+
+
+@pytest.mark.parametrize("subscribed", [(), ("raw",), ("raw", "restored", "depth")])
+def test_the_subscribed_images_are_the_pages_own_jpegs(subscribed: tuple[str, ...]) -> None:
+    """Issue 48, point 5: a subscribed /murk/raw or /murk/restored is encoded once per view and the page shows the
+    same JPEG (full_views tells the publish thread which); at another quality than the page's, none is shared."""
+    publisher = FoxglovePublisher("127.0.0.1", 0)
+    try:
+        channels = {key: _Channel(key in subscribed) for key in ("raw", "restored", "depth")}
+        publisher._channels = channels  # type: ignore[assignment]
+        full = publisher.full_views()
+        assert set(full) == set(subscribed) - {"depth"}
+        rgb = np.random.default_rng(0).integers(0, 256, (1080, 1920, 3), dtype=np.uint8)
+        view = LiveView(3, rgb, 255 - rgb, None, 1, 5, 2, "lite")
+        page = dict(zip(("raw", "restored"), view.page_jpegs(full), strict=True))
+        publisher(view)
+        for key in ("raw", "restored"):
+            if key in subscribed:
+                assert page[key] is view.jpeg(key) and page[key] in channels[key].logged[0][0].encode()
+        assert {k for k in view._jpeg if ":" in k} == {f"{k}:85" for k in full}  # none encoded twice
+        publisher.quality = 70
+        assert not publisher.full_views()
+    finally:
+        publisher.close()

@@ -114,6 +114,61 @@ def test_live_page_in_chromium(tmp_path: Path) -> None:
         shutil.copyfile(shot, DOCS_IMAGE)
 
 
+class _SharesRestored:
+    """A hook like the Foxglove publisher with a client subscribed to /murk/restored: publishes its full JPEG."""
+
+    def __init__(self) -> None:
+        self.published: dict[int, bytes] = {}
+
+    def full_views(self) -> list[str]:
+        return ["restored"]
+
+    def __call__(self, view) -> None:
+        self.published[view.index] = view.jpeg("restored")
+
+
+@pytest.mark.browser
+@pytest.mark.skipif(CHROMIUM is None, reason="no Chromium on this machine (make browser-test installs it)")
+def test_the_page_at_1920x1080_shows_the_jpegs_foxglove_publishes(tmp_path: Path) -> None:
+    """Issue 48, point 5: at 1920x1080 the page shows raw at 960x540 and the restored JPEG a Foxglove client gets at
+    full resolution (encoded once for both); both layouts, the snapshot and the recording work at that size."""
+    out, hook = tmp_path / "out", _SharesRestored()
+    clip = underwater_clip(tmp_path / "hd.avi", n=20, w=1920, h=1080)
+    p = pipeline(clip, out, "post", loop=True, hooks=[hook]).start()
+    server = LiveServer(p, "127.0.0.1", 0, methods=method_table()).start()
+    try:
+        with chromium(tmp_path / "profile") as open_page:
+            page = open_page(server.url)
+            page.wait_for("window.murkStats && murkStats.frames >= 5", timeout_s=120)
+            size = "[document.getElementById('{}').width, document.getElementById('{}').height]"
+            assert page.evaluate(size.format("raw", "raw")) == [960, 540]
+            assert page.evaluate(size.format("restored", "restored")) == [1920, 1080]
+            shown = p.latest()
+            assert shown is not None and shown.page_jpegs()[1] is hook.published.get(
+                shown.index, shown.jpeg("restored")
+            )
+            page.evaluate("document.querySelector('input[name=layout][value=split]').click()")
+            assert page.evaluate(size.format("split-canvas", "split-canvas")) == [1920, 1080]
+            page.evaluate("document.getElementById('snapshot').click()")
+            page.wait_for("document.getElementById('message').textContent.includes('saved')")
+            sidecar = json.loads(next(out.glob("snapshot_*.json")).read_text())
+            assert sidecar["size"] == [1920, 1080]
+            for key in ("raw", "restored"):
+                assert cv2.imread(str(out / sidecar["files"][key])).shape == (1080, 1920, 3)
+            page.evaluate("document.getElementById('record').click()")
+            page.wait_for("document.getElementById('record').getAttribute('aria-pressed') === 'true'")
+            seen = page.evaluate("murkStats.lastFrame")
+            page.wait_for(f"murkStats.lastFrame > {seen} + 5", timeout_s=60)
+            page.evaluate("document.getElementById('record').click()")
+            page.wait_for("document.getElementById('message').textContent.includes('recording saved')")
+            frames = read_video(next(out.glob("recording_*")))
+            assert len(frames) >= 5 and frames[0].shape == (1080, 1920, 3)
+            assert page.evaluate("murkStats.errors") == 0
+    finally:
+        server.stop()
+        p.stop()
+
+
 @pytest.mark.browser
 @pytest.mark.skipif(CHROMIUM is None, reason="no Chromium on this machine (make browser-test installs it)")
 def test_the_page_says_why_a_recording_stopped(tmp_path: Path, monkeypatch) -> None:

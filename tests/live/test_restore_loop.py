@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
-from murk.live.restore_loop import PAGE_WIDTH_PX, LivePipeline, LiveView, page_pair
+from murk.live.restore_loop import PAGE_IMAGE_PX, PAGE_WIDTH_PX, LivePipeline, LiveView, page_pair
 from testkit.video import read_video
 from tests.live._live import WAIT_S, BurstRestorer, WatchedSource, clip, make_restorer, pipeline
 
@@ -187,3 +187,59 @@ def test_page_pair_is_encoded_at_most_page_width() -> None:
     assert decoded.shape == (540, 1920, 3)
     assert cv2.imdecode(np.frombuffer(view.jpeg("restored"), np.uint8), cv2.IMREAD_COLOR).shape == (1080, 1920, 3)
     assert view.jpeg("pair") is view.jpeg("pair")  # encoded once, shared
+
+
+def _shape(jpeg: bytes) -> tuple[int, ...]:
+    return cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR).shape
+
+
+def test_the_page_gets_raw_and_restored_at_most_half_the_page_wide_or_the_shared_full_jpegs() -> None:
+    """Issue 48, point 5: the page's two JPEGs of a 1920x1080 frame are 960x540 each; one that a hook publishes at
+    full resolution (Foxglove) is that very JPEG, encoded once for both; a 640x480 frame's are its own JPEGs."""
+    rng = np.random.default_rng(1)
+    raw, restored = (rng.integers(0, 256, (1080, 1920, 3), dtype=np.uint8) for _ in range(2))
+    view = LiveView(0, raw, restored, None, 0, 0, 0, "lite")
+    page_raw, page_restored = view.page_jpegs()
+    assert _shape(page_raw) == _shape(page_restored) == (540, PAGE_IMAGE_PX, 3) and PAGE_IMAGE_PX == 960
+    assert view.page_jpegs(("raw", "restored")) == (page_raw, page_restored)  # the first call decided
+    assert set(view._jpeg) == {"raw@page", "restored@page"}  # no full-resolution JPEG was encoded
+
+    shared = LiveView(1, raw, restored, None, 0, 0, 0, "lite")
+    page_raw, page_restored = shared.page_jpegs(("restored",))
+    assert page_restored is shared.jpeg("restored") and _shape(page_restored) == (1080, 1920, 3)
+    assert _shape(page_raw) == (540, 960, 3)
+    assert set(shared._jpeg) == {"raw@page", "restored@page", "restored:85"}  # three JPEGs, not four
+
+    earlier = LiveView(2, raw, restored, None, 0, 0, 0, "lite")
+    full_raw = earlier.jpeg("raw")  # encoded for someone else first (the MJPEG stream): the page takes it
+    assert earlier.page_jpegs()[0] is full_raw
+
+    small = LiveView(3, raw[:480, :640], restored[:480, :640], None, 0, 0, 0, "lite")
+    assert small.page_jpegs() == (small.jpeg("raw"), small.jpeg("restored"))
+    assert set(small._jpeg) == {"raw@page", "restored@page", "raw:85", "restored:85"}
+
+
+class _FullRestored:
+    """A hook like the Foxglove publisher with a client subscribed to the restored topic."""
+
+    def __init__(self) -> None:
+        self.shared: list[bool] = []
+
+    def full_views(self) -> list[str]:
+        return ["restored"]
+
+    def __call__(self, view: LiveView) -> None:
+        self.shared.append(view.page_jpegs()[1] is view.jpeg("restored"))
+
+
+def test_the_publish_thread_encodes_what_a_hook_publishes_once_for_it_and_the_page(tmp_path: Path) -> None:
+    hook = _FullRestored()
+    p = pipeline(clip(tmp_path, n=20, fps=30.0, h=48, w=1000), tmp_path / "out", "post", loop=True, hooks=[hook])
+    p.start()
+    try:
+        views = _views(p, 3)
+    finally:
+        p.stop()
+    assert hook.shared and all(hook.shared)
+    raw, restored = views[-1].page_jpegs()
+    assert _shape(restored)[:2] == (48, 1000) and _shape(raw)[1] == PAGE_IMAGE_PX

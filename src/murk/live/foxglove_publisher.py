@@ -6,14 +6,18 @@ Topics: ``/murk/raw``, ``/murk/restored`` and ``/murk/depth`` (the depth colour 
 :func:`murk.enhance.preview.colorize_depth`, 0-15 m, near = warm). Each message carries the frame's source time
 (a ROS bag message's header stamp, a file's playback time, a camera's capture time) as its ``timestamp`` and as
 its log time, and the source's ``frame_id`` (``camera`` when the source has none). Only the topics some client
-subscribes to are encoded: with Foxglove on and nobody watching, a view costs nothing more than the page's.
+subscribes to are encoded: with Foxglove on and nobody watching, a view costs nothing more than the page's. A
+subscribed ``/murk/raw`` or ``/murk/restored`` is the view's full-resolution JPEG, encoded once and shown by the page
+too (:meth:`FoxglovePublisher.full_views`, :class:`murk.live.restore_loop.SharesJpegs`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Collection
+
 from murk.enhance.preview import colorize_depth
 from murk.io.images import to_uint
-from murk.live.restore_loop import LiveView, encode_jpeg
+from murk.live.restore_loop import JPEG_QUALITY, LiveView, encode_jpeg
 
 TOPICS = {"raw": "/murk/raw", "restored": "/murk/restored", "depth": "/murk/depth"}
 INSTALL_HINT = "--foxglove needs the optional 'foxglove' extra: pip install 'murk[foxglove]' (foxglove-sdk)"
@@ -34,7 +38,7 @@ class FoxglovePublisher:
         ValueError: ``foxglove-sdk`` is not installed, or the server cannot listen on ``host:port``.
     """
 
-    def __init__(self, host: str = "127.0.0.1", port: int = 8765, *, quality: int = 85) -> None:
+    def __init__(self, host: str = "127.0.0.1", port: int = 8765, *, quality: int = JPEG_QUALITY) -> None:
         try:
             import foxglove
             from foxglove.channels import CompressedImageChannel
@@ -60,6 +64,13 @@ class FoxglovePublisher:
     def subscribed(self) -> set[str]:
         """The topics some client is subscribed to now (a message on any other topic goes nowhere)."""
         return {TOPICS[key] for key, channel in self._channels.items() if channel.has_sinks()}
+
+    def full_views(self) -> Collection[str]:
+        """Which of ``raw``/``restored`` the next view will be published as, at full resolution and the page's
+        quality: the publish thread encodes those first and the page shows the same JPEGs (encoded once)."""
+        if self.quality != JPEG_QUALITY:
+            return ()
+        return [key for key in ("raw", "restored") if self._channels[key].has_sinks()]
 
     def __call__(self, view: LiveView) -> None:
         from foxglove.messages import CompressedImage, Timestamp

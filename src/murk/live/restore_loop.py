@@ -24,10 +24,12 @@ Publish: a third thread encodes the page's JPEG of each restored view (:meth:`Li
 to the readers and to the hooks, while the restore thread restores the next frame (issue 48: at 1920x1080 the
 page's JPEG costs about as much as restoring with ``lite``; in one thread the two costs added up). Newest wins here
 too: a view still waiting when a newer one is restored is not shown (counted in :attr:`LivePipeline.unshown`).
-The page's pair is encoded at most :data:`PAGE_WIDTH_PX` wide (each half scaled down by OpenCV's area
-interpolation when the frames are wider than half of it: what the page shows, a quarter of the pixels to encode at
-1920x1080); snapshots, recordings and the ``raw``/``restored`` JPEGs keep the full resolution. Each JPEG is encoded
-at most once per view and shared by every reader (the page, the MJPEG stream, Foxglove).
+The page gets the raw and the restored frame as two JPEGs (:meth:`LiveView.page_jpegs`), each encoded once per
+view: at most :data:`PAGE_IMAGE_PX` wide (scaled down by OpenCV's area interpolation: what the page shows, a quarter
+of the pixels to encode at 1920x1080), or at full resolution when a hook publishes that image at full resolution
+anyway (:class:`SharesJpegs`: Foxglove, for the topics a client subscribes to); then the page shows the hook's own
+JPEG, encoded once for both (issue 48, point 5). Snapshots, recordings and the ``raw``/``restored`` JPEGs of the MJPEG
+stream and Foxglove keep the full resolution. Each JPEG is encoded at most once per view and shared by every reader.
 """
 
 from __future__ import annotations
@@ -37,10 +39,10 @@ import contextlib
 import statistics
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import cv2
 import numpy as np
@@ -61,11 +63,24 @@ LATENCY_WINDOW = 60
 """The latency shown is the median over this many last frames."""
 
 PAGE_WIDTH_PX = 1920
-"""The widest the page's pair (raw | restored) is encoded: a 640x480 pair (1280 px) as it is, a 1280x720 pair at
-3/4 and a 1920x1080 pair at 1/2 of its size."""
+"""The widest the page's raw and restored images are side by side (and the MJPEG stream's ``pair``)."""
+PAGE_IMAGE_PX = PAGE_WIDTH_PX // 2
+"""The widest the page's raw and restored JPEGs are each encoded (unless shared at full resolution): a 640x480
+frame as it is, a 1280x720 frame at 3/4 and a 1920x1080 frame at 1/2 of its size."""
+JPEG_QUALITY = 85
+"""The quality of the page's JPEGs (and the default of every other reader's, so that they can be shared)."""
 
 RestorerFactory = Callable[[str], Restorer]
 FrameHook = Callable[["LiveView"], None]
+
+
+@runtime_checkable
+class SharesJpegs(Protocol):
+    """A hook that publishes some of a view's JPEGs at full resolution (:meth:`LiveView.jpeg` at
+    :data:`JPEG_QUALITY`): ``full_views()`` names which of ``raw``/``restored`` it will take of the next view. The
+    publish thread encodes those at full resolution before the page is served, and the page shows them too."""
+
+    def full_views(self) -> Collection[str]: ...
 
 
 @dataclass
@@ -84,11 +99,11 @@ class LiveView:
     method: str
     frame_id: str = ""
     _jpeg: dict[str, bytes] = field(default_factory=dict, repr=False)
-    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+    _lock: threading.RLock = field(default_factory=threading.RLock, repr=False)
 
-    def jpeg(self, view: str = "pair", quality: int = 85) -> bytes:
-        """The frame encoded as JPEG, once per ``view``: ``pair`` (raw | restored side by side, what the page
-        shows; at most :data:`PAGE_WIDTH_PX` wide), ``raw`` or ``restored`` (full resolution)."""
+    def jpeg(self, view: str = "pair", quality: int = JPEG_QUALITY) -> bytes:
+        """The frame encoded as JPEG, once per ``view``: ``pair`` (raw | restored side by side, the MJPEG stream's
+        ``pair``; at most :data:`PAGE_WIDTH_PX` wide), ``raw`` or ``restored`` (full resolution)."""
         key = f"{view}:{quality}"
         with self._lock:
             if key not in self._jpeg:
@@ -97,6 +112,24 @@ class LiveView:
                     image = page_pair(self.raw, self.restored)
                 self._jpeg[key] = encode_jpeg(image, quality)
             return self._jpeg[key]
+
+    def page_jpegs(self, full: Collection[str] = ()) -> tuple[bytes, bytes]:
+        """The raw and the restored JPEG the page shows, each encoded once per view: the full-resolution JPEG
+        (:meth:`jpeg`, shared) when ``full`` names it, when it is encoded already or when the frame is at most
+        :data:`PAGE_IMAGE_PX` wide; else one scaled down to that width. The first call decides for the view."""
+        with self._lock:
+            return self._page_jpeg("raw", full), self._page_jpeg("restored", full)
+
+    def _page_jpeg(self, view: str, full: Collection[str]) -> bytes:
+        key = f"{view}@page"
+        if key not in self._jpeg:
+            image = self.raw if view == "raw" else self.restored
+            shared = f"{view}:{JPEG_QUALITY}" in self._jpeg or image.shape[1] <= PAGE_IMAGE_PX
+            if view in full or shared:
+                self._jpeg[key] = self.jpeg(view)
+            else:
+                self._jpeg[key] = encode_jpeg(page_image(image), JPEG_QUALITY)
+        return self._jpeg[key]
 
 
 def page_pair(raw: np.ndarray, restored: np.ndarray, width_px: int = PAGE_WIDTH_PX) -> np.ndarray:
@@ -110,7 +143,15 @@ def page_pair(raw: np.ndarray, restored: np.ndarray, width_px: int = PAGE_WIDTH_
     return np.concatenate([raw, restored], axis=1)
 
 
-def encode_jpeg(rgb: np.ndarray, quality: int = 85) -> bytes:
+def page_image(image: np.ndarray, width_px: int = PAGE_IMAGE_PX) -> np.ndarray:
+    """``image`` scaled down (area interpolation) to at most ``width_px`` wide, as the page gets it."""
+    h, w = image.shape[:2]
+    if w <= width_px:
+        return image
+    return cv2.resize(image, (width_px, max(1, round(h * width_px / w))), interpolation=cv2.INTER_AREA)
+
+
+def encode_jpeg(rgb: np.ndarray, quality: int = JPEG_QUALITY) -> bytes:
     """uint8 RGB -> JPEG bytes."""
     ok, buf = cv2.imencode(".jpg", swap_red_blue(rgb), [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
     if not ok:
@@ -263,7 +304,7 @@ class LivePipeline:
             self._pending_cond.notify_all()
 
     def _publish_loop(self) -> None:
-        """The publish thread: encode the page's JPEG of the newest restored view, show it, call the hooks."""
+        """The publish thread: encode the page's JPEGs of the newest restored view, show it, call the hooks."""
         while True:
             with self._pending_cond:
                 while self._pending is None and not self._restore_done:
@@ -280,7 +321,12 @@ class LivePipeline:
                 self._pending_cond.notify_all()
 
     def _publish(self, view: LiveView) -> None:
-        view.jpeg("pair")  # encoded before it is shown, so a waiting page gets it without delay
+        full: set[str] = set()
+        for hook in self.hooks:  # the images a hook publishes at full resolution: the page shows the same JPEGs
+            if isinstance(hook, SharesJpegs):
+                with contextlib.suppress(Exception):
+                    full.update(hook.full_views())
+        view.page_jpegs(full)  # encoded before it is shown, so a waiting page gets them without delay
         now = time.perf_counter()
         with self._cond:
             self._view = view

@@ -4,10 +4,12 @@ HTTP/1.1 keep-alive), no extra dependency. Why this server and this transport: d
 Routes (everything else is 404; only the page's own files are served, by exact name, :mod:`murk.live.page`):
 
 - ``GET /``, ``/live.js``, ``/live.css``: the page;
-- ``GET /api/frame?after=N``: the newest restored frame newer than ``N`` as one JPEG (raw | restored side by
-  side), waiting up to :data:`FRAME_WAIT_S`; 204 when none came. Headers ``X-Murk-Frame`` (frame number),
-  ``X-Murk-Capture-Ms`` (capture time, milliseconds since the epoch: the page measures glass-to-page latency
-  against it) and ``X-Murk-Method``;
+- ``GET /api/frame?after=N``: the newest restored frame newer than ``N`` as two JPEGs, raw then restored, one after
+  the other in the body (``Content-Type: application/octet-stream``; the raw one is ``X-Murk-Raw-Bytes`` long;
+  :meth:`murk.live.restore_loop.LiveView.page_jpegs`: at most 960 px wide each, or the full-resolution JPEGs
+  Foxglove publishes), waiting up to :data:`FRAME_WAIT_S`; 204 when none came. Headers ``X-Murk-Frame`` (frame
+  number), ``X-Murk-Capture-Ms`` (capture time, milliseconds since the epoch: the page measures glass-to-page
+  latency against it) and ``X-Murk-Method``;
 - ``GET /stream.mjpg?view=restored|raw|pair``: an MJPEG stream (``multipart/x-mixed-replace``) for other
   viewers (VLC, an ``<img>``);
 - ``GET /api/status``, ``GET /api/methods``: JSON;
@@ -407,7 +409,9 @@ class LiveHandler(BaseHTTPRequestHandler):
             "X-Murk-Source-Ns": str(view.source_ns),
             "X-Murk-Method": _header_text(view.method),
         }
-        self._send(HTTPStatus.OK, view.jpeg("pair"), "image/jpeg", headers)
+        raw, restored = view.page_jpegs()  # encoded by the publish thread already (once, shared with Foxglove)
+        headers["X-Murk-Raw-Bytes"] = str(len(raw))
+        self._send(HTTPStatus.OK, raw + restored, "application/octet-stream", headers)
 
     def _mjpeg(self, query: dict[str, list[str]]) -> None:
         kind = (query.get("view") or ["restored"])[0]

@@ -1,5 +1,6 @@
 // murk live: pulls restored frames from the server and shows raw | restored; every text from the server or the
-// user is set with textContent (never parsed as HTML).
+// user is set with textContent (never parsed as HTML). A frame comes as two JPEGs in one response, raw then
+// restored (X-Murk-Raw-Bytes long): the same JPEGs Foxglove publishes when a client subscribes there.
 "use strict";
 (function () {
   const token = new URLSearchParams(location.search).get("token") || "";
@@ -10,7 +11,7 @@
   const arrivals = [];
   let methods = {};
   let split = 0.5;
-  let lastBitmap = null;
+  let lastBitmaps = null; // { raw, restored }: the frame shown
 
   function say(text, isError) {
     const m = $("message");
@@ -40,25 +41,36 @@
     return s.length % 2 ? s[h] : (s[h - 1] + s[h]) / 2;
   }
 
-  function draw(bmp) {
-    const w = bmp.width >> 1, h = bmp.height;
+  // raw and restored may differ in size (one shared with Foxglove at full resolution): each canvas takes its
+  // image's size and the style scales both alike; the split view draws raw at the restored image's size
+  function draw(bmps) {
     const layout = $("views").dataset.layout;
     if (layout === "split") {
+      const w = bmps.restored.width, h = bmps.restored.height;
       const c = $("split-canvas");
       if (c.width !== w || c.height !== h) { c.width = w; c.height = h; }
       const ctx = c.getContext("2d");
       const x = Math.round(split * w);
-      ctx.drawImage(bmp, 0, 0, w, h, 0, 0, w, h);
-      if (x < w) ctx.drawImage(bmp, w + x, 0, w - x, h, x, 0, w - x, h);
+      ctx.drawImage(bmps.raw, 0, 0, w, h);
+      if (x < w) ctx.drawImage(bmps.restored, x, 0, w - x, h, x, 0, w - x, h);
       ctx.fillStyle = "#fff";
       ctx.fillRect(Math.max(0, x - 1), 0, 2, h);
     } else {
-      for (const [id, sx] of [["raw", 0], ["restored", w]]) {
-        const c = $(id);
-        if (c.width !== w || c.height !== h) { c.width = w; c.height = h; }
-        c.getContext("2d").drawImage(bmp, sx, 0, w, h, 0, 0, w, h);
+      for (const id of ["raw", "restored"]) {
+        const bmp = bmps[id], c = $(id);
+        if (c.width !== bmp.width || c.height !== bmp.height) { c.width = bmp.width; c.height = bmp.height; }
+        c.getContext("2d").drawImage(bmp, 0, 0);
       }
     }
+  }
+
+  async function decode(blob, rawBytes) {
+    if (!(rawBytes > 0 && rawBytes < blob.size)) throw new Error("a frame without its two images (X-Murk-Raw-Bytes)");
+    const [raw, restored] = await Promise.all([
+      createImageBitmap(blob.slice(0, rawBytes, "image/jpeg")),
+      createImageBitmap(blob.slice(rawBytes, blob.size, "image/jpeg")),
+    ]);
+    return { raw, restored };
   }
 
   function next(after) {
@@ -94,14 +106,22 @@
       const index = Number(r.headers.get("X-Murk-Frame"));
       const captureMs = Number(r.headers.get("X-Murk-Capture-Ms"));
       const method = r.headers.get("X-Murk-Method") || "";
+      const rawBytes = Number(r.headers.get("X-Murk-Raw-Bytes"));
       pending = next(index); // ask for the next frame while this one is decoded and drawn
-      const bmp = await createImageBitmap(got.blob);
+      let bmps;
+      try {
+        bmps = await decode(got.blob, rawBytes);
+      } catch (e) {
+        say("frame " + index + ": " + e.message, true);
+        after = index;
+        continue;
+      }
       const now = Date.now(); // the frame has arrived and is decoded: glass-to-page ends here
       if (after >= 0 && index > after + 1) stats.skipped += index - after - 1;
       after = index;
-      if (lastBitmap) lastBitmap.close();
-      lastBitmap = bmp;
-      draw(bmp);
+      if (lastBitmaps) { lastBitmaps.raw.close(); lastBitmaps.restored.close(); }
+      lastBitmaps = bmps;
+      draw(bmps);
       stats.frames += 1;
       stats.lastFrame = index;
       if (method !== stats.method) { stats.method = method; stats.changes += 1; $("restored-caption").textContent = "restored: " + method; }
@@ -228,10 +248,10 @@
       $("views").dataset.layout = layout;
       $("splitview").hidden = layout !== "split";
       $("split").disabled = layout !== "split";
-      if (lastBitmap) draw(lastBitmap);
+      if (lastBitmaps) draw(lastBitmaps);
     });
   }
-  $("split").addEventListener("input", () => { split = Number($("split").value) / 100; if (lastBitmap) draw(lastBitmap); });
+  $("split").addEventListener("input", () => { split = Number($("split").value) / 100; if (lastBitmaps) draw(lastBitmaps); });
 
   loadMethods();
   status();
