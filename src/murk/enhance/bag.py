@@ -8,10 +8,10 @@ times; depth maps (methods that estimate depth) on ``depth_topic`` (default ``<b
 metres; and, when asked, other topics copied unchanged (``camera_info``: every ``sensor_msgs/CameraInfo``
 topic; ``all``: every topic).
 
-Frames output (:func:`enhance_bag_to_frames`): numbered images ``<bag>_<index:06d>.<format>`` written by
+Frames output (:func:`enhance_bag`): numbered images ``<bag>_<index:06d>.<format>`` written by
 :func:`murk.enhance.api.enhance_frames` (same depth outputs, same per-frame resume) plus ``frames.jsonl``
-(one line per written image: ``file_name``, ``index``, ``message``, ``stamp_ns``, ``frame_id``,
-``log_time_ns``, ``topic``), rewritten atomically at the end of every run.
+(:func:`write_frames_index`: one line per written image: ``file_name``, ``index``, ``message``, ``stamp_ns``,
+``frame_id``, ``log_time_ns``, ``topic``), rewritten atomically at the end of every run.
 
 Resume: a bag is one file (or folder) written under a temporary name and renamed when complete, so a finished
 output bag is skipped by a rerun (``overwrite`` redoes it) and a killed run leaves only a ``.murk-tmp-`` bag,
@@ -280,28 +280,9 @@ def enhance_bag_to_bag(
     return report
 
 
-def enhance_bag_to_frames(
-    source: BagSource,
-    restorer: Restorer,
-    out: Path,
-    options: OutputOptions | None = None,
-    *,
-    batch: int = 1,
-    max_frames: int | None = None,
-    on_progress: ProgressFn | None = None,
-    should_stop: StopFn | None = None,
-) -> EnhanceReport:
-    """Restore the frames of ``source`` into numbered images in the folder ``out`` plus ``frames.jsonl``."""
-    report = enhance_frames(
-        source,
-        restorer,
-        out,
-        options,
-        batch=batch,
-        max_frames=max_frames,
-        on_progress=on_progress,
-        should_stop=should_stop,
-    )
+def write_frames_index(source: BagSource, out: Path, options: OutputOptions | None, report: EnhanceReport) -> None:
+    """Write ``frames.jsonl`` into the frames folder ``out``: one line per numbered image of ``source`` that is
+    there (file name, the message's index, stamps and frame id, the topic)."""
     ext = f".{(options.format if options else None) or 'jpg'}"
     rows = []
     for row in source.history:
@@ -311,7 +292,6 @@ def enhance_bag_to_frames(
     if rows:
         write_jsonl(out / FRAMES_FILE, rows)
         report.outputs.append(out / FRAMES_FILE)
-    return report
 
 
 def enhance_bag(
@@ -342,7 +322,9 @@ def enhance_bag(
             )  # fmt: skip
     if bag.output_flags():
         raise ValueError(f"{', '.join(bag.output_flags())}: apply to a bag output; --out {out} writes numbered images")
-    return enhance_bag_to_frames(
+    report = enhance_frames(
         source, restorer, out, options, batch=batch, max_frames=max_frames, on_progress=on_progress,
         should_stop=should_stop,
     )  # fmt: skip
+    write_frames_index(source, out, options, report)
+    return report

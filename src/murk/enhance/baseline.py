@@ -27,9 +27,8 @@ from torch import Tensor, nn
 from murk.enhance.choices import DEFAULT_OVERLAP, POLICIES, Policy
 from murk.enhance.declare import Checked
 from murk.enhance.jointid_restorer import _resolve_device
-from murk.enhance.restorer import RestoredTensor, Restorer
+from murk.enhance.restorer import RestoredTensor, Restorer, check_tensor_batch
 from murk.enhance.tiling import pad_to_multiple, tiled_apply
-from murk.errors import ShapeError
 
 OFFICIAL_SIZE = 256
 """Side of the square the official test scripts resize every image to (and leave the output at)."""
@@ -41,14 +40,6 @@ def check_policy(policy: Any) -> Policy:
     if policy not in POLICIES:
         raise ValueError(f"policy: expected 'native' or 'official', got {policy!r}")
     return policy  # type: ignore[no-any-return]
-
-
-def check_images(images: Any) -> None:
-    """Raises TypeError/ShapeError unless ``images`` is a float (B, 3, H, W) tensor."""
-    if not isinstance(images, Tensor) or not images.is_floating_point():
-        raise TypeError(f"images: expected a float tensor (B, 3, H, W) in [0, 1], got {type(images).__name__}")
-    if images.ndim != 4 or images.shape[1] != 3 or images.shape[0] < 1:
-        raise ShapeError(f"images: expected shape (B, 3, H, W), got {tuple(images.shape)}")
 
 
 class TorchRunner:
@@ -195,7 +186,7 @@ class BaselineRestorer(Restorer):
             TypeError: not a floating-point tensor.
             ShapeError: not (B, 3, H, W).
         """
-        check_images(images)
+        check_tensor_batch(images)
         net = self.network
         x = images.to(self.device, torch.float32)
         if self.policy == "official":

@@ -49,9 +49,8 @@ from torch import Tensor, nn
 from murk.enhance.choices import DEFAULT_OVERLAP, DEFAULT_REFINE_GUARD, Precision
 from murk.enhance.declare import Checked
 from murk.enhance.refine import RefineSettings, refine_restoration
-from murk.enhance.restorer import RestoredTensor, Restorer
+from murk.enhance.restorer import RestoredTensor, Restorer, check_tensor_batch
 from murk.enhance.tiling import pad_to_multiple, tiled_apply
-from murk.errors import ShapeError
 from murk.models.jointid.network import INPUT_MEAN, INPUT_STD, SIZE_MULTIPLE
 from murk.restore_ops.balance import color_balance_torch
 
@@ -240,10 +239,7 @@ class JointIDRestorer(Restorer):
             TypeError: not a floating-point tensor.
             ShapeError: not (B, 3, H, W).
         """
-        if not isinstance(images, Tensor) or not images.is_floating_point():
-            raise TypeError(f"images: expected a float tensor (B, 3, H, W) in [0, 1], got {type(images).__name__}")
-        if images.ndim != 4 or images.shape[1] != 3 or images.shape[0] < 1:
-            raise ShapeError(f"images: expected shape (B, 3, H, W), got {tuple(images.shape)}")
+        check_tensor_batch(images)
         with torch.inference_mode():
             x = images.to(self.device, torch.float32)
             if self.input_balance_pct is not None:  # the input the network was trained on

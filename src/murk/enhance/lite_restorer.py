@@ -35,9 +35,8 @@ from torch import Tensor, nn
 from murk.enhance.choices import DEFAULT_REFINE_GUARD
 from murk.enhance.declare import Checked
 from murk.enhance.refine import RefineSettings, refine_restoration
-from murk.enhance.restorer import RestoredTensor, Restorer
+from murk.enhance.restorer import RestoredTensor, Restorer, check_tensor_batch
 from murk.enhance.temporal import FrameEMA
-from murk.errors import ShapeError
 from murk.models.lite.network import (
     LUMA,
     SIZE_MULTIPLE,
@@ -142,10 +141,7 @@ class LiteRestorer(Restorer):
             TypeError: not a floating-point tensor.
             ShapeError: not (B, 3, H, W).
         """
-        if not isinstance(images, Tensor) or not images.is_floating_point():
-            raise TypeError(f"images: expected a float tensor (B, 3, H, W) in [0, 1], got {type(images).__name__}")
-        if images.ndim != 4 or images.shape[1] != 3 or images.shape[0] < 1:
-            raise ShapeError(f"images: expected shape (B, 3, H, W), got {tuple(images.shape)}")
+        check_tensor_batch(images)
         with torch.inference_mode():
             x = images.to(self.device, torch.float32)
             if self.input_balance_pct is not None:  # the input the network was trained on

@@ -104,6 +104,19 @@ def as_batch(images: object) -> np.ndarray:
     return batch
 
 
+def check_tensor_batch(images: object) -> None:
+    """Raise TypeError unless ``images`` is a floating-point torch tensor, :class:`murk.errors.ShapeError` unless it
+    is a batch (B, 3, H, W) with B >= 1: the check of every network restorer's ``restore_tensor``."""
+    import torch
+
+    from murk.errors import ShapeError
+
+    if not isinstance(images, torch.Tensor) or not images.is_floating_point():
+        raise TypeError(f"images: expected a float tensor (B, 3, H, W) in [0, 1], got {type(images).__name__}")
+    if images.ndim != 4 or images.shape[1] != 3 or images.shape[0] < 1:
+        raise ShapeError(f"images: expected shape (B, 3, H, W), got {tuple(images.shape)}")
+
+
 class Restorer:
     """Base class of restoration methods. Subclasses set ``name`` and override ``restore`` and/or
     ``restore_tensor``; ``device`` is where the tensor path runs."""
