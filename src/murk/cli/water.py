@@ -32,7 +32,7 @@ def estimate(
     """Estimate each image's water from the image and Joint-ID's distance map (docs/models/water.md). The figures
     are what restores best with that distance map on murk's synthetic water, not a calibrated measurement."""
     from murk.io.jobs import ErrorRecord
-    from murk.workflows.water_estimate import estimate_water
+    from murk.workflows.water_estimate import MEASURABLE_FACTOR, estimate_water
 
     console = make_console(quiet)
     try:
@@ -51,7 +51,12 @@ def estimate(
         rows.append(d)
         veil = " ".join(f"{v:.2f}" for v in d["veil_rgb"])  # type: ignore[attr-defined]
         att = " ".join(f"{v:.3f}" for v in d["attenuation_per_m"])  # type: ignore[attr-defined]
-        console.print(f"{r.path}: veil RGB {veil}, attenuation RGB {att} /m, visibility {d['visibility_m']:.1f} m")
+        seen = (
+            f"visibility {r.water.visibility_m:.1f} m"
+            if r.measurable
+            else f"visibility beyond {MEASURABLE_FACTOR * r.far_distance_m:.0f} m (haze too faint to measure)"
+        )
+        console.print(f"{r.path}: veil RGB {veil}, attenuation RGB {att} /m, {seen}")
     if json_out is not None:
         json_out.write_text("".join(json.dumps(row) + "\n" for row in rows))
     if failed:

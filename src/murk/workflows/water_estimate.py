@@ -13,17 +13,33 @@ from pathlib import Path
 from murk.io.jobs import ErrorRecord
 from murk.models.water import Water
 
+MEASURABLE_FACTOR = 3.0
+"""A visibility more than this many times the farthest distance in view (95th percentile) is not measurable."""
+
 
 @dataclass(frozen=True)
 class WaterOfImage:
-    """One image's estimate and the median of its distance map (metres)."""
+    """One image's estimate and its distance map's median and 95th percentile (metres). ``measurable``: the
+    visibility is within :data:`MEASURABLE_FACTOR` times the 95th-percentile distance; beyond, the haze in view is
+    too faint to tell how far one could see, and the figure is only a lower bound."""
 
     path: Path
     water: Water
     median_distance_m: float
+    far_distance_m: float
+
+    @property
+    def measurable(self) -> bool:
+        return self.water.visibility_m <= MEASURABLE_FACTOR * self.far_distance_m
 
     def as_dict(self) -> dict[str, object]:
-        return {"image": str(self.path), **self.water.as_dict(), "median_distance_m": round(self.median_distance_m, 2)}
+        return {
+            "image": str(self.path),
+            **self.water.as_dict(),
+            "visibility_measurable": self.measurable,
+            "median_distance_m": round(self.median_distance_m, 2),
+            "far_distance_m": round(self.far_distance_m, 2),
+        }
 
 
 def estimate_water(
@@ -67,7 +83,8 @@ def estimate_water(
             dist = depth_net.restore(image[None]).depth_m
             if dist is None:
                 raise ValueError(f"depth_method: {depth_method!r} gives no distance map; use jointid_net")
-            result = WaterOfImage(path, model.estimate(image, dist[0]), float(np.median(dist[0])))
+            d = dist[0]
+            result = WaterOfImage(path, model.estimate(image, d), float(np.median(d)), float(np.percentile(d, 95)))
         results.append(result)
         if on_image is not None:
             on_image(result)
