@@ -48,6 +48,7 @@ from torch import Tensor, nn
 
 from murk.enhance.choices import DEFAULT_OVERLAP, DEFAULT_REFINE_GUARD, Precision
 from murk.enhance.declare import Checked
+from murk.enhance.methods import weights_file
 from murk.enhance.refine import RefineSettings, refine_restoration
 from murk.enhance.restorer import RestoredTensor, Restorer, check_tensor_batch
 from murk.enhance.tiling import pad_to_multiple, tiled_apply
@@ -279,21 +280,17 @@ def create_jointid(o: Checked) -> JointIDRestorer:
         ValueError: no checkpoint given, or bad options.
         InputFileError: the checkpoint cannot be loaded (see ``murk.models.jointid.load_checkpoint``).
     """
+    from murk.data import shipped_jointid_weights
     from murk.models.jointid.checkpoint import load_checkpoint
     from murk.models.jointid.onnx_export import OnnxJointID
 
-    if o.checkpoint is not None and o.onnx is not None:
-        raise ValueError("checkpoint/onnx: give one of them, not both")
-    path = o.onnx if o.onnx is not None else o.checkpoint
-    if path is None:
-        from murk.data import shipped_jointid_weights
-
-        path = shipped_jointid_weights()
-        if not path.is_file():
-            raise ValueError(
-                f"checkpoint: the shipped weights {path} are missing from this installation; give --checkpoint FILE "
-                "(a murk or the official Joint-ID checkpoint, or an .onnx export)"
-            )
+    path = weights_file(
+        o.checkpoint,
+        o.onnx,
+        shipped_jointid_weights,
+        "checkpoint: the shipped weights {path} are missing from this installation; give --checkpoint FILE (a murk "
+        "or the official Joint-ID checkpoint, or an .onnx export)",
+    )
     if o.onnx is not None or str(path).lower().endswith(".onnx"):
         model: nn.Module | OnnxJointID = OnnxJointID(path, device=str(o.device))
         dev = torch.device("cpu")

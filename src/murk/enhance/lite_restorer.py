@@ -34,6 +34,7 @@ from torch import Tensor, nn
 
 from murk.enhance.choices import DEFAULT_REFINE_GUARD
 from murk.enhance.declare import Checked
+from murk.enhance.methods import weights_file
 from murk.enhance.refine import RefineSettings, refine_restoration
 from murk.enhance.restorer import RestoredTensor, Restorer, check_tensor_batch
 from murk.enhance.temporal import FrameEMA
@@ -296,23 +297,19 @@ def create_lite(o: Checked) -> LiteRestorer:
             than fp32.
         InputFileError: the checkpoint cannot be loaded (see ``murk.models.lite.checkpoint.read_lite_checkpoint``).
     """
+    from murk.data import shipped_lite_weights
     from murk.models.lite.checkpoint import load_lite
     from murk.models.lite.onnx_export import OnnxLite
 
     if o.precision != "fp32":
         raise ValueError(f"precision: the lite network runs in fp32 only, got {o.precision!r}; leave precision out")
-    if o.checkpoint is not None and o.onnx is not None:
-        raise ValueError("checkpoint/onnx: give one of them, not both")
-    path = o.onnx if o.onnx is not None else o.checkpoint
-    if path is None:
-        from murk.data import shipped_lite_weights
-
-        path = shipped_lite_weights()
-        if not path.is_file():
-            raise ValueError(
-                f"checkpoint: no shipped lite weights exist in this installation ({path} is missing); pass "
-                "--checkpoint FILE (a 'murk train' checkpoint with model.kind: lite, or its .onnx export)"
-            )
+    path = weights_file(
+        o.checkpoint,
+        o.onnx,
+        shipped_lite_weights,
+        "checkpoint: no shipped lite weights exist in this installation ({path} is missing); pass --checkpoint FILE "
+        "(a 'murk train' checkpoint with model.kind: lite, or its .onnx export)",
+    )
     onnx_file = o.onnx is not None or str(path).lower().endswith(".onnx")
     restorer = LiteRestorer(
         OnnxLite(path, threads=o.threads) if onnx_file else load_lite(path, trust=o.trust_checkpoint, fold=True),

@@ -15,6 +15,7 @@ source).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +41,28 @@ def _check_weights(checkpoint: str | Path | None, onnx: str | Path | None, *, ru
             raise InputFileError(path, "ONNX model not found")
         return
     checkpoint_file(path)
+
+
+def weights_file(
+    checkpoint: str | Path | None, onnx: str | Path | None, shipped: Callable[[], Path], missing: str
+) -> str | Path:
+    """The weights file ``jointid`` and ``lite`` load: ``onnx``, else ``checkpoint`` (as given), else the file
+    murk ships (``shipped()``).
+
+    Raises:
+        ValueError: both ``checkpoint`` and ``onnx`` given, or neither and the shipped file is missing (``missing``
+            says so; ``{path}`` in it is replaced by the shipped file's path).
+    """
+    if checkpoint is not None and onnx is not None:
+        raise ValueError("checkpoint/onnx: give one of them, not both")
+    if onnx is not None:
+        return onnx
+    if checkpoint is not None:
+        return checkpoint
+    path = shipped()
+    if not path.is_file():
+        raise ValueError(missing.format(path=path))
+    return path
 
 
 def network_weights(*, checkpoint: str | Path | None = None, onnx: str | Path | None = None, **_: Any) -> None:
