@@ -62,3 +62,27 @@ def test_the_affine_fit_gain_credits_local_restoration_only() -> None:
     assert scores["half"]["affine_psnr_gain"] > 3.0  # halving the local error is credited
     assert scores["input"]["affine_psnr"] > scores["input"]["psnr"]
     assert "affine_psnr_gain" not in scores["input"]
+
+
+def test_per_scene_scores_feed_paired_contrasts_between_methods() -> None:
+    from murk.report.study import HELDOUT_CONTRAST_KEYS, contrasts_markdown, paired_contrasts
+
+    rng = np.random.default_rng(5)
+    clean = rng.random((10, 12, 16, 3)).astype(np.float32)
+    degraded = np.clip(clean + rng.normal(0.0, 0.1, clean.shape).astype(np.float32), 0.0, 1.0)
+    data = HeldoutSet(degraded, clean, np.full(clean.shape[:3], np.nan, np.float32), seed=0)
+    per_scene: dict[str, dict[str, list[float]]] = {}
+    scores = score_heldout(data, {"a": _Towards(clean, 0.5), "b": _Towards(clean, 0.25)}, batch=4, per_scene=per_scene)
+    assert set(per_scene) == {"a", "b"} and len(per_scene["a"]["affine_psnr"]) == 10
+    assert abs(np.mean(per_scene["a"]["psnr"]) - scores["a"]["psnr"]) < 1e-9
+    assert abs(np.mean(per_scene["a"]["affine_psnr"]) - scores["a"]["affine_psnr"]) < 1e-9
+    rows = [
+        {"set": "heldout", "image": i, "method": m, **{k: v[i] for k, v in per_scene[m].items()}}
+        for m in per_scene
+        for i in range(10)
+    ]
+    (c,) = paired_contrasts(rows, [("a", "b")], HELDOUT_CONTRAST_KEYS)
+    diff = np.array(per_scene["a"]["affine_psnr"]) - np.array(per_scene["b"]["affine_psnr"])
+    assert abs(c["affine_psnr"]["mean"] - diff.mean()) < 1e-9 and c["affine_psnr"]["higher"] == 10
+    text = "\n".join(contrasts_markdown([c], HELDOUT_CONTRAST_KEYS, "### held-out contrasts"))
+    assert "### held-out contrasts" in text and "| a - b | 10 |" in text and "PSNR after affine fit" in text

@@ -77,10 +77,13 @@ def score_heldout(
     *,
     batch: int = 8,
     on_method: Callable[[str], None] | None = None,
+    per_scene: dict[str, dict[str, list[float]]] | None = None,
 ) -> dict[str, dict[str, float]]:
     """Mean PSNR/SSIM (and depth errors where the method estimates depth) per method, plus ``input``.
 
     ``restorers`` maps a label to a restorer (``restore(numpy batch) -> Restored``) or None (the input).
+    ``per_scene``: a dict that receives, per label, each scene's ``psnr`` and ``affine_psnr`` (for paired
+    comparisons between methods).
     """
     from murk.metrics import affine_fit_psnr, depth_errors, psnr, ssim
 
@@ -99,6 +102,13 @@ def score_heldout(
             depths.append(r.depth_m)
         enhanced = np.concatenate(images)
         row = _image_scores(enhanced, data.clean, psnr, ssim, base=base, base_fit=base_fit)
+        if per_scene is not None:
+            per_scene[label] = {
+                "psnr": [psnr(a, b, data_range=1.0) for a, b in zip(enhanced, data.clean, strict=True)],
+                "affine_psnr": [
+                    affine_fit_psnr(a, b, data_range=1.0) for a, b in zip(enhanced, data.clean, strict=True)
+                ],
+            }
         if all(d is not None for d in depths):
             pred = np.concatenate(depths)
             errs = [

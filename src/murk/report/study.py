@@ -133,6 +133,7 @@ def evaluate_study(
         if not path.is_file():
             raise ValueError(f"study arm {name}: {path} not found (train the arms first)")
     report: dict[str, Any] = {"murk_version": __version__, "arms": _training_record(study, base, out)}
+    arm_names = [a.name for a in study.arms]
 
     heldout: dict[str, Any] = {}
     if ev.synthetic_scenes > 0:
@@ -148,14 +149,23 @@ def evaluate_study(
         restorers = {name: create(arm_spec(method, method), checkpoint=str(p)) for name, p in ckpts.items()}
         if ev.synthetic_balance_pct is not None:  # photographic targets: the classical balance is the bar
             restorers = {"colorbalance": create("colorbalance"), **restorers}
+        per_scene: dict[str, dict[str, list[float]]] = {}
         heldout = {
             "scenes": ev.synthetic_scenes,
             "seed": ev.synthetic_seed,
             "size_hw": list(ev.synthetic_hw),
             "balance_pct": ev.synthetic_balance_pct,
             "stages": list(synthesis.stages),
-            "scores": score_heldout(data, restorers, on_method=lambda m: say(f"held-out: scoring {m}")),
+            "scores": score_heldout(
+                data, restorers, on_method=lambda m: say(f"held-out: scoring {m}"), per_scene=per_scene
+            ),
         }
+        scene_rows = [
+            {"set": "heldout", "image": i, "method": label, **{k: v[i] for k, v in values.items()}}
+            for label, values in per_scene.items()
+            for i in range(ev.synthetic_scenes)
+        ]
+        heldout["contrasts"] = paired_contrasts(scene_rows, arm_contrasts(arm_names), HELDOUT_CONTRAST_KEYS)
         write_text_atomic(out / "heldout.json", json.dumps(json_safe(heldout), indent=2) + "\n")
     report["heldout"] = heldout
 
@@ -215,6 +225,9 @@ def evaluate_study(
             "methods": [parse_method(s).label for s in snow_specs],
             "summary": snow_res.summary,
             "errors": snow_res.errors,
+            "contrasts": paired_contrasts(
+                [{**r, "set": "snow"} for r in snow_res.rows], arm_contrasts(arm_names), SNOW_CONTRAST_KEYS
+            ),
         }
     write_text_atomic(out / "study.json", json.dumps(json_safe(report), indent=2) + "\n")
     write_text_atomic(out / "study.md", study_markdown(report))
@@ -243,7 +256,13 @@ def pair_sets(folder: Path) -> dict[str, Path]:
 
 
 CONTRAST_KEYS = ("psnr", "ciede2000")
-"""The metrics the arms are contrasted by, image by image (:func:`paired_contrasts`)."""
+"""The metrics the arms are contrasted by on real pairs, image by image (:func:`paired_contrasts`)."""
+
+HELDOUT_CONTRAST_KEYS = ("affine_psnr", "psnr")
+"""The metrics the arms are contrasted by on the held-out scenes, scene by scene (against the true clean scene)."""
+
+SNOW_CONTRAST_KEYS = ("snow_residue", "snow_colour_residue")
+"""The metrics the arms are contrasted by on the real snow pairs, image by image."""
 
 
 def ci95_half_width(sd: float, n: int) -> float:
@@ -406,32 +425,43 @@ def real_pairs_markdown(pairs: dict[str, Any]) -> list[str]:
     for m in pairs["methods"]:
         o = pairs["mean_over_sets"][m]
         lines.append(f"| {m} | " + " | ".join(f"{o[k.name]:.{k.digits}f}" for k in refs) + " |")
-    contrasts = [c for c in pairs.get("contrasts", []) if c["n"]]
-    if contrasts:
-        keys = [table.get(k) for k in CONTRAST_KEYS]
-        directions = ", ".join(f"higher {k.label} is {'better' if k.better == 'higher' else 'worse'}" for k in keys)
-        lines += [
-            "",
-            "### Arms against each other: paired over all images of all sets",
-            "",
-            "a - b per image: mean +- sd, the mean's 95 % confidence interval (Student's t, n - 1 degrees of "
-            "freedom), images where a's value is higher, paired t. "
-            f"{directions[0].upper()}{directions[1:]}.",
-            "",
-            "| a - b | images | " + " | ".join(f"{k.heading} | {k.label} higher on | t" for k in keys) + " |",
-            "|---|---|" + "---|---|---|" * len(keys),
-        ]
-        for c in contrasts:
-            cells = []
-            for k in keys:
-                e = c[k.name]
-                half = ci95_half_width(e["std"], e["n"])  # from the figures, so older study.json files render too
-                cells.append(
-                    f"{e['mean']:+.2f} +- {e['std']:.2f} ({e['mean'] - half:+.2f} to {e['mean'] + half:+.2f}) | "
-                    f"{e['higher']} | {e['t']:.2f}"
-                )
-            lines.append(f"| {c['a']} - {c['b']} | {c['n']} | " + " | ".join(cells) + " |")
+    lines += contrasts_markdown(
+        pairs.get("contrasts", []), CONTRAST_KEYS, "### Arms against each other: paired over all images of all sets"
+    )
     return [*lines, ""]
+
+
+def contrasts_markdown(contrasts: list[dict[str, Any]], keys: tuple[str, ...], title: str) -> list[str]:
+    """Markdown lines of :func:`paired_contrasts`' result (none when no contrast has images)."""
+    contrasts = [c for c in contrasts if c["n"]]
+    if not contrasts:
+        return []
+    rows = [table.get(k) for k in keys]
+    digits = max(2, *(r.digits for r in rows))
+    directions = ", ".join(f"higher {k.label} is {'better' if k.better == 'higher' else 'worse'}" for k in rows)
+    lines = [
+        "",
+        title,
+        "",
+        "a - b per image: mean +- sd, the mean's 95 % confidence interval (Student's t, n - 1 degrees of "
+        "freedom), images where a's value is higher, paired t. "
+        f"{directions[0].upper()}{directions[1:]}.",
+        "",
+        "| a - b | images | " + " | ".join(f"{k.heading} | {k.label} higher on | t" for k in rows) + " |",
+        "|---|---|" + "---|---|---|" * len(rows),
+    ]
+    for c in contrasts:
+        cells = []
+        for k in rows:
+            e = c[k.name]
+            half = ci95_half_width(e["std"], e["n"])  # from the figures, so older study.json files render too
+            f = f".{digits}f"
+            cells.append(
+                f"{e['mean']:+{f}} +- {e['std']:{f}} ({e['mean'] - half:+{f}} to {e['mean'] + half:+{f}}) | "
+                f"{e['higher']} | {e['t']:.2f}"
+            )
+        lines.append(f"| {c['a']} - {c['b']} | {c['n']} | " + " | ".join(cells) + " |")
+    return lines
 
 
 def study_markdown(report: dict[str, Any]) -> str:
@@ -485,6 +515,9 @@ def study_markdown(report: dict[str, Any]) -> str:
                 f"{ms(r.get('snow_free_gms', {}))} | {ms(r.get('snow_colour_residue', {}))} | "
                 f"{ms(r['particle_residue_ratio'])} |"
             )
+        lines += contrasts_markdown(
+            sp.get("contrasts", []), SNOW_CONTRAST_KEYS, "### Arms against each other on the snow pairs"
+        )
         lines.append("")
     if report.get("heldout"):
         h = report["heldout"]
@@ -494,6 +527,11 @@ def study_markdown(report: dict[str, Any]) -> str:
             f"{', '.join(h['stages'])})",
             "",
             heldout_table(h["scores"]),
+            *contrasts_markdown(
+                h.get("contrasts", []),
+                HELDOUT_CONTRAST_KEYS,
+                "### Arms against each other: paired over the scenes (against the true clean scene)",
+            ),
             "",
         ]
     lines += ["## Training", "", "| arm | stages | steps | wall min | last val PSNR |", "|---|---|---|---|---|"]
