@@ -17,9 +17,14 @@ photographs shipped in ``src/murk/data/underwater`` (a new photograph every 60 f
   difference is printed).
 - ``--live``: what ``murk live CLIP --loop --method M`` runs (the clip paced at its 30 frames/s, looped, the frame
   pipeline and the web server) with a client that pulls ``/api/frame?after=N`` as the page does, for
-  ``--seconds`` after 2 s of warm-up: frames/s received and the median latency from capture to receipt.
+  ``--seconds`` after 2 s of warm-up: frames/s received, the median latency from capture to receipt and the median
+  size of a frame's response (the page's JPEGs).
   Alternating trees as for ``--file``. ``--foxglove off,idle,subscribed`` also runs it with ``murk live
   --foxglove``'s publisher, with no client (idle) or a client subscribed to ``/murk/raw`` and ``/murk/restored``.
+- ``--publish``: the CPU of ``murk live``'s publish thread per view of each size, in each tree (a fresh process,
+  one OpenCV thread, trees alternating, ``--rounds`` each): the page's JPEGs, and with a Foxglove client subscribed
+  to raw and restored also theirs (the JPEG calls the publish thread and the publisher make; median of 40 views of
+  the clip's frames).
 - ``--stages``: this process's tree, stage by stage on one frame of each size, wall and CPU milliseconds (median
   of 15, after a warm-up): the previous float32 path's steps and this tree's 8-bit path's.
 - ``--codecs``: the writers ``murk enhance`` can write a video with (:class:`murk.io.video.VideoSink`: OpenCV's MJPEG
@@ -151,7 +156,7 @@ def worker_live(src: str, method: str, seconds: float, threads: int, foxglove: s
         pipeline = LivePipeline(source, make, method, Path(tmp), hooks=hooks)
         pipeline.start()
         server = LiveServer(pipeline, "127.0.0.1", 0, methods=method_table()).start()
-        received: list[tuple[float, float]] = []  # (receipt s, latency ms)
+        received: list[tuple[float, float, int]] = []  # (receipt s, latency ms, bytes)
         stop = threading.Event()
 
         def client() -> None:
@@ -160,10 +165,10 @@ def worker_live(src: str, method: str, seconds: float, threads: int, foxglove: s
                 with urllib.request.urlopen(f"{server.url.rstrip('/')}/api/frame?after={after}", timeout=10) as r:
                     if r.status != 200:
                         continue
-                    r.read()
+                    size = len(r.read())
                     now_ms = time.time_ns() / 1e6
                     after = int(r.headers["X-Murk-Frame"])
-                    received.append((time.perf_counter(), now_ms - float(r.headers["X-Murk-Capture-Ms"])))
+                    received.append((time.perf_counter(), now_ms - float(r.headers["X-Murk-Capture-Ms"]), size))
 
         thread = threading.Thread(target=client, daemon=True)
         thread.start()
@@ -179,12 +184,48 @@ def worker_live(src: str, method: str, seconds: float, threads: int, foxglove: s
         ws.close()
     if publisher is not None:
         publisher.close()
-    window = [lat for t, lat in received if t0 <= t < t1]
+    window = [(lat, size) for t, lat, size in received if t0 <= t < t1]
     return {
         "fps": len(window) / (t1 - t0),
-        "latency_ms": statistics.median(window) if window else float("nan"),
+        "latency_ms": statistics.median(lat for lat, _ in window) if window else float("nan"),
         "dropped": d1 - d0,
+        "kb": statistics.median(size for _, size in window) / 1e3 if window else float("nan"),
     }
+
+
+def worker_publish(src: str, threads: int) -> dict[str, float]:
+    """CPU ms per view of the publish thread's JPEGs, without and with a Foxglove client on raw and restored."""
+    import cv2
+
+    from murk.live.restore_loop import LiveView
+
+    cv2.setNumThreads(1)
+    capture, frames = cv2.VideoCapture(src), []
+    while len(frames) < 40:
+        ok, bgr = capture.read()
+        if not ok:
+            break
+        frames.append(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+    capture.release()
+    shared = hasattr(LiveView, "page_jpegs")  # this tree: two page JPEGs, shared with Foxglove's
+
+    def view_ms(i: int, subscribed: bool) -> float:
+        view = LiveView(i, frames[i], frames[-1 - i], None, 0, 0, 0, "lite")
+        full = ("raw", "restored") if subscribed else ()
+        t = time.process_time()
+        if shared:
+            view.page_jpegs(full)  # type: ignore[attr-defined]
+        else:
+            view.jpeg("pair")
+        for key in full:  # what the Foxglove publisher takes (already encoded where shared)
+            view.jpeg(key, 85)
+        return 1e3 * (time.process_time() - t)
+
+    out = {}
+    for subscribed in (False, True):
+        view_ms(0, subscribed)  # warm-up
+        out["subscribed" if subscribed else "off"] = statistics.median(view_ms(i, subscribed) for i in range(40))
+    return out
 
 
 def run_worker(tree: Path, kind: str, threads: int, **kw: object) -> dict[str, float]:
@@ -366,7 +407,7 @@ def load() -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--worker", choices=["file", "live"])
+    ap.add_argument("--worker", choices=["file", "live", "publish"])
     ap.add_argument("--args", default="{}")
     ap.add_argument("--baseline", type=Path, help="src folder of the previous tree")
     ap.add_argument("--tree", type=Path, default=SRC, help="src folder of the tree measured (default: this one)")
@@ -385,10 +426,11 @@ def main() -> None:
     ap.add_argument("--file", action="store_true")
     ap.add_argument("--live", action="store_true")
     ap.add_argument("--codecs", action="store_true")
+    ap.add_argument("--publish", action="store_true")
     args = ap.parse_args()
     if args.worker:
         kw = json.loads(args.args)
-        fn = worker_file if args.worker == "file" else worker_live
+        fn = {"file": worker_file, "live": worker_live, "publish": worker_publish}[args.worker]
         print(json.dumps(fn(threads=args.threads, **kw)))
         return
     sys.path.insert(0, str(HERE.parent))
@@ -406,6 +448,21 @@ def main() -> None:
             stages(sizes, args.threads, tmp)  # type: ignore[arg-type]
         if args.codecs:
             codecs(clips, tmp)
+        if args.publish:
+            cpu: dict[tuple, list[dict[str, float]]] = {}
+            for r in range(args.rounds):
+                for (w, h), clip in clips.items():
+                    for tree, path in trees.items() if r % 2 == 0 else reversed(trees.items()):
+                        cpu.setdefault((w, h, tree), []).append(run_worker(path, "publish", 1, src=str(clip)))
+            print("\nmurk live's publish thread, CPU ms per view (median of the rounds; every round in brackets)")
+            for (w, h, tree), runs in cpu.items():
+                cells = [
+                    f"{mode} {statistics.median(x[mode] for x in runs):.2f} ms ("
+                    + ", ".join(f"{x[mode]:.2f}" for x in runs)
+                    + ")"
+                    for mode in ("off", "subscribed")
+                ]
+                print(f"{w}x{h} {tree:14s} " + "; Foxglove ".join(cells))
         if args.file:
             figures: dict[tuple, list[float]] = {}
             for r in range(args.rounds):
@@ -457,10 +514,11 @@ def main() -> None:
                 fps = statistics.median(x["fps"] for x in runs)
                 lat = statistics.median(x["latency_ms"] for x in runs)
                 drops = statistics.median(x["dropped"] for x in runs)
+                kb = statistics.median(x["kb"] for x in runs)
                 every = ", ".join(f"{x['fps']:.1f} f/s {x['latency_ms']:.0f} ms" for x in runs)
                 print(
                     f"{w}x{h} {method:6s} {tree:14s} {fps:5.1f} frames/s, median latency {lat:5.0f} ms, "
-                    f"dropped {drops:.0f} ({every})"
+                    f"dropped {drops:.0f}, {kb:.0f} kB a frame ({every})"
                 )
     print(f"\nend: {load()}")
 
