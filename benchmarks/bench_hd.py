@@ -89,7 +89,10 @@ def _threads(n: int) -> None:
 
 def worker_file(src: str, method: str, out: str, threads: int) -> dict[str, float]:
     _threads(threads)
-    from murk.enhance.api import OutputOptions, enhance_frames
+    try:
+        from murk.enhance.api import OutputOptions, enhance_frames
+    except ModuleNotFoundError:  # a tree before the rename of 95081ef
+        from murk.enhance.pipeline import OutputOptions, enhance_frames  # type: ignore[no-redef]
     from murk.enhance.restorer import create
     from murk.io.video import CaptureSource
 
@@ -144,7 +147,11 @@ def _foxglove(mode: str) -> tuple[Any, Any]:
 def worker_live(src: str, method: str, seconds: float, threads: int, foxglove: str = "off") -> dict[str, float]:
     _threads(threads)
     from murk.enhance.restorer import create
-    from murk.live.restore_loop import LivePipeline
+
+    try:
+        from murk.live.restore_loop import LivePipeline
+    except ModuleNotFoundError:  # a tree before the rename of f08aabe
+        from murk.live.pipeline import LivePipeline  # type: ignore[no-redef]
     from murk.live.server import LiveServer, method_table
     from murk.live.source import PacedSource, open_live_source, reopener
 
