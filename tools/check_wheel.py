@@ -142,8 +142,8 @@ import murk, murk.data as d
 from murk.live.page import ASSETS
 print(json.dumps({
     "murk": murk.__file__, "version": murk.__version__, "path": sys.path,
-    "files": [str(p) for p in (d.shipped_jointid_weights(), d.shipped_lite_weights(), d.default_snow_bank(),
-                               d.real_footage_snow_bank(), d.small_snow_bank())],
+    "files": [str(p) for p in (d.shipped_jointid_weights(), d.shipped_lite_weights(), d.shipped_water_weights(),
+                               d.default_snow_bank(), d.real_footage_snow_bank(), d.small_snow_bank())],
     "assets": sorted(ASSETS), "sample": str(d.sample_underwater_images()[0]),
 }))
 """
@@ -191,6 +191,13 @@ def check_installed(python: Path, env: dict[str, str], venv: Path, work: Path, v
             raise CheckFailed(f"murk enhance {sample.name}: no output, or weights outside the new environment:\n{text}")
         names = ", ".join(Path(w).name for w in weights)
         done.append(f"murk enhance {sample.name} ({method or 'default method'}): shipped weights {names}")
+
+    estimates = work / "water.jsonl"
+    proc = run([murk, "water", "estimate", str(sample), "--json", str(estimates)], cwd=work, env=env)
+    rows = [json.loads(line) for line in estimates.read_text().splitlines()] if estimates.is_file() else []
+    if len(rows) != 1 or len(rows[0].get("veil_rgb", [])) != 3:
+        raise CheckFailed(f"murk water estimate {sample.name}: no estimate from the shipped water.npz:\n{proc.stdout}")
+    done.append(f"murk water estimate {sample.name}: veil {rows[0]['veil_rgb']} from the shipped water.npz")
 
     done.append(check_live(murk, env, work, sample, probe["assets"]))
     return done
