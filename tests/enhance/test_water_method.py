@@ -99,3 +99,13 @@ def test_murk_water_estimate_reports_every_image_and_names_a_broken_one(
     rows = [json.loads(line) for line in out.read_text().splitlines()]
     assert len(rows) == 1 and rows[0]["image"].endswith("a.png")
     assert len(rows[0]["veil_rgb"]) == 3 and rows[0]["visibility_m"] > 0
+
+
+def test_murk_water_train_never_overwrites_an_estimator(estimator_file: Path, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "water.npz").write_bytes(estimator_file.read_bytes())
+    config = Path(__file__).parents[2] / "configs" / "train-small-cpu.yaml"
+    res = CliRunner().invoke(app, ["water", "train", "--config", str(config), "--out", str(out), "--scenes", "10"])
+    assert res.exit_code == 2 and "never overwritten" in res.output
+    assert (out / "water.npz").read_bytes() == estimator_file.read_bytes()

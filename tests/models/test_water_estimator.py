@@ -77,3 +77,10 @@ def test_the_shipped_estimator_loads_and_records_its_training() -> None:
     est = load_water_estimator()
     assert Path(est.source) == shipped_water_weights()
     assert est.meta and est.meta["depth_method"] == "jointid_net" and est.meta["scenes"] >= 1000
+
+
+def test_a_text_file_is_not_an_archive(tmp_path: Path) -> None:
+    text = tmp_path / "text.npz"
+    text.write_text("junk\n")
+    with pytest.raises(InputFileError, match=r"not an \.npz archive"):
+        load_water_estimator(text)

@@ -91,11 +91,16 @@ def train_water(
     """Make (or reuse) the samples, train, write ``OUT/water.npz`` and ``OUT/log.jsonl``.
 
     Raises:
-        ValueError: fewer than 10 scenes, a depth method without depth.
+        ValueError: fewer than 10 scenes, ``out`` already holds a ``water.npz``, a depth method without depth.
         OutputError: ``out`` cannot be written.
     """
     if scenes < 10:
         raise ValueError(f"scenes: expected at least 10, got {scenes}")
+    if (out / "water.npz").exists():
+        raise ValueError(
+            f"out: {out / 'water.npz'} exists (a trained estimator is never overwritten); choose another --out, or "
+            "remove that file to train again there (the cached samples.npz is reused when the settings match)"
+        )
     settings = settings or WaterTrainSettings()
     say = progress or (lambda _msg: None)
     out.mkdir(parents=True, exist_ok=True)

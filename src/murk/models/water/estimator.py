@@ -133,4 +133,5 @@ def load_water_estimator(path: str | Path | None = None) -> WaterEstimator:
             meta = json.loads(str(z["meta"])) if "meta" in z.files else {}
         return WaterEstimator(arrays, source=str(p), meta=meta)
     except (OSError, ValueError, KeyError) as exc:
-        raise InputFileError(p, f"not a murk water estimator (.npz with mu, sd, w1..b3): {exc}") from exc
+        detail = "not an .npz archive" if "pickle" in str(exc) else str(exc)  # numpy's text suggests unsafe loading
+        raise InputFileError(p, f"not a murk water estimator (.npz with mu, sd, w1..b3): {detail}") from exc
