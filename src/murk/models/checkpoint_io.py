@@ -14,15 +14,18 @@ from __future__ import annotations
 import pickle
 import warnings
 import zipfile
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeGuard
+from typing import TYPE_CHECKING, Any, TypeGuard, TypeVar
 
 from murk._version import __version__
 from murk.errors import InputFileError
 
 if TYPE_CHECKING:
     import torch
+
+C = TypeVar("C")
+"""The configuration type of a network (what :func:`read_network_config` returns)."""
 
 
 def numpy_array_globals() -> list[Any]:
@@ -305,6 +308,31 @@ def write_network_checkpoint(
             "meta": with_input_balance(net, meta),
         },
     )
+
+
+def read_network_config(
+    path: Path,
+    obj: Mapping[str, Any],
+    parse: Callable[[dict[str, Any]], C],
+    *,
+    format_version: int,
+    kind: str,
+    net: str,
+) -> C:
+    """The network configuration of murk's own checkpoint ``obj`` (:func:`write_network_checkpoint`), read back
+    with ``parse`` (the config class's ``from_dict``) once its format version is the one expected.
+
+    Raises:
+        InputFileError: another ``format_version`` (``"{kind} format_version ... is not supported"``), or a
+            missing or invalid ``config`` (``"invalid {net} configuration in the checkpoint (...)"``).
+    """
+    version = obj.get("format_version")
+    if version != format_version:
+        raise InputFileError(path, f"{kind} format_version {version!r} is not supported (expected {format_version})")
+    try:
+        return parse(dict(obj["config"]))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputFileError(path, f"invalid {net} configuration in the checkpoint ({exc})") from exc
 
 
 INPUT_BALANCE_KEY = "input_balance_pct"

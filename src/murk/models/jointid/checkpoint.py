@@ -25,7 +25,13 @@ import torch
 from torch import nn
 
 from murk.errors import InputFileError
-from murk.models.checkpoint_io import check_state_dict, input_balance_of, strip_prefixes, write_network_checkpoint
+from murk.models.checkpoint_io import (
+    check_state_dict,
+    input_balance_of,
+    read_network_config,
+    strip_prefixes,
+    write_network_checkpoint,
+)
 from murk.models.checkpoint_io import is_state_dict as _is_state_dict
 from murk.models.checkpoint_io import torch_load as _torch_load_io
 from murk.models.jointid.network import VARIANTS, JointID, JointIDConfig, variant_name
@@ -114,13 +120,9 @@ def read_checkpoint(path: str | Path, *, trust: bool = False) -> tuple[dict[str,
     path = Path(path)
     obj = _torch_load_io(path, trust=trust)
     if isinstance(obj, Mapping) and obj.get("format") == FORMAT:
-        version = obj.get("format_version")
-        if version != FORMAT_VERSION:
-            raise InputFileError(path, f"murk checkpoint format_version {version!r} is not supported (expected 1)")
-        try:
-            config = JointIDConfig.from_dict(dict(obj["config"]))
-        except (KeyError, TypeError, ValueError) as exc:
-            raise InputFileError(path, f"invalid network configuration in the checkpoint ({exc})") from exc
+        config = read_network_config(
+            path, obj, JointIDConfig.from_dict, format_version=FORMAT_VERSION, kind="murk checkpoint", net="network"
+        )
         raw, source, meta = obj.get("state_dict"), "murk", dict(obj.get("meta") or {})
     elif isinstance(obj, Mapping) and "model" in obj:
         raw, source, config = obj["model"], "official", None

@@ -20,6 +20,7 @@ from murk.models.checkpoint_io import (
     check_state_dict,
     input_balance_of,
     is_state_dict,
+    read_network_config,
     strip_prefixes,
     torch_load,
     write_network_checkpoint,
@@ -102,13 +103,9 @@ def read_lite_checkpoint(
             f"not a murk lite checkpoint (format {found!r}, expected {FORMAT!r}); Joint-ID weights run with "
             "--method jointid, lite weights come from 'murk train' with model.kind: lite",
         )
-    version = obj.get("format_version")
-    if version != FORMAT_VERSION:
-        raise InputFileError(path, f"murk lite format_version {version!r} is not supported (expected {FORMAT_VERSION})")
-    try:
-        config = LiteConfig.from_dict(dict(obj["config"]))
-    except (KeyError, TypeError, ValueError) as exc:
-        raise InputFileError(path, f"invalid lite network configuration in the checkpoint ({exc})") from exc
+    config = read_network_config(
+        path, obj, LiteConfig.from_dict, format_version=FORMAT_VERSION, kind="murk lite", net="lite network"
+    )
     raw = obj.get("state_dict")
     if not is_state_dict(raw):
         raise InputFileError(path, "the checkpoint's weights are not a state dict of tensors")
