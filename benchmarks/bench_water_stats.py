@@ -5,8 +5,9 @@ Run: PYTHONPATH=src python benchmarks/bench_water_stats.py --real DIR_OR_FILE [.
      [--scenes 64] [--max-side 640] [--csv OUT.csv]
 
 Per image, real or synthetic (each real image area-resampled to a long side of ``--max-side``; the synthetic ones are
-the held-out kind: procedural scenes at 320x240 with photographic targets, degraded with the config's
-``data.synthesis``, seed 20261201):
+what the config trains on: its procedural scenes with its scene options (``data.scene_water_background``,
+``scene_saturation``, ``scene_contrast``, ``scene_balance_pct``, ``scene_scale``) in 240x320 windows, degraded online
+with its ``data.synthesis`` as training does, seed 20261201):
 - the veil colour the water estimator gives (``murk.models.water``, with Joint-ID's distance), as its red, green and
   blue, and its CIELAB hue angle and chroma;
 - the attenuation of the clearest channel (1/m, Joint-ID's metres);
@@ -40,7 +41,6 @@ from murk.io.images import list_images
 from murk.metrics import colour_exposure
 from murk.models.water import load_water_estimator
 from murk.report.compare import downscale_to
-from murk.report.heldout import make_heldout
 from murk.train.config import TrainConfig
 
 HELDOUT_SEED = 20261201
@@ -77,6 +77,25 @@ def image_stats(img: np.ndarray, depth_net: object, estimator: object) -> dict[s
     }
 
 
+def training_images(cfg: TrainConfig, n: int) -> np.ndarray:
+    """``n`` degraded training images of ``cfg``'s scene source (N, 240, 320, 3) in [0, 1]."""
+    from murk.scenes import SceneConfig
+    from murk.train.data import OnlineDegrader
+    from murk.train.scenes_source import SceneDataset
+
+    d = cfg.data
+    scene_config = SceneConfig(water_background=d.scene_water_background) if d.scene_water_background else None
+    scenes = SceneDataset(
+        range(n), (240, 320), seed=HELDOUT_SEED, config=scene_config, scale=d.scene_scale,
+        saturation=d.scene_saturation, contrast=d.scene_contrast, balance_pct=d.scene_balance_pct,
+    )  # fmt: skip
+    items = [scenes[i] for i in range(n)]
+    clean = torch.stack([it["clean"] for it in items]).float()
+    dist = torch.stack([it["depth_filled"] for it in items]).float()
+    degraded = OnlineDegrader(d.synthesis, seed=HELDOUT_SEED)(clean, dist, 0, list(range(n)))
+    return degraded.clamp(0.0, 1.0).permute(0, 2, 3, 1).numpy().astype(np.float32)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--real", nargs="+", type=Path, required=True)
@@ -95,9 +114,7 @@ def main() -> None:
                                                                       depth_net, estimator)})  # fmt: skip
     for cfg_path in args.configs:
         cfg = load_yaml(TrainConfig, cfg_path)
-        data = make_heldout(args.scenes, seed=HELDOUT_SEED, size_hw=(240, 320), synthesis=cfg.data.synthesis,
-                            balance_pct=0.5)  # fmt: skip
-        for i, img in enumerate(data.degraded):
+        for i, img in enumerate(training_images(cfg, args.scenes)):
             rows.append({"source": cfg_path.stem, "image": f"scene {i}", **image_stats(img, depth_net, estimator)})
     if args.csv:
         with args.csv.open("w", newline="") as fh:
