@@ -23,16 +23,15 @@ from __future__ import annotations
 import argparse
 import contextlib
 import http.server
-import socketserver
 import sys
 import tempfile
-import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import ClassVar
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # testkit/video.py serves the MJPEG camera
 import cv2
 import numpy as np
 import torch
@@ -43,6 +42,7 @@ from murk.enhance.api import EnhanceReport, OutputOptions, enhance_frames
 from murk.enhance.restorer import create
 from murk.io import read_rgb
 from murk.io.video import CaptureSource
+from testkit.video import serve_http
 
 W, H = 640, 480
 
@@ -91,14 +91,8 @@ class _Camera(http.server.BaseHTTPRequestHandler):
 def camera(frames: list[np.ndarray], fps: float) -> Iterator[str]:
     jpegs = [cv2.imencode(".jpg", f, [cv2.IMWRITE_JPEG_QUALITY, 90])[1].tobytes() for f in frames]
     handler = type("Cam", (_Camera,), {"jpegs": jpegs, "fps": fps})
-    server = socketserver.ThreadingTCPServer(("127.0.0.1", 0), handler)
-    server.daemon_threads = True
-    threading.Thread(target=server.serve_forever, daemon=True).start()
-    try:
-        yield f"http://127.0.0.1:{server.server_address[1]}/cam.mjpg"
-    finally:
-        server.shutdown()
-        server.server_close()
+    with serve_http(handler) as url:
+        yield url
 
 
 def line(label: str, report: EnhanceReport) -> str:

@@ -95,11 +95,19 @@ def mjpeg_camera(frames: list[np.ndarray], delay_s: float = 0.005, *, loop: bool
     """An MJPEG-over-HTTP camera on localhost: yields its URL; it serves ``frames`` to a client, then disconnects
     (with ``loop``: serves them over and over until the client goes away)."""
     handler = type("H", (_MJPEGHandler,), {"frames": frames, "delay_s": delay_s, "loop": loop})
+    with serve_http(handler) as url:
+        yield url
+
+
+@contextlib.contextmanager
+def serve_http(handler: type[http.server.BaseHTTPRequestHandler], path: str = "/cam.mjpg") -> Iterator[str]:
+    """Serve ``handler`` on a free localhost port in a daemon thread; yields the URL of ``path`` and stops the server
+    on exit."""
     server = socketserver.ThreadingTCPServer(("127.0.0.1", 0), handler)
     server.daemon_threads = True
     threading.Thread(target=server.serve_forever, daemon=True).start()
     try:
-        yield f"http://127.0.0.1:{server.server_address[1]}/cam.mjpg"
+        yield f"http://127.0.0.1:{server.server_address[1]}{path}"
     finally:
         server.shutdown()
         server.server_close()
