@@ -18,8 +18,9 @@ from murk.cli.main import app
 from murk.data import sample_underwater_images
 from murk.enhance.restorer import create
 from murk.io import read_rgb, write_rgb
+from murk.metrics import affine_fit
 from murk.models.water import WaterEstimator, load_water_estimator
-from murk.restore_ops.water import FEATURES, global_colour_map, invert_eq1
+from murk.restore_ops.water import FEATURES, invert_eq1
 from murk.train.water import water_network
 
 
@@ -50,11 +51,16 @@ def test_water_inverts_eq1_in_the_base_colour(estimator_file: Path, image: np.nd
         out = create("water", estimator=str(estimator_file), strength=strength).restore(image[None])
         water = est.estimate(image, base.depth_m[0])
         inverted = invert_eq1(image, base.depth_m[0], np.asarray(water.veil), np.asarray(water.attenuation_per_m))
-        expect = global_colour_map(image + np.float32(strength) * (inverted - image), np.clip(base.images[0], 0, 1))
+        mixed = image + np.float32(strength) * (inverted - image)
+        expect = np.clip(affine_fit(mixed, np.clip(base.images[0], 0, 1)), 0, 1)
         np.testing.assert_allclose(out.images[0], expect, atol=1e-6)
         np.testing.assert_array_equal(out.depth_m, base.depth_m)
     zero = create("water", estimator=str(estimator_file), strength=0.0).restore(image[None]).images[0]
-    np.testing.assert_allclose(zero, global_colour_map(image, np.clip(base.images[0], 0, 1)), atol=1e-6)
+    np.testing.assert_allclose(zero, np.clip(affine_fit(image, np.clip(base.images[0], 0, 1)), 0, 1), atol=1e-6)
+    assert (
+        np.abs(zero - create("water", estimator=str(estimator_file), strength=1.0).restore(image[None]).images[0]).max()
+        > 0.02
+    )
 
 
 def test_water_keeps_the_estimate_and_refuses_a_base_without_depth(estimator_file: Path, image: np.ndarray) -> None:

@@ -13,7 +13,7 @@ from torch import nn
 from murk.data import shipped_water_weights
 from murk.errors import InputFileError
 from murk.models.water import WaterEstimator, load_water_estimator, water_from_outputs
-from murk.restore_ops.water import FEATURES
+from murk.restore_ops.water import FEATURES, visibility_m, water_features
 from murk.train.water import _water_torch, water_network
 
 
@@ -40,12 +40,17 @@ def test_numpy_network_equals_the_torch_network() -> None:
     np.testing.assert_allclose(att, att_t.numpy(), rtol=1e-4)
 
 
-def test_estimate_gives_a_plausible_water(tmp_path: Path) -> None:
-    est, _ = _estimator(1)
+def test_estimate_is_the_network_read_on_the_features() -> None:
+    est, net = _estimator(1)
     rng = np.random.default_rng(1)
-    water = est.estimate(rng.uniform(0, 1, (30, 40, 3)).astype(np.float32), rng.uniform(1, 5, (30, 40)))
-    assert all(0.0 <= v <= 1.5 for v in water.veil)
-    assert all(a > 0 for a in water.attenuation_per_m) and water.visibility_m > 0
+    image = rng.uniform(0, 1, (30, 40, 3)).astype(np.float32)
+    dist = rng.uniform(1, 5, (30, 40)).astype(np.float32)
+    water = est.estimate(image, dist)
+    with torch.no_grad():
+        veil, att = _water_torch(net(torch.from_numpy(water_features(image, dist))[None]))
+    np.testing.assert_allclose(water.veil, veil[0].numpy(), atol=1e-5)
+    np.testing.assert_allclose(water.attenuation_per_m, att[0].numpy(), rtol=1e-4)
+    assert water.visibility_m == pytest.approx(visibility_m(att[0].numpy()), rel=1e-4)
     assert set(water.as_dict()) == {"veil_rgb", "attenuation_per_m", "visibility_m"}
 
 

@@ -7,17 +7,9 @@ import math
 
 import numpy as np
 import pytest
-import torch
 
 from murk.errors import ShapeError
-from murk.restore_ops.water import (
-    FEATURES,
-    global_colour_map,
-    global_colour_residual_torch,
-    invert_eq1,
-    visibility_m,
-    water_features,
-)
+from murk.restore_ops.water import FEATURES, invert_eq1, visibility_m, water_features
 
 
 def _scene(seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -54,35 +46,16 @@ def test_invert_eq1_refuses_bad_shapes_and_floors() -> None:
         invert_eq1(clean, dist, np.zeros(3), np.zeros(3), t_min=0.0)
 
 
-def test_global_colour_map_undoes_a_per_channel_gain_and_offset() -> None:
-    clean, _ = _scene(2)
-    target = np.clip(clean * np.array([0.5, 0.8, 0.9]) + np.array([0.1, 0.05, 0.0]), 0, 1).astype(np.float32)
-    np.testing.assert_allclose(global_colour_map(clean, target), target, atol=1e-5)
-    flat = clean.copy()
-    flat[..., 1] = 0.3
-    assert np.allclose(global_colour_map(flat, target)[..., 1], target[..., 1].mean(), atol=1e-6)
-    with pytest.raises(ShapeError, match="target"):
-        global_colour_map(clean, target[:5])
-
-
-def test_the_training_residual_is_what_the_global_map_leaves() -> None:
-    clean, _ = _scene(3)
-    rng = np.random.default_rng(4)
-    other = np.clip(clean * 0.7 + 0.1 + rng.normal(0, 0.05, clean.shape), 0, 1).astype(np.float32)
-    res = float(global_colour_residual_torch(torch.from_numpy(other)[None], torch.from_numpy(clean)[None]))
-    # the same quantity written out: the best per-channel gain and offset from `other` onto `clean`, unclipped
-    x, y = other.reshape(-1, 3).astype(np.float64), clean.reshape(-1, 3).astype(np.float64)
-    xc, yc = x - x.mean(0), y - y.mean(0)
-    gain = (xc * yc).mean(0) / ((xc * xc).mean(0) + 1e-6)
-    assert res == pytest.approx(float(((xc * gain - yc) ** 2).mean()), rel=1e-4)
-    affine = torch.from_numpy(clean * 0.5 + 0.2)[None]
-    assert float(global_colour_residual_torch(affine, torch.from_numpy(clean)[None])) < 1e-8
-
-
 def test_water_features_have_a_fixed_length_and_check_their_inputs() -> None:
     clean, dist = _scene()
     f = water_features(clean, dist)
     assert f.shape == (FEATURES,) and f.dtype == np.float32 and np.isfinite(f).all()
+    # per bin: log median distance, then the 5/50/95th percentiles of R, G, B; the nearest bin comes first
+    log_d = f[0:80:10]
+    assert np.all(np.diff(log_d) > 0) and np.exp(log_d[0]) < 1.5 and np.exp(log_d[-1]) > 5.0
+    flat = water_features(np.full_like(clean, 0.25), dist)
+    np.testing.assert_allclose(flat[1:10], 0.25, atol=1e-6)  # every percentile of a flat image
+    np.testing.assert_allclose(flat[-6:], [0.25, 0.25, 0.25, 0.0, 0.0, 0.0], atol=1e-6)  # means, then stds
     big = water_features(np.repeat(np.repeat(clean, 4, 0), 4, 1), np.repeat(np.repeat(dist, 4, 0), 4, 1))
     assert big.shape == (FEATURES,)
     with pytest.raises(ShapeError, match="image"):

@@ -56,3 +56,19 @@ def test_the_term_is_added_inside_the_enhancement_term_only_when_asked_and_has_g
 def test_a_negative_weight_is_refused() -> None:
     with pytest.raises(ValueError, match="local"):
         LossWeights(local=-1.0)
+
+
+def test_local_mse_is_the_squared_error_the_least_squares_colour_map_leaves() -> None:
+    from murk.metrics import affine_fit
+    from murk.train.losses import local_mse
+
+    rng = np.random.default_rng(3)
+    clean = rng.uniform(0, 1, (2, 3, 12, 16)).astype(np.float32)
+    other = (clean * 0.7 + 0.1 + rng.normal(0, 0.05, clean.shape)).astype(np.float32)
+    got = float(local_mse(torch.from_numpy(other), torch.from_numpy(clean)))
+    fitted = np.stack(
+        [affine_fit(o.transpose(1, 2, 0), c.transpose(1, 2, 0)) for o, c in zip(other, clean, strict=True)]
+    )
+    expect = float(np.mean((fitted - clean.transpose(0, 2, 3, 1)) ** 2))
+    assert got == pytest.approx(expect, rel=1e-3)  # the 1e-6 guard on the variance is all that differs
+    assert float(local_mse(torch.from_numpy(clean * 0.5 + 0.2), torch.from_numpy(clean))) < 1e-8

@@ -52,6 +52,11 @@ class MurkGroup(TyperGroup):
             raise typer.Exit(EXIT_INTERRUPTED) from None
 
 
+def command_group(help: str) -> typer.Typer:
+    """A ``murk <group> <command>`` sub-application (``murk snow``, ``murk water``) with murk's help style."""
+    return typer.Typer(cls=MurkGroup, no_args_is_help=True, add_completion=False, rich_markup_mode="rich", help=help)
+
+
 def error_text(exc: BaseException) -> str:
     """The one-line message of a library error. A bare ``OSError`` (``[Errno 13] Permission denied: 'x'``) is
     written as ``x: permission denied`` so that the path leads, as in every other murk error (murk's own

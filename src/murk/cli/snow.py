@@ -7,16 +7,10 @@ from typing import Annotated
 
 import typer
 
-from murk.cli._common import MurkGroup, QuietOpt, make_console
+from murk.cli._common import QuietOpt, command_group, make_console
 from murk.cli._jobs import JobProgress, print_summary
 
-app = typer.Typer(
-    cls=MurkGroup,
-    no_args_is_help=True,
-    add_completion=False,
-    rich_markup_mode="rich",
-    help="Marine-snow particle banks from real underwater images and video.",
-)
+app = command_group("Marine-snow particle banks from real underwater images and video.")
 
 
 @app.command("extract")

@@ -9,15 +9,9 @@ from typing import Annotated
 
 import typer
 
-from murk.cli._common import MurkGroup, QuietOpt, make_console
+from murk.cli._common import QuietOpt, command_group, make_console
 
-app = typer.Typer(
-    cls=MurkGroup,
-    no_args_is_help=True,
-    add_completion=False,
-    rich_markup_mode="rich",
-    help="The water in underwater images: veil colour, attenuation per channel, visibility in metres.",
-)
+app = command_group("The water in underwater images: veil colour, attenuation per channel, visibility in metres.")
 
 
 @app.command("estimate")

@@ -5,7 +5,7 @@ distance map ``d``; the water estimator (:mod:`murk.models.water`) reads the ima
 ``B`` and attenuation ``a`` per channel; Eq. (1) is inverted, ``J = (I - B (1 - t)) / max(t, t_min)``,
 ``t = exp(-a d)`` (:func:`murk.restore_ops.water.invert_eq1`); ``strength`` takes that share of the change,
 ``I + strength (J - I)``; last, the per-channel gain and offset that take the result closest to the base's
-restoration give it the base's colour (:func:`murk.restore_ops.water.global_colour_map`). So the haze removed is the
+restoration give it the base's colour (:func:`murk.metrics.affine_fit`, clipped to [0, 1]). So the haze removed is the
 physics' and grows with distance; the colour is the network's. ``strength=0`` is the input in the base's global
 colour (no local change at all). The depth map is the base's. The estimated water of the last batch is kept in
 ``last_water`` (``murk water`` prints it for images).
@@ -23,8 +23,9 @@ import numpy as np
 
 from murk.enhance.declare import Checked
 from murk.enhance.restorer import Restored, Restorer, as_batch
+from murk.metrics.affine_psnr import affine_fit
 from murk.models.water import Water, WaterEstimator, load_water_estimator
-from murk.restore_ops.water import global_colour_map, invert_eq1
+from murk.restore_ops.water import invert_eq1
 
 DEFAULT_STRENGTH = 0.25
 """The share of Eq. (1)'s inversion applied by default (docs/models/water.md: chosen on the development pairs and
@@ -61,7 +62,7 @@ class WaterRestorer(Restorer):
             waters.append(water)
             inverted = invert_eq1(image, dist, np.asarray(water.veil), np.asarray(water.attenuation_per_m), self.t_min)
             mixed = image + np.float32(self.strength) * (inverted - image)
-            outs.append(global_colour_map(mixed, np.clip(restored, 0.0, 1.0)))
+            outs.append(np.clip(affine_fit(mixed, np.clip(restored, 0.0, 1.0)), 0.0, 1.0))
         self.last_water = waters
         return Restored(np.stack(outs).astype(np.float32), base.depth_m)
 

@@ -8,8 +8,7 @@ Eq. (1) degrades a clean scene ``J`` seen at distance ``d`` (metres) through wat
 Given ``I``, ``d`` and an estimate of ``(B, a)`` (:mod:`murk.models.water`), :func:`invert_eq1` solves for ``J``
 per pixel, with the transmission floored at ``t_min`` so that far, noisy pixels are not amplified without
 bound. :func:`water_features` turns an image and its distance map into the fixed-length vector the water estimator
-reads: image statistics in eight distance bins (what the veil adds grows with distance). :func:`global_colour_map`
-is the per-channel gain and offset (least squares) that takes one image closest to another.
+reads: image statistics in eight distance bins (what the veil adds grows with distance).
 
 numpy and torch twins side by side (the torch one is training's loss path); ``tests/restore_ops/test_water.py``
 pins them equal.
@@ -112,32 +111,6 @@ def invert_eq1_torch(
 
     t = torch.exp(-attenuation_per_m[:, None, None, :] * distance_m[..., None]).clamp(min=t_min)
     return ((images - veil[:, None, None, :] * (1.0 - t)) / t).clamp(0.0, 1.0)
-
-
-def global_colour_map(source: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """``source`` after the per-channel gain and offset that take it closest to ``target`` (least squares over
-    the pixels), clipped to [0, 1]; a flat channel of ``source`` takes ``target``'s mean. Both (H, W, 3)."""
-    if source.shape != target.shape:
-        raise ShapeError(f"target: expected {source.shape} (the source's shape), got {target.shape}")
-    x = source.reshape(-1, 3).astype(np.float64)
-    y = target.reshape(-1, 3).astype(np.float64)
-    xm, ym = x.mean(0), y.mean(0)
-    var = ((x - xm) ** 2).mean(0)
-    cov = ((x - xm) * (y - ym)).mean(0)
-    gain = np.where(var > 1e-12, cov / np.maximum(var, 1e-12), 0.0)
-    out = (source.astype(np.float64) - xm) * gain + ym
-    return np.clip(out, 0.0, 1.0).astype(np.float32)
-
-
-def global_colour_residual_torch(images: Tensor, targets: Tensor) -> Tensor:
-    """Mean squared error left after the best per-channel gain and offset from each image of ``images`` onto its
-    ``targets`` (both (N, H, W, 3)): what a global colour correction cannot explain. Training's loss."""
-    x = images.flatten(1, 2)
-    y = targets.flatten(1, 2)
-    xc = x - x.mean(1, keepdim=True)
-    yc = y - y.mean(1, keepdim=True)
-    gain = (xc * yc).mean(1, keepdim=True) / ((xc * xc).mean(1, keepdim=True) + 1e-6)
-    return ((xc * gain - yc) ** 2).mean()
 
 
 def visibility_m(attenuation_per_m: np.ndarray) -> float:

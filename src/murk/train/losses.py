@@ -48,17 +48,28 @@ def snow_l2(pred: Tensor, target: Tensor, alpha: Tensor) -> Tensor:
     return torch.sqrt(pred.shape[-1] * m + 1e-12)
 
 
-def local_l2(pred: Tensor, target: Tensor) -> Tensor:
-    """:func:`row_l2` between ``target`` and ``pred`` after the least-squares gain and offset per image and channel
-    that map ``pred`` onto ``target`` (the closed form of :func:`murk.metrics.affine_fit`, differentiable; the variance
-    gets 1e-6 so that a flat channel has a gradient). What is left is the error that no global colour map can
-    undo."""
+def affine_fit_torch(pred: Tensor, target: Tensor) -> Tensor:
+    """``pred`` (B, C, H, W) after the least-squares gain and offset per image and channel that map it onto
+    ``target`` (the closed form of :func:`murk.metrics.affine_fit`, differentiable; the variance gets 1e-6 so that a
+    flat channel has a gradient)."""
     p = pred.flatten(2)
     t = target.flatten(2)
     pm, tm = p.mean(dim=2, keepdim=True), t.mean(dim=2, keepdim=True)
     pc = p - pm
     gain = (pc * (t - tm)).mean(dim=2, keepdim=True) / ((pc * pc).mean(dim=2, keepdim=True) + 1e-6)
-    return row_l2((pc * gain + tm).view_as(pred), target)
+    return (pc * gain + tm).view_as(pred)
+
+
+def local_l2(pred: Tensor, target: Tensor) -> Tensor:
+    """:func:`row_l2` between ``target`` and ``pred`` after :func:`affine_fit_torch`: the error that no global colour
+    map can undo."""
+    return row_l2(affine_fit_torch(pred, target), target)
+
+
+def local_mse(pred: Tensor, target: Tensor) -> Tensor:
+    """Mean squared error between ``target`` and ``pred`` after :func:`affine_fit_torch` (the water estimator's
+    loss, :mod:`murk.train.water`)."""
+    return ((affine_fit_torch(pred, target) - target) ** 2).mean()
 
 
 def laplacian(x: Tensor) -> Tensor:

@@ -4,9 +4,9 @@ A sample is a degraded image, the distance map a depth network gave for it and t
 :data:`murk.restore_ops.water.FEATURE_HW` (the workflow :mod:`murk.workflows.water_train` makes them). The network
 reads :func:`murk.restore_ops.water.water_features` and gives the water; the loss inverts Eq. (1) with it
 (:func:`murk.restore_ops.water.invert_eq1_torch`, transmission floored at ``t_min``) and measures what a global
-colour map cannot take from the result to the clean scene
-(:func:`murk.restore_ops.water.global_colour_residual_torch`). AdamW, a fixed number of steps, seeded; every sample
-but a tenth trains, the tenth is the validation split (same loss) logged every ``log_every`` steps.
+colour map cannot take from the result to the clean scene (:func:`murk.train.losses.local_mse`). AdamW, a fixed
+number of steps, seeded; every sample but a tenth trains, the tenth is the validation split (same loss) logged every
+``log_every`` steps.
 """
 
 from __future__ import annotations
@@ -19,12 +19,8 @@ import torch
 from torch import nn
 
 from murk.models.water.estimator import HIDDEN, VEIL_MAX, WaterEstimator
-from murk.restore_ops.water import (
-    FEATURES,
-    global_colour_residual_torch,
-    invert_eq1_torch,
-    water_features,
-)
+from murk.restore_ops.water import FEATURES, invert_eq1_torch, water_features
+from murk.train.losses import local_mse
 
 
 @dataclass(frozen=True)
@@ -105,7 +101,7 @@ def fit_water(
     def loss_of(idx: torch.Tensor) -> torch.Tensor:
         veil, att = _water_torch(net((x[idx] - mu) / sd))
         restored = invert_eq1_torch(images[idx], dist[idx], veil, att, settings.t_min)
-        return global_colour_residual_torch(restored, clean[idx])
+        return local_mse(restored.permute(0, 3, 1, 2), clean[idx].permute(0, 3, 1, 2))
 
     for step in range(1, settings.steps + 1):
         idx = train[torch.randint(len(train), (settings.batch,), generator=gen)]
