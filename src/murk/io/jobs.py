@@ -169,6 +169,15 @@ class JobSummary:
         }
 
 
+class FolderSummary(JobSummary):
+    """A job summary of a command that writes one output folder, ``out``."""
+
+    @property
+    def out_dir(self) -> Path:
+        """The output folder (the working folder when ``out`` is not set)."""
+        return Path(self.out or ".")
+
+
 def summary_line(summary: JobSummary, unit: str = "item", detail: str = "") -> str:
     """The one-line summary every command prints:
     ``<command>: N <unit>s processed, N skipped (already done), N failed (see errors.jsonl) in T s[; detail]``."""

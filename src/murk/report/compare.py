@@ -32,7 +32,7 @@ import numpy as np
 from murk._version import __version__
 from murk.io.atomic import make_output_folder, write_text_atomic
 from murk.io.images import read_image, to_float, to_uint, write_rgb, write_uint
-from murk.io.jobs import ErrorRecord, JobSummary
+from murk.io.jobs import ErrorRecord, FolderSummary
 from murk.io.jsonl import json_safe
 from murk.io.paths import output_names as unique_names
 from murk.metrics import fidelity, table
@@ -86,17 +86,13 @@ def snow_html_columns() -> tuple[tuple[str, str], ...]:
 
 
 @dataclass
-class CompareResult(JobSummary):
+class CompareResult(FolderSummary):
     """The job summary (:class:`murk.io.jobs.JobSummary`; ``processed`` counts images scored), the rows (one
     per image and method) and the per-method summary."""
 
     command: str = "compare"
     rows: list[dict[str, Any]] = field(default_factory=list)
     summary: dict[str, dict[str, dict[str, float]]] = field(default_factory=dict)
-
-    @property
-    def out_dir(self) -> Path:
-        return Path(self.out or ".")
 
     @property
     def errors(self) -> list[dict[str, Any]]:

@@ -26,7 +26,7 @@ from typing import Any
 from murk._config import merge
 from murk._version import __version__
 from murk.io.atomic import write_text_atomic
-from murk.io.jobs import ErrorRecord, JobSummary
+from murk.io.jobs import ErrorRecord, FolderSummary
 from murk.io.jsonl import json_safe
 from murk.metrics import table
 from murk.train.config import TrainConfig
@@ -34,7 +34,7 @@ from murk.train.study import WALL_FILE, ArmRun, StudyConfig, arm_config, load_st
 
 
 @dataclass
-class StudyResult(JobSummary):
+class StudyResult(FolderSummary):
     """What a ``murk study`` invocation did: the job summary (:class:`murk.io.jobs.JobSummary`; ``processed``
     counts arms trained now, ``skipped`` arms already trained; failures are failed arms (stage ``train``) and
     real images that failed in the comparison (its stages), also in ``<study>/errors.jsonl``)."""
@@ -43,10 +43,6 @@ class StudyResult(JobSummary):
     arms: list[ArmRun] = field(default_factory=list)
     report: dict[str, Any] = field(default_factory=dict)
     message: str = ""
-
-    @property
-    def out_dir(self) -> Path:
-        return Path(self.out or ".")
 
     @property
     def ok(self) -> bool:

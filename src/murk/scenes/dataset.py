@@ -23,7 +23,7 @@ from typing import Any
 
 from murk._workers import worker_pool
 from murk.io.atomic import make_output_folder
-from murk.io.jobs import ErrorRecord, JobSummary
+from murk.io.jobs import ErrorRecord, FolderSummary
 
 CONFIG_NAME = "scenes_config.yaml"
 JSONL_NAME = "scenes.jsonl"
@@ -171,14 +171,10 @@ def _check_resume(path: Path, settings: dict) -> None:
 
 
 @dataclass
-class ScenesSummary(JobSummary):
+class ScenesSummary(FolderSummary):
     """What :func:`write_scenes` did (:class:`murk.io.jobs.JobSummary`; ``processed`` counts rendered scenes)."""
 
     command: str = "scenes"
-
-    @property
-    def out_dir(self) -> Path:
-        return Path(self.out or ".")
 
     @property
     def rendered(self) -> int:
