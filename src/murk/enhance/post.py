@@ -77,14 +77,8 @@ class PostParams:
         return post_process(image, **self._kwargs())
 
     def _kwargs(self) -> dict[str, Any]:
-        return {
-            "sigma_px": self.sigma_px,
-            "lam": self.lam,
-            "he": self.he,
-            "clahe_clip": self.clahe_clip,
-            "clahe_tiles": self.clahe_tiles,
-            "he_strength": self.he_strength,
-        }
+        """The fields as keyword arguments of :func:`post_process` and :func:`post_process_torch`."""
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
 
 
 # ----------------------------------------------------------------------------------------------------------
