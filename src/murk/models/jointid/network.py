@@ -78,28 +78,22 @@ class JointIDConfig:
         return from_dict(cls, d, where="config")
 
 
+# Same structure with small widths and depths: CPU tests, demos and quick experiments.
+_TINY = JointIDConfig(
+    embed_dims=(16, 32, 64, 128),
+    depths=(1, 1, 2, 1),
+    num_heads=(1, 1, 2, 4),
+    decoder_blocks=2,
+    decoder_dim=32,
+)
+
 VARIANTS: dict[str, JointIDConfig] = {
     "base": JointIDConfig(),
     # The model murk trains on 2 CPU cores and ships (docs/models.md): tiny's widths with two blocks per
     # encoder stage (more context), one mix block per decoder scale, the residual output and the smoothed
     # pixel shuffles.
-    "small": JointIDConfig(
-        embed_dims=(16, 32, 64, 128),
-        depths=(2, 2, 2, 2),
-        num_heads=(1, 1, 2, 4),
-        decoder_blocks=1,
-        decoder_dim=32,
-        residual_output=True,
-        shuffle_smoothing=True,
-    ),
-    # Same structure with small widths and depths: CPU tests, demos and quick experiments.
-    "tiny": JointIDConfig(
-        embed_dims=(16, 32, 64, 128),
-        depths=(1, 1, 2, 1),
-        num_heads=(1, 1, 2, 4),
-        decoder_blocks=2,
-        decoder_dim=32,
-    ),
+    "small": replace(_TINY, depths=(2, 2, 2, 2), decoder_blocks=1, residual_output=True, shuffle_smoothing=True),
+    "tiny": _TINY,
 }
 
 
