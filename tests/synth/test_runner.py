@@ -178,3 +178,30 @@ def test_the_depth_warning_uses_the_exact_median() -> None:
     assert depth_range_note(src, np.array([0.5, 19.9, 20.1, 30.0], np.float32)) is None  # median 20.0
     assert depth_range_note(src, np.array([30.0, 0.5, 20.0], np.float32)) is None  # median 20.0
     assert depth_range_note(src, np.array([30.0, 0.5, 21.0], np.float32)) is not None
+
+
+def test_photographs_without_depth_get_the_layout_prior_through_murk_synth(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from murk.cli.main import app
+    from murk.io.pairs import layout_depth
+
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    g = np.random.default_rng(0)
+    for name in ("quay.png", "wall.jpg"):
+        cv2.imwrite(str(photos / name), (g.random((36, 48, 3)) * 255).astype(np.uint8))
+    r = CliRunner().invoke(
+        app, ["synth", str(photos), str(tmp_path / "out"), "--depth-from", "layout", "--variants", "2", "-q"]
+    )
+    assert r.exit_code == 0, r.output
+    records = read_jsonl(tmp_path / "out" / "manifest.jsonl")
+    assert sorted(rec["stem"] for rec in records) == ["quay", "quay", "wall", "wall"]
+    written = cv2.imread(str(tmp_path / "out" / "depth" / "quay.png"), cv2.IMREAD_UNCHANGED).astype(np.float32)
+    np.testing.assert_allclose(written / 1000.0, layout_depth("quay", 36, 48, 0), atol=6e-4)  # uint16 mm
+    refused = CliRunner().invoke(app, ["synth", str(photos), str(tmp_path / "o2"), "-q"])
+    assert refused.exit_code != 0 and "depth" in refused.output  # without the flag a depth/ folder is expected
+    lst = tmp_path / "pairs.txt"
+    lst.write_text("quay.png quay.png\n")
+    r = CliRunner().invoke(app, ["synth", "--list", str(lst), str(tmp_path / "o3"), "--depth-from", "layout", "-q"])
+    assert r.exit_code == 2 and "give RGBD_DIR, not --list" in r.output

@@ -73,6 +73,14 @@ def synth(
     depth_relative: Annotated[
         bool | None, typer.Option("--depth-relative", help="Depth is 8-bit RELATIVE (larger = farther).")
     ] = None,
+    depth_from: Annotated[
+        str | None,
+        typer.Option(
+            "--depth-from",
+            help="file (RGBD_DIR's depth/, default) or layout: RGBD_DIR holds clean photographs without depth "
+            "(rgb/ or the folder itself), each given a ground-plane layout's distance (docs/synthesis.md).",
+        ),
+    ] = None,
     invalid_depth: Annotated[
         str | None, typer.Option("--invalid-depth", help="fill (nearest valid, default), far, or fail.")
     ] = None,
@@ -162,6 +170,7 @@ CONFIG_PATHS = {
     "depth_scale": "input.depth_scale",
     "depth_encoding": "input.depth_encoding",
     "depth_relative": "input.depth_relative",
+    "depth_from": "input.depth_from",
     "invalid_depth": "input.invalid_depth",
     "crop": "input.crop_px",
     "size": "input.size",

@@ -25,6 +25,14 @@ def train(
             "('out/shards/{000000..000199}.tar', or the index.json of 'murk synth --format webdataset').",
         ),
     ] = None,
+    photos: Annotated[
+        Path | None,
+        typer.Option(
+            "--photos",
+            help="Folder of clean photographs mixed into the procedural scenes (data.photos; without depth: "
+            "data.depth_from layout).",
+        ),
+    ] = None,
     eval_real: Annotated[
         Path | None, typer.Option("--eval-real", help="Folder of REAL underwater images scored with UIQM/UCIQE.")
     ] = None,
@@ -56,7 +64,11 @@ def train(
     from murk.train.config import TrainConfig
     from murk.train.sources import check_sources
 
-    flags = {"out": None if out is None else str(out), "eval_real": None if eval_real is None else str(eval_real)}
+    flags = {
+        "out": None if out is None else str(out),
+        "eval_real": None if eval_real is None else str(eval_real),
+        "photos": None if photos is None else str(photos),
+    }
     values = {**locals(), **flags}
     config = merge_flags(load_yaml(TrainConfig, config_file), CONFIG_PATHS, values)
     resolved: dict[str, Any] = {"data": {"source": resolve_builtin(config.data.source)}}
@@ -99,6 +111,7 @@ CONFIG_PATHS = {
     "device": "device",
     "out": "out",
     "data": "data.source",
+    "photos": "data.photos",
     "workers": "data.workers",
     "eval_real": "eval.real",
 }

@@ -1,4 +1,6 @@
-"""Finding RGB-D pairs: a folder (``rgb/`` or ``color/`` beside ``depth/``), a list file, or a NYU ``.mat``.
+"""Finding RGB-D pairs: a folder (``rgb/`` or ``color/`` beside ``depth/``), a list file, or a NYU ``.mat``; or
+clean photographs without depth, given the distance of the ground-plane layout prior (``depth_from="layout"``,
+:mod:`murk.io.distance_prior`).
 
 A pair is described by an :class:`RGBDSource` (paths only, cheap to pickle to worker processes) and loaded
 by :func:`load_pair`, which applies the depth options and checks that sizes agree.
@@ -6,23 +8,29 @@ by :func:`load_pair`, which applies the depth options and checks that sizes agre
 
 from __future__ import annotations
 
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 
 from murk.errors import InputFileError
 from murk.io.depth import DepthEncoding, InvalidDepthMode, nyu_mat_count, read_depth, read_nyu_mat, resolve_invalid
+from murk.io.distance_prior import layout_distance, sample_layout
 from murk.io.images import IMAGE_SUFFIXES, read_image, to_float
 from murk.io.jobs import ErrorRecord
 from murk.io.listing import describe_unusable, walk_files
 
 DEPTH_SUFFIXES = (*IMAGE_SUFFIXES, ".pgm", ".npy")
+DepthFrom = Literal["file", "layout"]
+DEPTH_FROM: tuple[str, ...] = ("file", "layout")
 
 
 @dataclass(frozen=True)
 class RGBDSource:
-    """Where one clean RGB-D pair comes from. ``mat_index`` is set for frames of a NYU ``.mat`` file."""
+    """Where one clean RGB-D pair comes from. ``mat_index`` is set for frames of a NYU ``.mat`` file;
+    ``depth_path`` is empty for a photograph whose distance comes from the layout prior."""
 
     stem: str
     rgb_path: str
@@ -39,17 +47,26 @@ class DepthOptions:
     invalid: InvalidDepthMode = "fill"
     crop_px: int = 0
     encoding: DepthEncoding = "linear"
+    depth_from: DepthFrom = "file"
+    """``file``: the pair's depth file; ``layout``: the ground-plane prior of :mod:`murk.io.distance_prior`, drawn
+    per photograph from ``layout_seed`` and its stem (the same photograph always gets the same distance)."""
+    layout_seed: int = 0
 
 
-def discover(path: str | Path) -> tuple[list[RGBDSource], list[ErrorRecord]]:
-    """Find pairs in a folder with ``rgb/`` (or ``color/``) and ``depth/`` matched by file stem, or in a
-    NYU-v2 ``.mat`` file. Unmatched files are returned as error records (stage ``"pair"``), not raised, and so
-    is a stem shared by several files of one folder (``rgb/x.png`` + ``rgb/x.jpg``, ``depth/x.npy`` +
-    ``depth/x.png``): that pair is left out and the record names every file, the other pairs go on.
+def discover(path: str | Path, depth_from: DepthFrom = "file") -> tuple[list[RGBDSource], list[ErrorRecord]]:
+    """Find pairs in a folder with ``rgb/`` (or ``color/``) and ``depth/`` matched by file stem, or in a NYU-v2
+    ``.mat`` file (with ``depth_from="layout"``: photographs alone, :func:`discover_photos`). Unmatched files are
+    returned as error records (stage ``"pair"``), not raised, and so is a stem shared by several files of one
+    folder (``rgb/x.png`` + ``rgb/x.jpg``, ``depth/x.npy`` + ``depth/x.png``): that pair is left out and the
+    record names every file, the other pairs go on.
 
     Raises:
         InputFileError: the path does not exist or has neither layout.
     """
+    if depth_from == "layout":
+        return discover_photos(path)
+    if depth_from != "file":
+        raise ValueError(f"depth_from: expected one of {', '.join(DEPTH_FROM)}, got {depth_from!r}")
     path = Path(path)
     if path.is_file() and path.suffix.lower() == ".mat":
         return [RGBDSource(f"{path.stem}_{i:05d}", str(path), str(path), i) for i in range(nyu_mat_count(path))], []
@@ -83,6 +100,28 @@ def discover(path: str | Path) -> tuple[list[RGBDSource], list[ErrorRecord]]:
         path = depths[stem] if stem in depths else depth_clash[stem][0]
         problems.append(_unpaired(path, f"no RGB image with stem '{stem}' in {rgb_dir}"))
     return sources, problems
+
+
+def discover_photos(path: str | Path) -> tuple[list[RGBDSource], list[ErrorRecord]]:
+    """Clean photographs without depth: the images of ``rgb/`` (or ``color/``) when the folder has one, else of the
+    folder itself (subfolders included); a ``depth/`` folder beside them is not read. A stem shared by several
+    files is left out and recorded (stage ``"pair"``), as in :func:`discover`.
+
+    Raises:
+        InputFileError: the path is not a folder, or holds no image.
+    """
+    path = Path(path)
+    if not path.is_dir():
+        raise InputFileError(path, "not found" if not path.exists() else "expected a folder of photographs")
+    folder = next((path / n for n in ("rgb", "color") if (path / n).is_dir()), path)
+    photos, clash = _by_stem(folder, IMAGE_SUFFIXES)
+    if not photos and not clash:
+        raise InputFileError(folder, f"no images found (recognised suffixes: {', '.join(IMAGE_SUFFIXES)})")
+    problems = [
+        ErrorRecord(str(files[0]), "pair", f"ambiguous stem '{stem}': {', '.join(map(str, files))} share it")
+        for stem, files in sorted(clash.items())
+    ]
+    return [RGBDSource(stem, str(photos[stem]), "") for stem in sorted(photos)], problems
 
 
 def _unpaired(path: Path, missing: str) -> ErrorRecord:
@@ -135,6 +174,9 @@ def load_pair(source: RGBDSource, options: DepthOptions) -> tuple[np.ndarray, np
     if source.mat_index is not None:
         rgb_u, depth = read_nyu_mat(source.rgb_path, source.mat_index)
         where = f"{source.rgb_path}[{source.mat_index}]"
+    elif options.depth_from == "layout" or not source.depth_path:
+        rgb_u, _ = read_image(source.rgb_path)
+        depth, where = layout_depth(source.stem, rgb_u.shape[0], rgb_u.shape[1], options.layout_seed), source.rgb_path
     else:
         rgb_u, _ = read_image(source.rgb_path)
         depth = read_depth(
@@ -155,6 +197,13 @@ def load_pair(source: RGBDSource, options: DepthOptions) -> tuple[np.ndarray, np
         rgb_u, depth = rgb_u[c : h - c, c : w - c], depth[c : h - c, c : w - c]
     depth, valid = resolve_invalid(depth, options.invalid, source=where)
     return to_float(np.ascontiguousarray(rgb_u)), np.ascontiguousarray(depth), np.ascontiguousarray(valid)
+
+
+def layout_depth(stem: str, height: int, width: int, seed: int = 0) -> np.ndarray:
+    """The layout prior's distance (metres) for the photograph ``stem``: its layout is drawn from ``seed`` and a
+    checksum of the stem, so it does not depend on the order or number of photographs."""
+    key = zlib.crc32(stem.encode("utf-8"))
+    return layout_distance(height, width, sample_layout(np.random.default_rng([int(seed), key])))
 
 
 def _by_stem(folder: Path, suffixes: tuple[str, ...]) -> tuple[dict[str, Path], dict[str, list[Path]]]:

@@ -79,7 +79,15 @@ def load_source(source: RGBDSource, config: SynthConfig) -> tuple[np.ndarray, np
     """One RGB-D pair as the run renders it: (clean RGB, depth in metres, valid mask), cropped and resized as
     configured (see :func:`murk.io.pairs.load_pair`; its errors propagate)."""
     inp = config.input
-    opts = DepthOptions(inp.depth_scale, inp.depth_relative, inp.invalid_depth, inp.crop_px, inp.depth_encoding)
+    opts = DepthOptions(
+        inp.depth_scale,
+        inp.depth_relative,
+        inp.invalid_depth,
+        inp.crop_px,
+        inp.depth_encoding,
+        depth_from=inp.depth_from,
+        layout_seed=config.seed,
+    )
     rgb, depth, valid = load_pair(source, opts)
     return fit_size(rgb, depth, valid, inp.size)
 

@@ -11,6 +11,7 @@ from typing import Literal
 
 from murk._checks import check_interval, check_positive, check_range
 from murk.io.depth import DEPTH_ENCODINGS, DepthEncoding, InvalidDepthMode
+from murk.io.pairs import DEPTH_FROM, DepthFrom
 from murk.physics.forward_scatter import FsMode
 from murk.physics.jerlov import WATER_TYPES, parse_water_types
 from murk.physics.medium import DistanceMode
@@ -208,6 +209,10 @@ class InputConfig:
     """How integer depth maps to metres: linear (value / depth_scale), sun (SUN RGB-D), kinect-disparity (raw NYU)."""
     depth_relative: bool = False
     """Accept 8-bit relative depth (larger = farther); needs distance_mode 'normalized'."""
+    depth_from: DepthFrom = "file"
+    """``file``: RGBD_DIR's depth/ files. ``layout``: RGBD_DIR holds clean photographs without depth (in rgb/, or
+    the folder itself), each given the distance of the ground-plane layout prior (:mod:`murk.io.distance_prior`),
+    drawn from ``seed`` and the photograph's stem."""
     invalid_depth: InvalidDepthMode = "fill"
     crop_px: int = 0
     """Pixels trimmed from every border (NYU-v2's white frame: 8-10)."""
@@ -220,6 +225,8 @@ class InputConfig:
             raise ValueError(
                 f"depth_encoding: expected one of {', '.join(DEPTH_ENCODINGS)}, got {self.depth_encoding!r}"
             )
+        if self.depth_from not in DEPTH_FROM:
+            raise ValueError(f"depth_from: expected one of {', '.join(DEPTH_FROM)}, got {self.depth_from!r}")
         if self.invalid_depth not in ("fill", "far", "fail"):
             raise ValueError(f"invalid_depth: expected 'fill', 'far' or 'fail', got {self.invalid_depth!r}")
         if self.crop_px < 0:

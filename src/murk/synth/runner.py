@@ -354,9 +354,11 @@ def synthesize(
     if data_format == "files" and (backend != "local" or ray_address):
         raise ValueError("--backend ray and --ray-address need --format webdataset")
     if list_file is not None:
+        if config.input.depth_from == "layout":
+            raise ValueError("--depth-from layout reads a folder of photographs: give RGBD_DIR, not --list")
         sources, problems = read_list(list_file), list[ErrorRecord]()
     else:
-        sources, problems = discover(rgbd)  # type: ignore[arg-type]
+        sources, problems = discover(rgbd, config.input.depth_from)  # type: ignore[arg-type]
     if not sources:
         why = "; ".join(f"{p.input}: {p.error}" for p in problems[:3])
         raise ValueError(

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from murk._checks import check_interval, check_positive, check_range
+from murk.io.pairs import DEPTH_FROM, DepthFrom
 from murk.synth.config import SynthConfig
 
 DataKind = Literal["auto", "synth", "list", "rgbd", "scenes", "shards"]
@@ -149,6 +150,20 @@ class DataConfig:
     depth_scale: float = 1000.0
     depth_encoding: Literal["linear", "sun", "kinect-disparity"] = "linear"
     invalid_depth: Literal["fill", "far", "fail"] = "fill"
+    depth_from: DepthFrom = "file"
+    """Clean RGB-D sources (``source`` or ``photos``): ``file`` reads their depth/; ``layout`` takes clean
+    photographs without depth (rgb/, or the folder itself) and gives each the ground-plane layout prior's distance
+    (:mod:`murk.io.distance_prior`, drawn from the run's seed and the stem)."""
+    photos: str | None = None
+    """``source: scenes``: a folder of clean photographs (RGB-D, or photographs with ``depth_from: layout``) mixed
+    into the procedural training scenes, degraded online like them (:mod:`murk.train.photo_source`); the
+    validation split stays procedural. Photographs are real content, with the contrast and texture the scenes lack."""
+    photos_share: float = 0.5
+    """``photos``: the share of training samples that are photograph windows (each photograph is repeated, with
+    windows at different positions and sizes, to reach it)."""
+    photos_scale: tuple[float, float] = (1.0, 2.5)
+    """``photos``: each window is cut from the photograph resized to ``s`` times the size that just covers the
+    crop (``s`` uniform in this range, fixed per photograph and repeat)."""
     scenes_count: int = 2000
     """Number of procedural scenes (``source: scenes``); scene i is the same in every epoch."""
     cache_scenes: bool = False
@@ -202,6 +217,13 @@ class DataConfig:
         check_interval("scene_contrast", self.scene_contrast, 0.0, 4.0)
         if self.scene_balance_pct is not None:
             check_range("scene_balance_pct", self.scene_balance_pct, 0.0, 49.0)
+        if self.depth_from not in DEPTH_FROM:
+            raise ValueError(f"depth_from: expected one of {', '.join(DEPTH_FROM)}, got {self.depth_from!r}")
+        if not 0.0 < self.photos_share < 1.0:
+            raise ValueError(f"photos_share: expected 0 < share < 1, got {self.photos_share}")
+        lo, hi = self.photos_scale
+        if not (1.0 <= lo <= hi <= 4.0):
+            raise ValueError(f"photos_scale: expected 1 <= low <= high <= 4, got {list(self.photos_scale)}")
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,7 @@ from murk.io.depth import read_depth
 from murk.io.images import read_rgb
 from murk.io.jobs import ErrorLog, ErrorRecord
 from murk.io.jsonl import read_jsonl
-from murk.io.pairs import DepthOptions, RGBDSource, discover, load_pair
+from murk.io.pairs import DepthFrom, DepthOptions, RGBDSource, discover, load_pair
 from murk.rng import derive_seed
 from murk.train.augment import centre_crop
 
@@ -210,9 +210,10 @@ class CleanRGBDDataset(Dataset):
         return {"clean": _chw(rgb), "depth_filled": _chw(depth), "depth": _chw(gt), "index": i}
 
 
-def rgbd_sources(folder: str | Path) -> list[RGBDSource]:
-    """The clean RGB-D pairs of a folder (``rgb/`` + ``depth/``); unpaired files are an error here."""
-    sources, problems = discover(folder)
+def rgbd_sources(folder: str | Path, depth_from: DepthFrom = "file") -> list[RGBDSource]:
+    """The clean RGB-D pairs of a folder (``rgb/`` + ``depth/``; photographs alone with ``depth_from="layout"``);
+    unpaired files are an error here."""
+    sources, problems = discover(folder, depth_from)
     if problems:
         raise InputFileError(problems[0].input, problems[0].error)
     return sources

@@ -43,7 +43,7 @@ class DataSetup:
 
 def build_data(config: TrainConfig) -> DataSetup:
     d = config.data
-    kind = d.kind if d.kind != "auto" else detect_kind(d.source)
+    kind = d.kind if d.kind != "auto" else detect_kind(d.source, d.depth_from)
     crop = (int(d.crop_hw[0]), int(d.crop_hw[1]))
     online = None
     if kind in ("synth", "list"):
@@ -57,8 +57,8 @@ def build_data(config: TrainConfig) -> DataSetup:
             tr, va = [items[i] for i in ti], [items[i] for i in vi]
         return DataSetup(PairDataset(tr, crop), PairDataset(va, crop) if va else None, None, kind)
     if kind == "rgbd":
-        sources = rgbd_sources(d.source)
-        opts = DepthOptions(depth_scale=d.depth_scale, invalid=d.invalid_depth, encoding=d.depth_encoding)
+        sources = rgbd_sources(d.source, d.depth_from)
+        opts = depth_options(config)
         ti, vi = split_by_stem([s.stem for s in sources], d.val_fraction, config.seed)
         online = OnlineDegrader(d.synthesis, seed=config.seed)
         train = CleanRGBDDataset([sources[i] for i in ti], crop, opts)
@@ -95,8 +95,36 @@ def build_data(config: TrainConfig) -> DataSetup:
 
         scenes = scenes_of(range(n_val, count))
         scenes_val = scenes_of(range(n_val)) if n_val else None
+        if d.photos is not None:
+            from murk.train.photo_source import PhotoDataset, ScenesAndPhotos, photo_repeats
+
+            photos = rgbd_sources(d.photos, d.depth_from)
+            repeats = photo_repeats(len(scenes), len(photos), d.photos_share)
+            windows = PhotoDataset(
+                photos,
+                crop,
+                depth_options(config),
+                seed=config.seed,
+                repeats=repeats,
+                scale=d.photos_scale,
+                balance_pct=d.scene_balance_pct,
+                cache=cache,
+            )
+            return DataSetup(ScenesAndPhotos([scenes, windows]), scenes_val, online, kind)
         return DataSetup(scenes, scenes_val, online, kind)
     raise ValueError(f"data.kind: expected auto, synth, list, rgbd, scenes or shards, got {kind!r}")
+
+
+def depth_options(config: TrainConfig) -> DepthOptions:
+    """How the run reads the depth of its clean RGB-D sources (``data.depth_*``, ``data.invalid_depth``)."""
+    d = config.data
+    return DepthOptions(
+        depth_scale=d.depth_scale,
+        invalid=d.invalid_depth,
+        encoding=d.depth_encoding,
+        depth_from=d.depth_from,
+        layout_seed=config.seed,
+    )
 
 
 # ---------------------------------------------------------------------------------------- process, device

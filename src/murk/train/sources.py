@@ -20,9 +20,10 @@ def is_shard_source(source: str) -> bool:
     return Path(s).is_dir() and (Path(s) / INDEX_NAME).is_file() and not (Path(s) / "manifest.jsonl").exists()
 
 
-def detect_kind(source: str) -> str:
-    """``synth`` (folder with manifest.jsonl), ``list`` (a file), ``rgbd`` (rgb/ + depth/), ``scenes`` or
-    ``shards`` (tar shards: a ``.tar`` pattern or an ``index.json``)."""
+def detect_kind(source: str, depth_from: str = "file") -> str:
+    """``synth`` (folder with manifest.jsonl), ``list`` (a file), ``rgbd`` (rgb/ + depth/, or with
+    ``depth_from="layout"`` any other folder: photographs without depth), ``scenes`` or ``shards`` (tar shards: a
+    ``.tar`` pattern or an ``index.json``)."""
     p = Path(source)
     if source == "scenes" or source.startswith("scenes:"):
         return "scenes"
@@ -32,7 +33,7 @@ def detect_kind(source: str) -> str:
         return "list"
     if (p / "manifest.jsonl").is_file():
         return "synth"
-    if p.is_dir() and (p / "depth").is_dir():
+    if p.is_dir() and ((p / "depth").is_dir() or depth_from == "layout"):
         return "rgbd"
     raise ValueError(
         f"data.source: {source or '(empty)'} is neither a 'murk synth' folder, a Joint-ID list file, a folder with "
@@ -49,6 +50,11 @@ def check_sources(config: TrainConfig) -> None:
         ValueError: the message names ``data.source`` and what was expected.
     """
     d = config.data
-    kind = d.kind if d.kind != "auto" else detect_kind(d.source)
+    kind = d.kind if d.kind != "auto" else detect_kind(d.source, d.depth_from)
     if kind in ("synth", "list") and d.val_source:
         detect_kind(d.val_source)
+    if d.photos is not None:
+        if kind != "scenes":
+            raise ValueError(f"data.photos: mixes photographs into procedural scenes; data.source is {kind}")
+        if not Path(d.photos).is_dir():
+            raise ValueError(f"data.photos: {d.photos} is not a folder")
