@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from murk.enhance.frame_job import enhance_frames
-from murk.enhance.job_common import EnhanceReport, OutputOptions, ProgressFn, StopFn, restore_batch, should_end
+from murk.enhance.job_common import EnhanceReport, OutputOptions, ProgressFn, StopFn, read_frames, restore_batch
 from murk.enhance.preview import side_by_side
 from murk.enhance.restorer import Restorer
 from murk.errors import InputFileError
@@ -238,17 +238,8 @@ def enhance_bag_to_bag(
             on_progress(report)
 
     complete = False
-    n_read = 0
     try:
-        while True:
-            if should_end(report, should_stop, max_frames, n_read):
-                break
-            t0 = time.perf_counter()
-            frame = source.read()
-            report.read_s += time.perf_counter() - t0
-            if frame is None:
-                break
-            n_read += 1
+        for frame in read_frames(source, report, should_stop, max_frames):
             if frame.image is None:
                 record("decode", frame.error or "message could not be decoded", frame.index)
                 continue

@@ -25,7 +25,7 @@ from murk.enhance.job_common import (
     OutputOptions,
     ProgressFn,
     StopFn,
-    should_end,
+    read_frames,
     write_depth_outputs,
 )
 from murk.enhance.preview import colorize_depth, side_by_side
@@ -288,17 +288,9 @@ def enhance_frames(
     threads = one_thread_per_call() if restoring.threads > 1 else contextlib.nullcontext()
     with threads, restorer.sequence():  # one video: methods with state over time carry it from frame to frame
         try:
-            while True:
-                if should_end(report, should_stop, max_frames, n_read):
-                    break
-                t0 = time.perf_counter()
-                frame = reader.read()
-                if frame is None:
-                    report.read_s += time.perf_counter() - t0
-                    break
+            for frame in read_frames(reader, report, should_stop, max_frames):
                 n_read += 1
                 item = _FrameItem(frame.index, frame.image, frame.error)
-                report.read_s += time.perf_counter() - t0
                 if not writer.as_video and item.image is not None:
                     item.dst = writer.frame_path(frame.index)
                     if item.dst.exists() and not options.overwrite:

@@ -7,9 +7,11 @@ seconds, reported as milliseconds per frame, and frames per second over the wall
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import time
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Protocol, TypeVar
 
 import numpy as np
 
@@ -25,6 +27,7 @@ SIXTEEN_BIT_SUFFIXES = (".png", ".tif", ".tiff")
 
 ProgressFn = Callable[["EnhanceReport"], None]
 StopFn = Callable[[], bool]
+_F_co = TypeVar("_F_co", covariant=True)
 
 
 @dataclass(frozen=True)
@@ -100,13 +103,31 @@ INPUT_ERRORS = (InputFileError, ValueError, OSError)
 RESTORE_ERRORS = (ValueError, RuntimeError, MemoryError)
 
 
-def should_end(report: EnhanceReport, should_stop: StopFn | None, max_frames: int | None, n_read: int) -> bool:
-    """Whether a frame loop ends before reading the next frame: a stop request (``report.stopped`` is set)
-    or ``max_frames`` already read."""
-    if should_stop and should_stop():
-        report.stopped = True
-        return True
-    return max_frames is not None and n_read >= max_frames
+class Reads(Protocol[_F_co]):
+    """A source of frames read one at a time (a video, stream or bag source): None after the last one."""
+
+    def read(self) -> _F_co | None: ...
+
+
+def read_frames(
+    source: Reads[_F_co], report: EnhanceReport, should_stop: StopFn | None, max_frames: int | None
+) -> Iterator[_F_co]:
+    """The frames of ``source`` until it ends, a stop request (``report.stopped`` is set) or ``max_frames``
+    read; the time spent reading goes to ``report.read_s``. The reading loop of every frame job."""
+    n_read = 0
+    while True:
+        if should_stop and should_stop():
+            report.stopped = True
+            return
+        if max_frames is not None and n_read >= max_frames:
+            return
+        t0 = time.perf_counter()
+        frame = source.read()
+        report.read_s += time.perf_counter() - t0
+        if frame is None:
+            return
+        n_read += 1
+        yield frame
 
 
 def restore_batch(restorer: Restorer, images: np.ndarray) -> Restored:
