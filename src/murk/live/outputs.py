@@ -14,35 +14,23 @@ from __future__ import annotations
 import datetime as dt
 import json
 import threading
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 
+from murk.enhance.options import parse_spec
 from murk.io.atomic import make_output_folder, write_text_atomic
 from murk.io.depth import write_depth_png
 from murk.io.images import write_uint
 from murk.io.video import DEFAULT_FPS, VideoSink, av_available
 
+if TYPE_CHECKING:  # the pipeline imports this module
+    from murk.live.restore_loop import LiveView
+
 MAX_FILL_S = 2.0
 """A gap between two restored frames longer than this is not filled (a paused or reconnected source)."""
-
-
-@dataclass(frozen=True)
-class SnapshotFrame:
-    """What a snapshot saves: the frames (uint8 RGB), the depth (metres) if any, and their description."""
-
-    index: int
-    raw: np.ndarray
-    restored: np.ndarray
-    depth_m: np.ndarray | None
-    capture_ns: int
-    source_ns: int
-    method: str
-    options: dict[str, Any]
-    source: str
 
 
 def stamp(now: dt.datetime | None = None) -> str:
@@ -51,30 +39,31 @@ def stamp(now: dt.datetime | None = None) -> str:
     return now.strftime("%Y%m%d-%H%M%S-") + f"{now.microsecond // 1000:03d}"
 
 
-def write_snapshot(out_dir: Path, frame: SnapshotFrame) -> list[Path]:
-    """Write ``snapshot_<time>_f<frame>_{raw,restored}.png`` (and ``_depth.png``) and ``.json``; return the
-    paths, the sidecar last.
+def write_snapshot(out_dir: Path, view: LiveView, source: str) -> list[Path]:
+    """Write ``snapshot_<time>_f<frame>_{raw,restored}.png`` (and ``_depth.png``) of a restored ``view`` and
+    ``.json`` (its description, ``source`` the source's label); return the paths, the sidecar last.
 
     Raises:
         OutputError: the folder cannot be written or the disk is full (nothing half-written is left).
     """
     now = dt.datetime.now(dt.timezone.utc)
     make_output_folder(out_dir)
-    base = out_dir / f"snapshot_{stamp(now)}_f{frame.index:06d}"
-    paths = [write_uint(f"{base}_raw.png", frame.raw), write_uint(f"{base}_restored.png", frame.restored)]
-    if frame.depth_m is not None:
-        paths.append(write_depth_png(f"{base}_depth.png", frame.depth_m))
+    base = out_dir / f"snapshot_{stamp(now)}_f{view.index:06d}"
+    paths = [write_uint(f"{base}_raw.png", view.raw), write_uint(f"{base}_restored.png", view.restored)]
+    if view.depth_m is not None:
+        paths.append(write_depth_png(f"{base}_depth.png", view.depth_m))
+    method, options = parse_spec(view.method)
     sidecar = {
         "time": now.isoformat(timespec="milliseconds"),
-        "source": frame.source,
-        "frame": frame.index,
-        "method": frame.method,
-        "options": frame.options,
-        "capture_time_ns": frame.capture_ns,
-        "source_time_ns": frame.source_ns,
-        "size": [int(frame.raw.shape[1]), int(frame.raw.shape[0])],
+        "source": source,
+        "frame": view.index,
+        "method": method,
+        "options": options,
+        "capture_time_ns": view.capture_ns,
+        "source_time_ns": view.source_ns,
+        "size": [int(view.raw.shape[1]), int(view.raw.shape[0])],
         "files": {"raw": paths[0].name, "restored": paths[1].name}
-        | ({"depth_mm_png": paths[2].name} if frame.depth_m is not None else {}),
+        | ({"depth_mm_png": paths[2].name} if view.depth_m is not None else {}),
     }
     meta = Path(f"{base}.json")
     write_text_atomic(meta, json.dumps(sidecar, indent=2) + "\n")

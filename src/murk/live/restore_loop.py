@@ -50,11 +50,10 @@ import numpy as np
 from murk.enhance.frame_overlap import one_thread_per_call, one_thread_suits
 from murk.enhance.frames_u8 import restore_frames
 from murk.enhance.job_common import RESTORE_ERRORS
-from murk.enhance.options import parse_spec
 from murk.enhance.restorer import Restorer
 from murk.io.images import swap_red_blue, to_float, to_uint
 from murk.io.readahead import ReadAhead
-from murk.live.outputs import Recorder, SnapshotFrame, write_snapshot
+from murk.live.outputs import Recorder, write_snapshot
 from murk.live.source import LiveFrame, PacedSource
 
 RATE_WINDOW_S = 2.0
@@ -442,19 +441,7 @@ class LivePipeline:
         view = self.latest()
         if view is None:
             raise ValueError("snapshot: no frame has been restored yet")
-        method, options = parse_spec(view.method)
-        frame = SnapshotFrame(
-            view.index,
-            view.raw,
-            view.restored,
-            view.depth_m,
-            view.capture_ns,
-            view.source_ns,
-            method,
-            options,
-            self.label,
-        )
-        return write_snapshot(self.out_dir, frame)
+        return write_snapshot(self.out_dir, view, self.label)
 
     def set_recording(self, on: bool) -> Path | None:
         """Start (``on``) or stop recording the restored stream; returns the recording's path."""
