@@ -6,7 +6,7 @@ Needs the ``ros`` extra (rosbags). CPU, ONE core (cv2.setNumThreads(1), torch.se
 ``--frames`` 640x480 frames are stored four ways: a ROS 1 bag and a ROS 2 MCAP bag of raw ``bgr8`` Images, a
 ROS 2 MCAP bag of JPEG CompressedImages, and (the baselines) a folder of PNG files (lossless, like raw Images) and
 a folder of JPEG files (like CompressedImages). Each is restored end to end with the ``post`` method by the
-library function ``murk enhance`` calls (:func:`murk.enhance.bag.enhance_bag_to_bag`,
+library function ``murk enhance`` calls (:func:`murk.enhance.bag.enhance_bag`,
 :func:`murk.enhance.api.enhance_images`), output in the same form (bag -> bag, files -> files), in
 alternating rounds; the figure is the median frames/s over the rounds, the ratio bag / files of the same
 encoding.
@@ -30,7 +30,7 @@ from _common import machine, pin_one_core
 
 from murk.data import sample_underwater_images
 from murk.enhance.api import OutputOptions, enhance_images, plan_images, resolve_input
-from murk.enhance.bag import enhance_bag_to_bag
+from murk.enhance.bag import enhance_bag
 from murk.enhance.post import PostRestorer
 from murk.io.images import read_rgb, to_uint
 
@@ -88,7 +88,7 @@ def run_bag(bag: Path, topic: str, out: Path) -> Callable[[], float]:
         shutil.rmtree(out, ignore_errors=True)
         out.unlink(missing_ok=True) if out.is_file() else None
         with BagSource(bag, topic) as src:
-            report = enhance_bag_to_bag(src, PostRestorer(), out, OutputOptions(overwrite=True))
+            report = enhance_bag(src, PostRestorer(), out, OutputOptions(overwrite=True))
         return report.processed / report.wall_s
 
     return go

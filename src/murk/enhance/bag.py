@@ -1,12 +1,12 @@
 """Restoring the images of a ROS bag topic into a new bag or into numbered images (``murk enhance dive.bag``).
 
-Bag output (:func:`enhance_bag_to_bag`): a bag of the input's family (ROS 1 -> ROS 1, ROS 2 -> ROS 2, storage
-as the input unless ``storage``) with the restored frames on ``out_topic`` (default ``<topic>/restored``; for
-``<base>/compressed`` topics ``<base>/restored/compressed`` so image_transport sees a ``compressed`` transport)
-in the input's message type and encoding family, with the ORIGINAL header stamps, frame ids and bag record
-times; depth maps (methods that estimate depth) on ``depth_topic`` (default ``<base>/depth``) as ``32FC1``
-metres; and, when asked, other topics copied unchanged (``camera_info``: every ``sensor_msgs/CameraInfo``
-topic; ``all``: every topic).
+Bag output (:func:`enhance_bag` with a bag ``out``): a bag of the input's family (ROS 1 -> ROS 1, ROS 2 ->
+ROS 2, storage as the input unless ``storage``) with the restored frames on ``out_topic`` (default
+``<topic>/restored``; for ``<base>/compressed`` topics ``<base>/restored/compressed`` so image_transport sees a
+``compressed`` transport) in the input's message type and encoding family, with the ORIGINAL header stamps,
+frame ids and bag record times; depth maps (methods that estimate depth) on ``depth_topic`` (default
+``<base>/depth``) as ``32FC1`` metres; and, when asked, other topics copied unchanged (``camera_info``: every
+``sensor_msgs/CameraInfo`` topic; ``all``: every topic).
 
 Frames output (:func:`enhance_bag`): numbered images ``<bag>_<index:06d>.<format>`` written by
 :func:`murk.enhance.api.enhance_frames` (same depth outputs, same per-frame resume) plus ``frames.jsonl``
@@ -141,28 +141,19 @@ def resolve_copy_topics(source: BagSource, copy_topics: Sequence[str], skip: Seq
     return chosen
 
 
-def enhance_bag_to_bag(
+def _enhance_to_bag(
     source: BagSource,
     restorer: Restorer,
     out: Path,
-    options: OutputOptions | None = None,
-    *,
-    bag: BagOptions | None = None,
-    batch: int = 1,
-    max_frames: int | None = None,
-    on_progress: ProgressFn | None = None,
-    should_stop: StopFn | None = None,
+    options: OutputOptions,
+    bag: BagOptions,
+    batch: int,
+    max_frames: int | None,
+    on_progress: ProgressFn | None,
+    should_stop: StopFn | None,
 ) -> EnhanceReport:
-    """Restore the frames of ``source`` into a new bag at ``out`` (see the module docstring); ``bag`` gives the
-    output topics, storage and topics to copy (its ``topic`` and ``every`` were used to open ``source``).
-
-    Raises:
-        ValueError: a bad option (``storage`` for a ROS 1 bag, an output topic equal to the input topic, ...).
-        InputFileError: a ``copy_topics`` entry is not in the bag.
-        OutputError: no space left on the device; the temporary bag is deleted.
-    """
-    options = options or OutputOptions()
-    bag = bag or BagOptions()
+    """:func:`enhance_bag` into a new bag at ``out`` (see the module docstring); ``bag`` gives the output topics,
+    storage and topics to copy (its ``topic`` and ``every`` were used to open ``source``)."""
     storage = bag.storage
     if batch < 1:
         raise ValueError(f"batch: expected >= 1, got {batch}")
@@ -301,16 +292,16 @@ def enhance_bag(
 
     Raises:
         ValueError: bag-output choices (``out_topic``, ``depth_topic``, ``storage``, ``copy_topics``) with a
-            frames output, or see :func:`enhance_bag_to_bag`.
+            frames output; a bad option of a bag output (``storage`` for a ROS 1 bag, an output topic equal to the
+            input topic, ...).
+        InputFileError: a ``copy_topics`` entry is not in the bag.
+        OutputError: no space left on the device; the temporary bag is deleted.
     """
     options = options or OutputOptions()
     bag = bag or BagOptions()
     if writes_bag(out, source.family, options.format):
         with restorer.sequence():  # the topic's frames are one video (enhance_frames enters it for frames)
-            return enhance_bag_to_bag(
-                source, restorer, out, options, bag=bag, batch=batch, max_frames=max_frames,
-                on_progress=on_progress, should_stop=should_stop,
-            )  # fmt: skip
+            return _enhance_to_bag(source, restorer, out, options, bag, batch, max_frames, on_progress, should_stop)
     if bag.output_flags():
         raise ValueError(f"{', '.join(bag.output_flags())}: apply to a bag output; --out {out} writes numbered images")
     report = enhance_frames(
