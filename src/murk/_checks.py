@@ -73,3 +73,13 @@ def check_interval(name: str, interval: Any, low: float, high: float) -> tuple[f
     if a > b:
         raise ValueError(f"{name}: expected min <= max, got ({a}, {b})")
     return a, b
+
+
+def int_pair(value: Any) -> tuple[int, int] | None:
+    """``value`` as a pair of ints (two items ``int()`` accepts), or None when it is not one: the caller raises
+    its own error."""
+    try:
+        a, b = (int(v) for v in value)
+    except (TypeError, ValueError):
+        return None
+    return a, b

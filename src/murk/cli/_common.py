@@ -82,15 +82,13 @@ def make_console(quiet: bool = False) -> Console:
 
 def parse_size(text: str, *, option: str = "--size") -> tuple[int, int]:
     """Parse ``WxH`` (e.g. ``640x480``) into (width, height), both >= 1; the error names ``option``."""
-    parts = text.lower().strip().split("x")
-    try:
-        w, h = (int(p) for p in parts)
-    except ValueError:
-        raise ValueError(f"{option}: expected WxH with integers >= 1 (e.g. 640x480), got {text!r}") from None
-    if w < 1 or h < 1:
-        raise ValueError(f"{option}: expected WxH with integers >= 1 (e.g. 640x480), got {text!r}")
+    from murk._checks import int_pair
     from murk._limits import max_pixels
 
+    pair = int_pair(text.lower().strip().split("x"))
+    if pair is None or min(pair) < 1:
+        raise ValueError(f"{option}: expected WxH with integers >= 1 (e.g. 640x480), got {text!r}")
+    w, h = pair
     if w * h > max_pixels():
         raise ValueError(
             f"{option}: {w}x{h} = {w * h:,} pixels is over the limit of {max_pixels():,} (murk --max-pixels N)"

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 import cv2
 import numpy as np
 
-from murk._checks import check_positive, check_rgb
+from murk._checks import check_positive, check_rgb, int_pair
 from murk.enhance.choices import HE_MODES, HEMode
 from murk.enhance.torch_twins import check_image_batch, reflect101_index
 from murk.errors import ShapeError
@@ -319,12 +319,10 @@ def clahe_grid(tiles: Any) -> tuple[int, int]:
     """A CLAHE grid (an int: square, or (columns, rows)) as (columns, rows), checked."""
     if isinstance(tiles, bool):
         raise TypeError(f"clahe_tiles: expected an int or a (columns, rows) pair, got {tiles!r}")
-    if isinstance(tiles, (int, np.integer)):
-        tiles = (int(tiles), int(tiles))
-    try:
-        tx, ty = (int(t) for t in tiles)
-    except (TypeError, ValueError):
-        raise TypeError(f"clahe_tiles: expected an int or a (columns, rows) pair, got {tiles!r}") from None
+    pair = int_pair((tiles, tiles) if isinstance(tiles, (int, np.integer)) else tiles)
+    if pair is None:
+        raise TypeError(f"clahe_tiles: expected an int or a (columns, rows) pair, got {tiles!r}")
+    tx, ty = pair
     if tx < 1 or ty < 1:
         raise ValueError(f"clahe_tiles: expected tiles >= 1, got {(tx, ty)}")
     return tx, ty

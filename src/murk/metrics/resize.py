@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from murk._checks import int_pair
 from murk.errors import ShapeError
 
 
@@ -29,10 +30,8 @@ def pil_bicubic_resize(image: np.ndarray, size_wh: tuple[int, int]) -> np.ndarra
         raise TypeError(f"image: expected a uint8 numpy array (Pillow's 8-bit resize), got {got}")
     if image.ndim != 3 or image.shape[2] != 3 or image.shape[0] < 1 or image.shape[1] < 1:
         raise ShapeError(f"image: expected shape (H, W, 3), got {image.shape}")
-    try:
-        w, h = (int(v) for v in size_wh)
-    except (TypeError, ValueError):
-        raise ValueError(f"size_wh: expected (width, height) integers >= 1, got {size_wh!r}") from None
-    if w < 1 or h < 1:
+    pair = int_pair(size_wh)
+    if pair is None or min(pair) < 1:
         raise ValueError(f"size_wh: expected (width, height) integers >= 1, got {size_wh!r}")
+    w, h = pair
     return np.asarray(Image.fromarray(np.ascontiguousarray(image), mode="RGB").resize((w, h), Image.Resampling.BICUBIC))
