@@ -26,8 +26,7 @@ from torch import Tensor, nn
 
 from murk.enhance.choices import DEFAULT_OVERLAP, POLICIES, Policy
 from murk.enhance.declare import Checked
-from murk.enhance.jointid_restorer import _resolve_device
-from murk.enhance.restorer import RestoredTensor, Restorer, check_tensor_batch
+from murk.enhance.restorer import RestoredTensor, Restorer, check_tensor_batch, torch_device
 from murk.enhance.tiling import pad_to_multiple, tiled_apply
 
 OFFICIAL_SIZE = 256
@@ -174,7 +173,7 @@ class BaselineRestorer(Restorer):
         self.policy = check_policy(policy)
         self.tile = check_tile(tile, network.tile_multiple, network.title) or network.square_tile
         self.overlap = check_overlap(overlap, self.tile)
-        self.device = _resolve_device(device)
+        self.device = torch_device(device)
         self.run = TorchRunner(model, self.device, precision, batch)
         self.weights: str | None = None
         """The weights file (set by the method's factory)."""

@@ -50,7 +50,7 @@ from murk.enhance.choices import DEFAULT_OVERLAP, DEFAULT_REFINE_GUARD, Precisio
 from murk.enhance.declare import Checked
 from murk.enhance.methods import weights_file
 from murk.enhance.refine import RefineSettings, refine_restoration
-from murk.enhance.restorer import RestoredTensor, Restorer, check_tensor_batch
+from murk.enhance.restorer import NetworkRestorer, RestoredTensor, torch_device
 from murk.enhance.tiling import pad_to_multiple, tiled_apply
 from murk.models.jointid.network import INPUT_MEAN, INPUT_STD, SIZE_MULTIPLE
 from murk.restore_ops.balance import color_balance_torch
@@ -58,18 +58,6 @@ from murk.restore_ops.balance import color_balance_torch
 _DTYPES: dict[str, torch.dtype] = {"bf16": torch.bfloat16, "fp16": torch.float16}
 
 Backend = Callable[[Tensor], tuple[Tensor, Tensor]]
-
-
-def _resolve_device(device: str | torch.device) -> torch.device:
-    dev = torch.device(device)
-    if dev.type == "cuda" and not torch.cuda.is_available():
-        raise ValueError(
-            f"device: CUDA is not available on this machine (torch {torch.__version__}), got {device!r}; use "
-            "device cpu, or install a CUDA build of torch"
-        )
-    if dev.type not in ("cpu", "cuda"):
-        raise ValueError(f"device: expected cpu, cuda or cuda:N, got {device!r}")
-    return dev
 
 
 class _CudaGraphRunner:
@@ -99,7 +87,7 @@ class _CudaGraphRunner:
         return static_out[0].clone(), static_out[1].clone()
 
 
-class JointIDRestorer(Restorer):
+class JointIDRestorer(NetworkRestorer):
     """Joint-ID as a :class:`~murk.enhance.restorer.Restorer` (enhanced image + depth in metres).
 
     Args:
@@ -190,7 +178,7 @@ class JointIDRestorer(Restorer):
         if not isinstance(model, nn.Module):
             raise TypeError(f"model: expected a JointID or an OnnxJointID, got {type(model).__name__}")
         net = unwrap(model)
-        self.device = _resolve_device(device)
+        self.device = torch_device(device)
         if cuda_graph and self.device.type != "cuda":
             raise ValueError("cuda_graph: needs device cuda; add --device cuda, or leave cuda_graph out")
         self.channels_last = self.device.type == "cuda" if channels_last is None else bool(channels_last)
@@ -233,30 +221,22 @@ class JointIDRestorer(Restorer):
         outs = [self._backend(x[i : i + step]) for i in range(0, x.shape[0], step)]
         return torch.cat([o[0] for o in outs]), torch.cat([o[1] for o in outs])
 
-    def restore_tensor(self, images: Tensor) -> RestoredTensor:
-        """Enhance a batch (B, 3, H, W) in [0, 1] of any H, W >= 1; returns the enhanced batch and depth (m).
-
-        Raises:
-            TypeError: not a floating-point tensor.
-            ShapeError: not (B, 3, H, W).
-        """
-        check_tensor_batch(images)
-        with torch.inference_mode():
-            x = images.to(self.device, torch.float32)
-            if self.input_balance_pct is not None:  # the input the network was trained on
-                x = color_balance_torch(x, self.input_balance_pct, self.input_balance_pct)
-            if self.model is not None:  # an ONNX export normalises inside its graph
-                x = self._normalize(x)
-            # An ONNX export takes whole frames of any size and balances, normalises and pads them itself: padded
-            # here first, its balance would take its levels from the padding too. Tiles are padded here.
-            whole_onnx = self.model is None and not self._tiled(x)
-            x, pad = pad_to_multiple(x, 1 if whole_onnx else SIZE_MULTIPLE, "reflect")
-            if self.channels_last:
-                x = x.contiguous(memory_format=torch.channels_last)
-            depth, enhanced = self._forward_padded(x)
-            depth = pad.crop(depth).contiguous()
-            enhanced = pad.crop(enhanced).clamp(0.0, 1.0).contiguous()
-            enhanced = refine_restoration(images, enhanced, self.refine_settings)
+    def _restore_network(self, images: Tensor, x: Tensor) -> RestoredTensor:
+        """The enhanced batch and its depth (m): balance, normalise, pad, the network (whole or tiled), crop."""
+        if self.input_balance_pct is not None:  # the input the network was trained on
+            x = color_balance_torch(x, self.input_balance_pct, self.input_balance_pct)
+        if self.model is not None:  # an ONNX export normalises inside its graph
+            x = self._normalize(x)
+        # An ONNX export takes whole frames of any size and balances, normalises and pads them itself: padded
+        # here first, its balance would take its levels from the padding too. Tiles are padded here.
+        whole_onnx = self.model is None and not self._tiled(x)
+        x, pad = pad_to_multiple(x, 1 if whole_onnx else SIZE_MULTIPLE, "reflect")
+        if self.channels_last:
+            x = x.contiguous(memory_format=torch.channels_last)
+        depth, enhanced = self._forward_padded(x)
+        depth = pad.crop(depth).contiguous()
+        enhanced = pad.crop(enhanced).clamp(0.0, 1.0).contiguous()
+        enhanced = refine_restoration(images, enhanced, self.refine_settings)
         return RestoredTensor(enhanced, depth)
 
     def __repr__(self) -> str:
@@ -295,7 +275,7 @@ def create_jointid(o: Checked) -> JointIDRestorer:
         model: nn.Module | OnnxJointID = OnnxJointID(path, device=str(o.device))
         dev = torch.device("cpu")
     else:
-        dev = _resolve_device(o.device)
+        dev = torch_device(o.device)
         model = load_checkpoint(path, trust=o.trust_checkpoint, device="cpu")
     settings = {k: o[k] for k in ("precision", "tile", "overlap", "batch", "compile", "cuda_graph")}
     restorer = JointIDRestorer(

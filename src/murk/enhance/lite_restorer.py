@@ -36,7 +36,7 @@ from murk.enhance.choices import DEFAULT_REFINE_GUARD
 from murk.enhance.declare import Checked
 from murk.enhance.methods import weights_file
 from murk.enhance.refine import RefineSettings, refine_restoration
-from murk.enhance.restorer import RestoredTensor, Restorer, check_tensor_batch
+from murk.enhance.restorer import NetworkRestorer, RestoredTensor, torch_device
 from murk.enhance.temporal import FrameEMA
 from murk.models.lite.network import (
     LUMA,
@@ -52,7 +52,7 @@ from murk.models.padding import pad_to_multiple
 from murk.restore_ops.balance import apply_levels, apply_levels_torch, balance_levels, balance_levels_torch
 
 
-class LiteRestorer(Restorer):
+class LiteRestorer(NetworkRestorer):
     """The ``lite`` network as a :class:`~murk.enhance.restorer.Restorer` (enhanced image, no depth).
 
     Args:
@@ -117,14 +117,7 @@ class LiteRestorer(Restorer):
             return
         if not isinstance(model, nn.Module):
             raise TypeError(f"model: expected a LiteNet or an OnnxLite, got {type(model).__name__}")
-        dev = torch.device(device)
-        if dev.type == "cuda" and not torch.cuda.is_available():
-            raise ValueError(
-                f"device: CUDA is not available on this machine, got {device!r}; use device cpu, or install a CUDA "
-                "build of torch"
-            )
-        if dev.type not in ("cpu", "cuda"):
-            raise ValueError(f"device: expected cpu, cuda or cuda:N, got {device!r}")
+        dev = torch_device(device)
         self.device = dev
         # Channels-last memory: a numpy frame (H, W, 3) already is, so nothing is transposed on the way in or out,
         # and the full-resolution steps (pooling, upsampling, gain * x + offset) run faster (about 15%, CPU).
@@ -135,49 +128,42 @@ class LiteRestorer(Restorer):
         self.work_area_px = net.config.work_area_px
         """Frames with more pixels are area-downsampled to about this many for the coefficients (0: never)."""
 
-    def restore_tensor(self, images: Tensor) -> RestoredTensor:
-        """Enhance a batch (B, 3, H, W) in [0, 1] of any H, W >= 1.
-
-        Raises:
-            TypeError: not a floating-point tensor.
-            ShapeError: not (B, 3, H, W).
-        """
-        check_tensor_batch(images)
-        with torch.inference_mode():
-            x = images.to(self.device, torch.float32)
-            if self.input_balance_pct is not None:  # the input the network was trained on
-                levels = _balance_levels(x, self.input_balance_pct)
-                if self.levels_state is not None and self.temporal_hook() is not None:
-                    levels = self.levels_state(levels)
-                x = _apply_levels(x, levels)
-            step = self.batch or x.shape[0]
-            model = self.model
-            if model is None:  # an ONNX export: working image, padding and clamping are in its graph
-                outs = [self._backend(x[i : i + step]) for i in range(0, x.shape[0], step)]
-                out = outs[0] if len(outs) == 1 else torch.cat(outs)
-                return RestoredTensor(refine_restoration(images, out, self.refine_settings), None)
-            native = work_size(x.shape[-2], x.shape[-1], self.work_area_px) is None
-            if native:  # the frame itself is the working image: its sides must be multiples of 16
-                x, pad = pad_to_multiple(x, SIZE_MULTIPLE, "reflect")
-            x = x.contiguous(memory_format=torch.channels_last)
-            outs = []
-            for i in range(0, x.shape[0], step):
-                chunk = x[i : i + step]
-                work = chunk if native else work_image(chunk, self.work_area_px)
-                ema = self.temporal_hook()
-                if self.device.type == "cpu":
-                    outs.append(_forward_cpu(model, chunk, work, ema))
-                elif ema is not None:
-                    lo = ema(model.maps(work))  # type: ignore[operator]
-                    maps = F.interpolate(lo, size=chunk.shape[-2:], mode="bilinear")
-                    outs.append(apply_maps(maps, chunk))  # LiteNet.forward with the averaged maps
-                else:
-                    outs.append(model(chunk, work))
+    def _restore_network(self, images: Tensor, x: Tensor) -> RestoredTensor:
+        """The enhanced batch: balance, the network's maps (averaged over time inside :meth:`sequence` with a
+        ``temporal`` weight) applied at full resolution, refine."""
+        if self.input_balance_pct is not None:  # the input the network was trained on
+            levels = _balance_levels(x, self.input_balance_pct)
+            if self.levels_state is not None and self.temporal_hook() is not None:
+                levels = self.levels_state(levels)
+            x = _apply_levels(x, levels)
+        step = self.batch or x.shape[0]
+        model = self.model
+        if model is None:  # an ONNX export: working image, padding and clamping are in its graph
+            outs = [self._backend(x[i : i + step]) for i in range(0, x.shape[0], step)]
             out = outs[0] if len(outs) == 1 else torch.cat(outs)
-            if self.device.type != "cpu":  # the CPU step clamps strip by strip
-                out = out.clamp_(0.0, 1.0)
-            enhanced = pad.crop(out) if native else out
-            enhanced = refine_restoration(images, enhanced, self.refine_settings)
+            return RestoredTensor(refine_restoration(images, out, self.refine_settings), None)
+        native = work_size(x.shape[-2], x.shape[-1], self.work_area_px) is None
+        if native:  # the frame itself is the working image: its sides must be multiples of 16
+            x, pad = pad_to_multiple(x, SIZE_MULTIPLE, "reflect")
+        x = x.contiguous(memory_format=torch.channels_last)
+        outs = []
+        for i in range(0, x.shape[0], step):
+            chunk = x[i : i + step]
+            work = chunk if native else work_image(chunk, self.work_area_px)
+            ema = self.temporal_hook()
+            if self.device.type == "cpu":
+                outs.append(_forward_cpu(model, chunk, work, ema))
+            elif ema is not None:
+                lo = ema(model.maps(work))  # type: ignore[operator]
+                maps = F.interpolate(lo, size=chunk.shape[-2:], mode="bilinear")
+                outs.append(apply_maps(maps, chunk))  # LiteNet.forward with the averaged maps
+            else:
+                outs.append(model(chunk, work))
+        out = outs[0] if len(outs) == 1 else torch.cat(outs)
+        if self.device.type != "cpu":  # the CPU step clamps strip by strip
+            out = out.clamp_(0.0, 1.0)
+        enhanced = pad.crop(out) if native else out
+        enhanced = refine_restoration(images, enhanced, self.refine_settings)
         return RestoredTensor(enhanced, None)
 
     def restore_u8(self, frames: np.ndarray, out_dtype: type = np.uint8) -> np.ndarray | None:

@@ -117,6 +117,25 @@ def check_tensor_batch(images: object) -> None:
         raise ShapeError(f"images: expected shape (B, 3, H, W), got {tuple(images.shape)}")
 
 
+def torch_device(device: str | torch.device) -> torch.device:
+    """``device`` as a torch device a network can run on here: ``cpu``, or ``cuda``/``cuda:N`` when CUDA is there.
+
+    Raises:
+        ValueError: CUDA is not available, or another kind of device.
+    """
+    import torch
+
+    dev = torch.device(device)
+    if dev.type == "cuda" and not torch.cuda.is_available():
+        raise ValueError(
+            f"device: CUDA is not available on this machine (torch {torch.__version__}), got {device!r}; use "
+            "device cpu, or install a CUDA build of torch"
+        )
+    if dev.type not in ("cpu", "cuda"):
+        raise ValueError(f"device: expected cpu, cuda or cuda:N, got {device!r}")
+    return dev
+
+
 class Restorer:
     """Base class of restoration methods. Subclasses set ``name`` and override ``restore`` and/or
     ``restore_tensor``; ``device`` is where the tensor path runs."""
@@ -182,6 +201,29 @@ class Restorer:
     def temporal_hook(self) -> FrameEMA | None:
         """The temporal average to apply now: inside :meth:`sequence` with a ``temporal`` weight, else None."""
         return self.temporal_state if self._in_sequence else None
+
+
+class NetworkRestorer(Restorer):
+    """A restorer around a torch network: :meth:`restore_tensor` checks the batch and hands it, as float32 on
+    ``device``, to :meth:`_restore_network` under ``torch.inference_mode()``."""
+
+    def restore_tensor(self, images: torch.Tensor) -> RestoredTensor:
+        """Enhance a batch (B, 3, H, W) in [0, 1] of any H, W >= 1 (with its depth in metres when the network
+        estimates it).
+
+        Raises:
+            TypeError: not a floating-point tensor.
+            ShapeError: not (B, 3, H, W).
+        """
+        import torch
+
+        check_tensor_batch(images)
+        with torch.inference_mode():
+            return self._restore_network(images, images.to(self.device, torch.float32))
+
+    def _restore_network(self, images: torch.Tensor, x: torch.Tensor) -> RestoredTensor:
+        """The restoration of ``images``; ``x`` is ``images`` as float32 on the device."""
+        raise NotImplementedError
 
 
 class _Composite(Restorer):
