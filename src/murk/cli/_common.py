@@ -27,6 +27,12 @@ QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="Print only errors
 DeviceOpt = Annotated[str, typer.Option("--device", help="cpu, cuda or cuda:N.")]
 
 
+def topic_option(inputs: str) -> Any:
+    """The ``--topic`` option of a command reading ROS bags (``inputs`` names them in the help): the image topic,
+    and the bag's topics are listed when it is left out."""
+    return typer.Option("--topic", help=f"{inputs}: the image topic (omit it to list them).")
+
+
 class MurkGroup(TyperGroup):
     """Turns ``ValueError``/``OSError`` raised by the library into a clean one-line error (exit code 2).
 

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from murk.cli._common import DeviceOpt, QuietOpt, make_console
+from murk.cli._common import DeviceOpt, QuietOpt, make_console, topic_option
 from murk.cli._jobs import JobProgress, print_summary
 from murk.enhance.choices import Policy, Precision
 
@@ -51,9 +51,7 @@ def compare(
         bool, typer.Option("--save-outputs", help="Also write restored/<label>/<stem>.png.")
     ] = False,
     title: Annotated[str, typer.Option("--title", help="Report title.")] = "murk compare",
-    topic: Annotated[
-        str | None, typer.Option("--topic", help="REAL_DIR a ROS bag: the image topic (omit it to list them).")
-    ] = None,
+    topic: Annotated[str | None, topic_option("REAL_DIR a ROS bag")] = None,
     every: Annotated[int, typer.Option("--every", min=1, help="REAL_DIR a ROS bag: every N-th frame.")] = 1,
     ref: Annotated[
         Path | None,

@@ -17,6 +17,7 @@ from murk.cli._common import (
     make_console,
     resolve_device,
     stop_on_signals,
+    topic_option,
 )
 from murk.cli._jobs import JobProgress, print_summary
 from murk.enhance.choices import BagStorage, HEMode, ImageFormat, Policy, Precision, VideoBackendChoice
@@ -183,9 +184,7 @@ def enhance(
             help="Video writer: opencv, av (PyAV; kill-safe fragmented MP4), auto (av for live streams if installed).",
         ),
     ] = "auto",
-    topic: Annotated[
-        str | None, typer.Option("--topic", help="ROS bag input: the image topic (omit it to list them).")
-    ] = None,
+    topic: Annotated[str | None, topic_option("ROS bag input")] = None,
     every: Annotated[int, typer.Option("--every", min=1, help="ROS bag input: every N-th frame of the topic.")] = 1,
     out_topic: Annotated[
         str | None, typer.Option("--out-topic", help="Bag output: topic of restored frames (<topic>/restored).")

@@ -15,7 +15,7 @@ from typing import Annotated, Any
 
 import typer
 
-from murk.cli._common import QuietOpt, make_console, parse_size
+from murk.cli._common import QuietOpt, make_console, parse_size, topic_option
 from murk.cli._jobs import JobProgress, print_summary
 from murk.metrics import table
 
@@ -81,9 +81,7 @@ def evaluate(
     json_out: Annotated[
         Path | None, typer.Option("--json", help="Write rows, summary, presets and errors to this JSON file.")
     ] = None,
-    topic: Annotated[
-        str | None, typer.Option("--topic", help="ROS bags among IMAGES: the image topic (omit it to list them).")
-    ] = None,
+    topic: Annotated[str | None, topic_option("ROS bags among IMAGES")] = None,
     every: Annotated[int, typer.Option("--every", min=1, help="ROS bags among IMAGES: every N-th frame.")] = 1,
     metrics: Annotated[str | None, typer.Option("--metrics", help=_METRICS_HELP)] = None,
     list_metrics: Annotated[

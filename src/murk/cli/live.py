@@ -17,6 +17,7 @@ from murk.cli._common import (
     make_console,
     resolve_device,
     stop_on_signals,
+    topic_option,
 )
 
 
@@ -38,9 +39,7 @@ def live(
             "the page.",
         ),
     ] = "lite+post",
-    topic: Annotated[
-        str | None, typer.Option("--topic", help="ROS bag: the image topic (omit it to list them).")
-    ] = None,
+    topic: Annotated[str | None, topic_option("ROS bag")] = None,
     host: Annotated[
         str,
         typer.Option("--host", help="Address of the page; 0.0.0.0 exposes it to the network (a warning is printed)."),

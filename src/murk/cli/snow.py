@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from murk.cli._common import QuietOpt, command_group, make_console
+from murk.cli._common import QuietOpt, command_group, make_console, topic_option
 from murk.cli._jobs import JobProgress, print_summary
 
 app = command_group("Marine-snow particle banks from real underwater images and video.")
@@ -44,9 +44,7 @@ def extract(
         float, typer.Option("--max-coverage", help="Reject frames whose mask covers more than this fraction.")
     ] = 0.25,
     every: Annotated[int, typer.Option("--every", help="Use every N-th video or bag frame.")] = 10,
-    topic: Annotated[
-        str | None, typer.Option("--topic", help="ROS bag inputs: the image topic (omit it to list them).")
-    ] = None,
+    topic: Annotated[str | None, topic_option("ROS bag inputs")] = None,
     scale: Annotated[
         str, typer.Option("--scale", help="The resize range used at synthesis, for the sub-pixel check.")
     ] = "0.3,0.6",
