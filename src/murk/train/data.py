@@ -159,23 +159,34 @@ def record_unreadable(batch: dict[str, Any], errors: ErrorLog | None) -> None:
                 errors.add(ErrorRecord(path, "read", f"{path}: {problem}; a readable sample was used in its place"))
 
 
-class PairDataset(Dataset):
+class FileDataset(Dataset):
+    """A dataset read from files: sample ``i`` is ``self._load(i)``, and an unreadable one is replaced by the next
+    readable sample and reported (:func:`first_readable`). A subclass fills ``entries`` (one per sample) and writes
+    ``_load``."""
+
+    entries: list[Any]
+
+    def __len__(self) -> int:
+        return len(self.entries)
+
+    def __getitem__(self, i: int) -> dict[str, Any]:
+        return first_readable(len(self), i, self._load)
+
+    def _load(self, i: int) -> dict[str, Any]:
+        raise NotImplementedError
+
+
+class PairDataset(FileDataset):
     """Triplets from files, centre-cropped to ``size_hw``: ``input``, ``target`` (3, H, W) in [0, 1],
     ``depth`` (1, H, W) metres with 0 = invalid, ``index``, and ``failed`` (see :func:`first_readable`: an
     unreadable sample is replaced by the next readable one and reported)."""
 
     def __init__(self, items: Sequence[PairItem], size_hw: tuple[int, int]) -> None:
-        self.items = list(items)
+        self.entries = list(items)
         self.size_hw = size_hw
 
-    def __len__(self) -> int:
-        return len(self.items)
-
-    def __getitem__(self, i: int) -> dict[str, Any]:
-        return first_readable(len(self.items), i, self._load)
-
     def _load(self, i: int) -> dict[str, Any]:
-        it = self.items[i]
+        it = self.entries[i]
         x = read_rgb(it.input_path)
         y = read_rgb(it.target_path)
         d = read_depth(it.depth_path, depth_scale=it.depth_scale)
@@ -186,24 +197,18 @@ class PairDataset(Dataset):
         return {"input": _chw(x), "target": _chw(y), "depth": _chw(d), "index": i}
 
 
-class CleanRGBDDataset(Dataset):
+class CleanRGBDDataset(FileDataset):
     """Clean RGB-D for online synthesis, centre-cropped: ``clean`` (3, H, W), ``depth_filled`` (1, H, W)
     (holes filled, for the physics), ``depth`` (1, H, W) (0 = invalid, the training target), ``index``, and
     ``failed`` (see :func:`first_readable`)."""
 
     def __init__(self, sources: Sequence[RGBDSource], size_hw: tuple[int, int], options: DepthOptions) -> None:
-        self.sources = list(sources)
+        self.entries = list(sources)
         self.size_hw = size_hw
         self.options = options
 
-    def __len__(self) -> int:
-        return len(self.sources)
-
-    def __getitem__(self, i: int) -> dict[str, Any]:
-        return first_readable(len(self.sources), i, self._load)
-
     def _load(self, i: int) -> dict[str, Any]:
-        src = self.sources[i]
+        src = self.entries[i]
         rgb, depth, valid = load_pair(src, self.options)
         rgb, depth, valid = centre_crop([rgb, depth[:, :, None], valid[:, :, None]], self.size_hw, source=src.rgb_path)
         gt = np.where(valid, depth, 0.0).astype(np.float32)

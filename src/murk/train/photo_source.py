@@ -18,11 +18,11 @@ from typing import Any
 import cv2
 import numpy as np
 import torch
-from torch.utils.data import ConcatDataset, Dataset
+from torch.utils.data import ConcatDataset
 
 from murk.io.pairs import DepthOptions, RGBDSource, load_pair
 from murk.rng import derive_seed
-from murk.train.data import first_readable
+from murk.train.data import FileDataset
 
 INDEX_OFFSET = 1 << 30
 """Added to a photograph window's sample index, so that its online water (drawn from the index) never repeats a
@@ -43,9 +43,10 @@ def photo_window(
     return (w_s, h_s), (int(rng.integers(0, h_s - th + 1)), int(rng.integers(0, w_s - tw + 1)))
 
 
-class PhotoDataset(Dataset):
+class PhotoDataset(FileDataset):
     """Windows of clean photographs with their distance: ``clean``, ``depth_filled``, ``depth``, ``index`` and
-    ``failed`` (an unreadable photograph is replaced as :func:`murk.train.data.first_readable` says)."""
+    ``failed`` (an unreadable photograph is replaced as :func:`murk.train.data.first_readable` says). Sample ``i``
+    is repeat ``i // n`` of photograph ``i % n`` (``n`` photographs)."""
 
     def __init__(
         self,
@@ -62,19 +63,10 @@ class PhotoDataset(Dataset):
         if repeats < 1:
             raise ValueError(f"repeats: expected >= 1, got {repeats}")
         self.sources = list(sources)
-        self.crop_hw = crop_hw
-        self.options = options
-        self.seed = seed
-        self.repeats = repeats
-        self.scale = scale
-        self.balance_pct = balance_pct
+        self.entries = [(k, r) for r in range(repeats) for k in range(len(self.sources))]
+        self.crop_hw, self.scale, self.balance_pct = crop_hw, scale, balance_pct
+        self.options, self.seed = options, seed
         self._cache: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = {} if cache else None
-
-    def __len__(self) -> int:
-        return len(self.sources) * self.repeats
-
-    def __getitem__(self, i: int) -> dict[str, Any]:
-        return first_readable(len(self), i, self._load)
 
     def _base(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Photograph ``k`` loaded and, when larger, area-resized to the largest size a window needs (the cover
@@ -94,11 +86,10 @@ class PhotoDataset(Dataset):
         return rgb, depth, valid
 
     def _load(self, i: int) -> dict[str, Any]:
-        src = self.sources[i % len(self.sources)]
-        rgb, depth, valid = self._base(i % len(self.sources))
-        (w_s, h_s), (y0, x0) = photo_window(
-            self.seed, src.stem, i // len(self.sources), depth.shape, self.crop_hw, self.scale
-        )
+        k, repeat = self.entries[i]
+        rgb, depth, valid = self._base(k)
+        stem = self.sources[k].stem
+        (w_s, h_s), (y0, x0) = photo_window(self.seed, stem, repeat, depth.shape, self.crop_hw, self.scale)
         interp = cv2.INTER_AREA if w_s < depth.shape[1] else cv2.INTER_CUBIC
         th, tw = self.crop_hw
         rgb = np.clip(cv2.resize(rgb, (w_s, h_s), interpolation=interp), 0.0, 1.0)[y0 : y0 + th, x0 : x0 + tw]
