@@ -58,6 +58,12 @@ class MediumConfig:
     ambient_tint: float = 0.0
     """B_inf_c is multiplied by exp(t_c), t_c ~ N(0, ambient_tint^2) per channel, then rescaled to keep its mean:
     water colours between the Jerlov types (greener, bluer, yellow-brown); 0 = off, the paper's."""
+    illuminant: tuple[float, float] = (0.0, 0.0)
+    """Daylight that came down through the water lights the scene (the direct signal's illuminant of Akkaynak &
+    Treibitz's revised model, CVPR 2018): before Eq. (1) the clean scene is multiplied per channel by
+    ``(N_c ** D / max_c N_c ** D) ** k``, ``k ~ U[a, b]``, with ``N`` the water type's residual ratio and ``D`` the
+    vertical depth of the ambient light (the brightest channel keeps its level). 0: white light, the paper's; 1: the
+    downwelling light at depth ``D`` in full. (0, 0) = off (no draw is made; nothing else moves)."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "water_types", parse_water_types(self.water_types))
@@ -79,6 +85,7 @@ class MediumConfig:
                 check_range("ambient_override", c, 0.0, 10.0)
         check_interval("ambient_gain", self.ambient_gain, 0.0, 10.0)
         check_range("ambient_tint", self.ambient_tint, 0.0, 2.0)
+        check_interval("illuminant", self.illuminant, 0.0, 1.0)
 
 
 @dataclass(frozen=True)

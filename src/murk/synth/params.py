@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from murk._config import from_dict, to_dict
-from murk.physics.jerlov import beta_per_m, visible_range_m
+from murk.physics.jerlov import beta_per_m, residual_ratio, visible_range_m
 from murk.physics.medium import ambient_light
 from murk.rng import RngLike, as_generator
 from murk.snow.composite import SnowParams
@@ -35,6 +35,8 @@ class MediumParams:
     near_m: float
     far_m: float
     """H: the farthest line-of-sight distance of the scene (normalized mode) or the clip limit (metric)."""
+    illuminant_rgb: tuple[float, float, float] | None = None
+    """The light on the clean scene per channel (``medium.illuminant``), applied before Eq. (1); None: white."""
 
 
 @dataclass(frozen=True)
@@ -94,6 +96,11 @@ def sample_medium(rng: RngLike, config: MediumConfig) -> MediumParams:
     if config.ambient_tint > 0:
         tint = np.exp(g.normal(0.0, config.ambient_tint, 3))
         b_inf = b_inf * tint * (float(b_inf.mean()) / max(float((b_inf * tint).mean()), 1e-12))
+    light = None
+    if config.illuminant != (0.0, 0.0) and depth_d is not None:  # drawn last: the other draws stay as they were
+        k = float(g.uniform(*config.illuminant))
+        down = residual_ratio(wt) ** depth_d
+        light = tuple(float(v) for v in (down / down.max()) ** k)
     return MediumParams(
         water_type=wt,
         beta_per_m=(float(beta[0]), float(beta[1]), float(beta[2])),
@@ -102,6 +109,7 @@ def sample_medium(rng: RngLike, config: MediumConfig) -> MediumParams:
         distance_mode=config.distance_mode,
         near_m=float(config.near_m),
         far_m=far,
+        illuminant_rgb=light,  # type: ignore[arg-type]
     )
 
 

@@ -126,7 +126,8 @@ def render(
     dist_range = distance_range(lo, hi, mode=mode, near_m=m.near_m, far_m=m.far_m)  # type: ignore[arg-type]
     trans = None
     if "basic" in params.stages:
-        image, trans = apply_medium(clean, dist, np.asarray(m.beta_per_m), np.asarray(m.b_inf))
+        lit = clean if m.illuminant_rgb is None else clean * np.asarray(m.illuminant_rgb, np.float32)
+        image, trans = apply_medium(lit, dist, np.asarray(m.beta_per_m), np.asarray(m.b_inf))
     else:
         image = clean.copy()
     basic = np.clip(image, 0.0, 1.0) if keep_intermediate else None
@@ -233,7 +234,11 @@ def render_batch_torch(
     if "basic" in params[0].stages:
         beta = torch.tensor([m.beta_per_m for m in meds], dtype=dt, device=dev)  # type: ignore[union-attr]
         b_inf = torch.tensor([m.b_inf for m in meds], dtype=dt, device=dev)  # type: ignore[union-attr]
-        image, _ = apply_medium_torch(clean, dist, beta, b_inf)
+        lit = clean
+        if any(m.illuminant_rgb is not None for m in meds):  # type: ignore[union-attr]
+            light = [m.illuminant_rgb or (1.0, 1.0, 1.0) for m in meds]  # type: ignore[union-attr]
+            lit = clean * torch.tensor(light, dtype=dt, device=dev).view(b, 3, 1, 1)
+        image, _ = apply_medium_torch(lit, dist, beta, b_inf)
     else:
         image = clean.clone()
     sigma_max = None
