@@ -66,6 +66,8 @@ def real_pairs(arms: dict[str, Any], folder: Path, ref: str) -> None:
     for name, sub in pair_sets(folder).items():
         refs = {p.stem: p for p in list_images(sub / "reference")}
         for path in list_images(sub / "input"):
+            if path.stem not in refs:
+                sys.exit(f"{path}: no reference image with stem '{path.stem}' in {sub / 'reference'}")
             image, target = downscale_to(read_rgb(path), 256), downscale_to(read_rgb(refs[path.stem]), 256)
             sets.append(name)
             for k, r in arms.items():
@@ -102,7 +104,9 @@ def snow_pairs(specs: dict[str, str], folder: Path, ref: str) -> None:
         cmd = [sys.executable, "-m", "murk", "compare", str(snowy), "--snow-clean", str(clean), "--out", tmp, "-q"]
         for k, v in specs.items():
             cmd += ["--method", f"{k}=lite:{v}" if v.endswith(".pt") else f"{k}={v}"]
-        subprocess.run(cmd, check=False, capture_output=True)
+        done = subprocess.run(cmd, check=False, capture_output=True, text=True)
+        if done.returncode not in (0, 1):  # 1: some image failed, recorded in its errors.jsonl
+            sys.exit(f"murk compare failed (exit {done.returncode}):\n{done.stderr or done.stdout}")
         rows = list(csv.DictReader(open(Path(tmp) / "metrics.csv", encoding="utf-8")))
     res = {m: {r["image"]: float(r["snow_residue"]) for r in rows if r["method"] == m} for m in specs}
     images = sorted(res[ref])
@@ -129,7 +133,9 @@ def heldout(arms: dict[str, Any], name: str, degraded: np.ndarray, clean: np.nda
 
 
 def heldout_photos(folder: Path, synthesis: Any) -> tuple[np.ndarray, np.ndarray]:
-    sources = discover(folder, "layout")[0]
+    sources, problems = discover(folder, "layout")
+    for p in problems:
+        print(f"held-out photographs: left out {p.input}: {p.error}")
     cleans, dists = [], []
     for src in sources:
         rgb, dist, valid = load_pair(src, DepthOptions(depth_from="layout", layout_seed=HELDOUT_SEED))

@@ -21,15 +21,33 @@ from murk.io.distance_prior import (
 from murk.io.pairs import DepthOptions, discover, discover_photos, layout_depth, load_pair
 
 
-def test_a_pixel_sees_the_floor_at_height_over_sine_of_its_angle_below_the_horizon() -> None:
-    lay = Layout(horizon=-0.25, roll_deg=0.0, fov_deg=60.0, camera_height_m=1.5, far_m=12.0)
-    d = layout_distance(40, 30, lay)
-    focal = 0.5 * 40 / math.tan(math.radians(30.0))
-    for row in (0, 17, 39):
-        theta = math.atan2(row + 0.5 + 0.25 * 40, focal)
-        assert d[row, 5] == pytest.approx(1.5 / math.sin(theta), rel=1e-5)
-    assert np.all(np.diff(d[:, 7]) < 0)  # farther towards the top of the frame
-    assert np.all(d == d[:, :1])  # level horizon: every column alike
+def _ray_to_floor(u: float, v: float, focal: float, pitch: float, roll: float, height_m: float) -> float:
+    """Independent geometry: rotate the camera ray by rotation matrices (roll about the optical axis, then pitch
+    about the horizontal axis), intersect it with the floor plane ``height_m`` below the camera."""
+    c, s = math.cos(roll), math.sin(roll)
+    rolled = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ np.array([u, v, focal])
+    c, s = math.cos(pitch), math.sin(pitch)
+    world = np.array([[1.0, 0.0, 0.0], [0.0, c, s], [0.0, -s, c]]) @ rolled  # x right, y down, z forward
+    return float(height_m * np.linalg.norm(world) / world[1]) if world[1] > 0 else math.inf
+
+
+def test_every_ray_meets_the_floor_where_3d_geometry_says() -> None:
+    for lay in (
+        Layout(-0.25, 0.0, 60.0, 1.5, 40.0),
+        Layout(0.1, 5.0, 50.0, 2.0, 60.0),
+        Layout(-0.4, -6.0, 70.0, 0.7, 9.0),
+    ):
+        h, w = 40, 30
+        d = layout_distance(h, w, lay)
+        focal = 0.5 * h / math.tan(math.radians(lay.fov_deg / 2))
+        pitch = math.atan2((0.5 - lay.horizon) * h, focal)
+        for row, col in ((0, 0), (17, 5), (39, 29), (25, 14)):
+            u, v = col + 0.5 - 0.5 * w, row + 0.5 - 0.5 * h
+            want = min(_ray_to_floor(u, v, focal, pitch, math.radians(lay.roll_deg), lay.camera_height_m), lay.far_m)
+            assert d[row, col] == pytest.approx(want, rel=1e-5)
+    level = layout_distance(40, 30, Layout(-0.25, 0.0, 60.0, 1.5, 40.0))
+    assert np.all(np.diff(level[:, 15]) < 0)  # farther towards the top of the frame
+    assert np.all(level[:, 15] <= level[:, 0])  # an off-centre ray travels farther to the same floor
 
 
 def test_at_and_above_the_horizon_the_backdrop_is_at_far() -> None:
@@ -54,12 +72,14 @@ def test_sampled_layouts_stay_in_their_ranges_and_repeat_by_seed() -> None:
         assert CAMERA_HEIGHT_RANGE_M[0] <= lay.camera_height_m <= CAMERA_HEIGHT_RANGE_M[1]
         ratio = lay.far_m / lay.camera_height_m
         assert FAR_RATIO_RANGE[0] <= ratio <= FAR_RATIO_RANGE[1] + 1e-9
-    assert sample_layout(np.random.default_rng(9)) == sample_layout(np.random.default_rng(9))
+    assert sample_layout(np.random.default_rng(9)) == sample_layout(9)
 
 
 def test_bad_layouts_are_refused_by_name() -> None:
     with pytest.raises(ValueError, match="fov_deg"):
         Layout(0.0, 0.0, 190.0, 1.0, 5.0)
+    with pytest.raises(ValueError, match="roll_deg"):
+        Layout(0.0, 89.0, 60.0, 1.0, 5.0)
     with pytest.raises(ValueError, match="camera_height_m"):
         Layout(0.0, 0.0, 60.0, 2.0, 1.0)
     with pytest.raises(ValueError, match="height, width"):

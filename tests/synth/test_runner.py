@@ -180,7 +180,9 @@ def test_the_depth_warning_uses_the_exact_median() -> None:
     assert depth_range_note(src, np.array([30.0, 0.5, 21.0], np.float32)) is not None
 
 
-def test_photographs_without_depth_get_the_layout_prior_through_murk_synth(tmp_path: Path) -> None:
+def test_photographs_without_depth_get_the_layout_prior_through_murk_synth(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     from typer.testing import CliRunner
 
     from murk.cli.main import app
@@ -191,12 +193,17 @@ def test_photographs_without_depth_get_the_layout_prior_through_murk_synth(tmp_p
     g = np.random.default_rng(0)
     for name in ("quay.png", "wall.jpg"):
         cv2.imwrite(str(photos / name), (g.random((36, 48, 3)) * 255).astype(np.uint8))
-    r = CliRunner().invoke(
-        app, ["synth", str(photos), str(tmp_path / "out"), "--depth-from", "layout", "--variants", "2", "-q"]
-    )
+    monkeypatch.chdir(tmp_path)  # relative paths below the working folder: no depth file makes "." an input
+    r = CliRunner().invoke(app, ["synth", "photos", "out", "--depth-from", "layout", "--variants", "2", "-q"])
     assert r.exit_code == 0, r.output
     records = read_jsonl(tmp_path / "out" / "manifest.jsonl")
     assert sorted(rec["stem"] for rec in records) == ["quay", "quay", "wall", "wall"]
+    assert all(rec["depth_from"] == "layout" for rec in records)
+    from murk.train.data import PairDataset, items_from_synth_folder
+
+    items = items_from_synth_folder(tmp_path / "out")
+    assert all(it.depth_path == "" for it in items)  # the prior is no depth target for a network
+    assert float(PairDataset(items, (32, 32))[0]["depth"].abs().sum()) == 0.0
     written = cv2.imread(str(tmp_path / "out" / "depth" / "quay.png"), cv2.IMREAD_UNCHANGED).astype(np.float32)
     np.testing.assert_allclose(written / 1000.0, layout_depth("quay", 36, 48, 0), atol=6e-4)  # uint16 mm
     refused = CliRunner().invoke(app, ["synth", str(photos), str(tmp_path / "o2"), "-q"])

@@ -9,12 +9,17 @@ import cv2
 import numpy as np
 import pytest
 import torch
+import yaml
 from torch.utils.data import DataLoader
+from typer.testing import CliRunner
 
+from murk._config import from_dict
+from murk.cli.main import app
 from murk.io.pairs import DepthOptions, discover
-from murk.train.config import DataConfig
+from murk.train.config import DataConfig, TrainConfig
 from murk.train.photo_source import INDEX_OFFSET, PhotoDataset, ScenesAndPhotos, photo_repeats, photo_window
 from murk.train.scenes_source import SceneDataset
+from murk.train.setup import build_data
 from tests.train._cli import train_cli
 
 
@@ -52,15 +57,28 @@ def test_photo_windows_are_crop_sized_and_fixed_per_repeat(tmp_path: Path) -> No
     sources = discover(_photos(tmp_path / "p"), "layout")[0]
     ds = PhotoDataset(sources, (32, 64), DepthOptions(depth_from="layout"), seed=0, repeats=2, scale=(1.0, 2.0))
     assert len(ds) == 6
-    a, again = ds[1], PhotoDataset(sources, (32, 64), DepthOptions(depth_from="layout"), seed=0, repeats=2)[1]
+    a = ds[1]
+    again = PhotoDataset(sources, (32, 64), DepthOptions(depth_from="layout"), seed=0, repeats=2, scale=(1.0, 2.0))
     assert a["clean"].shape == (3, 32, 64) and a["depth"].shape == (1, 32, 64) and a["failed"] == ""
     assert a["index"] == INDEX_OFFSET + 1 and torch.all(a["depth_filled"] > 0)
+    assert torch.equal(again[1]["clean"], a["clean"]) and torch.equal(again[1]["depth_filled"], a["depth_filled"])
+    assert float(a["depth"].abs().sum()) == 0.0  # the layout prior drives the water but is no depth target
     assert not torch.equal(ds[1]["clean"], ds[4]["clean"])  # repeat 1 of the same photograph: another window
     cached = PhotoDataset(
         sources, (32, 64), DepthOptions(depth_from="layout"), seed=0, repeats=2, scale=(1.0, 2.0), cache=True
     )
-    assert torch.equal(cached[4]["clean"], cached[4]["clean"]) and torch.equal(cached[4]["clean"], ds[4]["clean"])
-    assert again["clean"].shape == (3, 32, 64)
+    first = cached[4]["clean"]
+    assert torch.equal(cached[4]["clean"], first) and torch.equal(first, ds[4]["clean"])  # from the cache, the same
+
+
+def test_an_unreadable_photograph_is_replaced_but_keeps_its_own_index(tmp_path: Path) -> None:
+    folder = _photos(tmp_path / "p")
+    (folder / "p0.png").write_bytes(b"not a png")
+    sources = discover(folder, "layout")[0]
+    ds = PhotoDataset(sources, (32, 64), DepthOptions(depth_from="layout"), seed=0)
+    sample = ds[0]
+    assert "p0.png" in sample["failed"] and sample["index"] == INDEX_OFFSET  # its own water, not p1's
+    assert torch.equal(sample["clean"], ds[1]["clean"]) and ds[1]["index"] == INDEX_OFFSET + 1
 
 
 def test_scenes_and_photos_collate_into_one_batch(tmp_path: Path) -> None:
@@ -107,9 +125,19 @@ def test_murk_train_mixes_photographs_into_scenes(tmp_path: Path) -> None:
         "batch": 4,
         "device": "cpu",
     }
-    run = train_cli(tmp_path, config)
+    data = build_data(from_dict(TrainConfig, config))
+    assert isinstance(data.train, ScenesAndPhotos) and len(data.train) == 5 + 2 * photo_repeats(5, 2, 0.5)
+    without = dict(config, data={k: v for k, v in config["data"].items() if k != "photos"})
+    (tmp_path / "t.yaml").write_text(yaml.safe_dump(without))
+    r = CliRunner().invoke(
+        app,
+        ["train", "--config", str(tmp_path / "t.yaml"), "--photos", str(photos), "--out", str(tmp_path / "run"), "-q"],
+    )
+    assert r.exit_code == 0, r.output
+    run = tmp_path / "run"
     summary = json.loads((run / "summary.json").read_text())
     assert summary["failed"] == 0 and (run / "latest.pt").is_file()
+    assert yaml.safe_load((run / "config.yaml").read_text())["data"]["photos"] == str(photos)  # --photos was used
     bad = dict(config, data=dict(config["data"], source=str(photos)))
     (tmp_path / "bad").mkdir()
     with pytest.raises(AssertionError, match=r"data\.photos"):

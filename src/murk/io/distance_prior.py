@@ -7,10 +7,12 @@ most photographs share is their layout: the camera stands above a floor (sea bed
 towards a horizon, and what lies beyond is far. The prior is that layout:
 
 - a pinhole camera with vertical field of view ``fov_deg`` at ``camera_height_m`` above a flat floor;
-- the horizon crosses the frame's centre column at row fraction ``horizon`` (0 = top edge, 1 = bottom edge;
-  negative: above the frame, the camera looks down) and is rolled by ``roll_deg``;
-- a pixel at angle ``theta`` below the horizon sees the floor at ``camera_height_m / sin(theta)`` metres; the scene
-  ends in a backdrop at ``far_m``, which is also the distance at and above the horizon.
+- the camera is pitched so that the horizon crosses the frame's centre column at row fraction ``horizon`` (0 = top
+  edge, 1 = bottom edge; negative: above the frame, the camera looks down) and rolled by ``roll_deg`` about its
+  optical axis;
+- each pixel's ray meets the floor at ``camera_height_m / sin(theta)`` metres, ``theta`` the ray's angle below the
+  horizontal (exact ray-plane geometry); the scene ends in a backdrop at ``far_m``, which is also the distance of
+  rays at and above the horizon.
 
 It ignores the objects standing on the floor (they get the floor's distance where they stand higher, i.e. farther,
 than they are), so haze still grows from the bottom of the frame to the top, as in most real footage. Sample,
@@ -23,6 +25,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from murk.rng import RngLike, as_generator
 
 HORIZON_RANGE = (-0.4, 0.3)
 """Row fraction of the horizon (uniform): from well above the frame (looking down at the floor) to above the middle
@@ -47,6 +51,10 @@ class Layout:
     far_m: float
 
     def __post_init__(self) -> None:
+        if not (-5.0 <= self.horizon <= 5.0):
+            raise ValueError(f"horizon: expected a row fraction in [-5, 5], got {self.horizon}")
+        if not (-45.0 <= self.roll_deg <= 45.0):
+            raise ValueError(f"roll_deg: expected -45 to 45 degrees, got {self.roll_deg}")
         if not (0.0 < self.fov_deg < 180.0):
             raise ValueError(f"fov_deg: expected 0 < fov < 180, got {self.fov_deg}")
         if not (self.camera_height_m > 0.0 and self.far_m > self.camera_height_m):
@@ -55,8 +63,9 @@ class Layout:
             )
 
 
-def sample_layout(rng: np.random.Generator) -> Layout:
+def sample_layout(rng: RngLike) -> Layout:
     """A layout drawn uniformly from the ranges of this module."""
+    rng = as_generator(rng)
     horizon = float(rng.uniform(*HORIZON_RANGE))
     roll_deg = float(rng.uniform(*ROLL_RANGE_DEG))
     fov_deg = float(rng.uniform(*FOV_RANGE_DEG))
@@ -65,15 +74,19 @@ def sample_layout(rng: np.random.Generator) -> Layout:
 
 
 def layout_distance(height: int, width: int, layout: Layout) -> np.ndarray:
-    """The distance in metres (float32, shape (height, width)) that ``layout`` gives each pixel, between
-    ``camera_height_m`` (straight down) and ``far_m``."""
+    """The distance in metres (float32, shape (height, width)) along each pixel's ray to the floor of ``layout``,
+    capped at ``far_m``: the ray ``(u, v, f)`` (pixel offset from the centre, focal length in pixels) is rolled about
+    the optical axis by ``roll_deg``, pitched down so that the centre column's horizon lies at row ``horizon *
+    height``, and meets the floor at ``camera_height_m * |ray| / down`` (``down``: its component towards the floor)."""
     if height < 1 or width < 1:
         raise ValueError(f"height, width: expected >= 1, got {height}, {width}")
     focal_px = 0.5 * height / math.tan(math.radians(layout.fov_deg) / 2.0)
-    y = np.arange(height, dtype=np.float64)[:, None] + 0.5
-    x = np.arange(width, dtype=np.float64)[None, :] + 0.5 - 0.5 * width
-    rows_below = y - layout.horizon * height + x * math.tan(math.radians(layout.roll_deg))
-    theta = np.arctan2(rows_below, focal_px)  # angle below the horizon
+    v = np.arange(height, dtype=np.float64)[:, None] + 0.5 - 0.5 * height
+    u = np.arange(width, dtype=np.float64)[None, :] + 0.5 - 0.5 * width
+    pitch = math.atan2((0.5 - layout.horizon) * height, focal_px)  # > 0: looking down
+    roll = math.radians(layout.roll_deg)
+    down = (u * math.sin(roll) + v * math.cos(roll)) * math.cos(pitch) + focal_px * math.sin(pitch)
+    norm = np.sqrt(u * u + v * v + focal_px * focal_px)
     with np.errstate(divide="ignore"):
-        dist = np.where(theta > 0, layout.camera_height_m / np.sin(np.maximum(theta, 1e-9)), np.inf)
+        dist = np.where(down > 0, layout.camera_height_m * norm / np.maximum(down, 1e-12), np.inf)
     return np.minimum(dist, layout.far_m).astype(np.float32)

@@ -8,7 +8,6 @@ by :func:`load_pair`, which applies the depth options and checks that sizes agre
 
 from __future__ import annotations
 
-import zlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -21,6 +20,7 @@ from murk.io.distance_prior import layout_distance, sample_layout
 from murk.io.images import IMAGE_SUFFIXES, read_image, to_float
 from murk.io.jobs import ErrorRecord
 from murk.io.listing import describe_unusable, walk_files
+from murk.rng import derive_seed
 
 DEPTH_SUFFIXES = (*IMAGE_SUFFIXES, ".pgm", ".npy")
 DepthFrom = Literal["file", "layout"]
@@ -103,9 +103,9 @@ def discover(path: str | Path, depth_from: DepthFrom = "file") -> tuple[list[RGB
 
 
 def discover_photos(path: str | Path) -> tuple[list[RGBDSource], list[ErrorRecord]]:
-    """Clean photographs without depth: the images of ``rgb/`` (or ``color/``) when the folder has one, else of the
-    folder itself (subfolders included); a ``depth/`` folder beside them is not read. A stem shared by several
-    files is left out and recorded (stage ``"pair"``), as in :func:`discover`.
+    """Clean photographs without depth: the images of ``rgb/`` (or ``color/``) when the folder has one, else the
+    folder's own image files (not its subfolders); a ``depth/`` folder beside them is not read. A stem shared by
+    several files is left out and recorded (stage ``"pair"``), as in :func:`discover`.
 
     Raises:
         InputFileError: the path is not a folder, or holds no image.
@@ -200,10 +200,9 @@ def load_pair(source: RGBDSource, options: DepthOptions) -> tuple[np.ndarray, np
 
 
 def layout_depth(stem: str, height: int, width: int, seed: int = 0) -> np.ndarray:
-    """The layout prior's distance (metres) for the photograph ``stem``: its layout is drawn from ``seed`` and a
-    checksum of the stem, so it does not depend on the order or number of photographs."""
-    key = zlib.crc32(stem.encode("utf-8"))
-    return layout_distance(height, width, sample_layout(np.random.default_rng([int(seed), key])))
+    """The layout prior's distance (metres) for the photograph ``stem``: its layout is drawn from
+    ``derive_seed(seed, "layout", stem)``, so it does not depend on the order or number of photographs."""
+    return layout_distance(height, width, sample_layout(derive_seed(seed, "layout", stem)))
 
 
 def _by_stem(folder: Path, suffixes: tuple[str, ...]) -> tuple[dict[str, Path], dict[str, list[Path]]]:

@@ -15,6 +15,7 @@ this module -> params -> config; nothing here imports a writer.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -24,7 +25,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from murk._config import read_yaml, to_dict
+from murk._config import from_dict, read_yaml, to_dict
 from murk.io.pairs import DepthOptions, RGBDSource, load_pair
 from murk.synth.config import SynthConfig
 from murk.synth.params import VariantParams, variant_to_dict
@@ -136,6 +137,8 @@ def manifest_record(
     }
     if source.mat_index is not None:
         rec["source_index"] = source.mat_index
+    if not source.depth_path and source.mat_index is None:
+        rec["depth_from"] = "layout"  # depth/ holds the layout prior (murk.io.distance_prior), not a measurement
     if m is not None:
         rec.update(
             water_type=m.water_type,
@@ -146,6 +149,8 @@ def manifest_record(
             d_near=m.near_m,
             distance_mode=m.distance_mode,
         )
+        if m.illuminant_rgb is not None:
+            rec["illuminant"] = list(m.illuminant_rgb)
     if fs is not None:
         rec.update(fs_mode=fs.mode, sigma0=fs.sigma0_px, k=fs.k_px_per_m, gamma=fs.gamma_per_m)
     if sn is not None:
@@ -207,7 +212,8 @@ def input_locations(sources: Sequence[RGBDSource]) -> list[Path]:
     seen: dict[str, Path] = {}
     for s in sources:
         if s.mat_index is None:
-            for folder in (os.path.dirname(s.rgb_path), os.path.dirname(s.depth_path)):
+            paths = (s.rgb_path, s.depth_path) if s.depth_path else (s.rgb_path,)  # a photograph: no depth file
+            for folder in (os.path.dirname(p) for p in paths):
                 seen.setdefault(folder, Path(folder or "."))
     return list(seen.values())
 
@@ -218,6 +224,11 @@ def check_config_compatible(out_dir: Path, config: SynthConfig) -> None:
     if not path.exists():
         return
     old = read_yaml(path, what="the configuration of an earlier run")
+    known = {f.name for f in dataclasses.fields(SynthConfig)}
+    try:  # options added since that run take their defaults, which reproduce what it did
+        old = {**old, **to_dict(from_dict(SynthConfig, {k: v for k, v in old.items() if k in known}, where=str(path)))}
+    except (TypeError, ValueError):
+        pass  # not a configuration this murk can read: compared as written, so it is refused below
     new = to_dict(config)
     diffs = [
         k

@@ -63,7 +63,8 @@ class MediumConfig:
     Treibitz's revised model, CVPR 2018): before Eq. (1) the clean scene is multiplied per channel by
     ``(N_c ** D / max_c N_c ** D) ** k``, ``k ~ U[a, b]``, with ``N`` the water type's residual ratio and ``D`` the
     vertical depth of the ambient light (the brightest channel keeps its level). 0: white light, the paper's; 1: the
-    downwelling light at depth ``D`` in full. (0, 0) = off (no draw is made; nothing else moves)."""
+    downwelling light at depth ``D`` in full. (0, 0) = off (no draw is made). ``k`` is drawn after every other
+    parameter of a variant, so switching it on moves no other draw; refused with ``ambient_override``."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "water_types", parse_water_types(self.water_types))
@@ -85,7 +86,9 @@ class MediumConfig:
                 check_range("ambient_override", c, 0.0, 10.0)
         check_interval("ambient_gain", self.ambient_gain, 0.0, 10.0)
         check_range("ambient_tint", self.ambient_tint, 0.0, 2.0)
-        check_interval("illuminant", self.illuminant, 0.0, 1.0)
+        object.__setattr__(self, "illuminant", check_interval("illuminant", self.illuminant, 0.0, 1.0))
+        if self.illuminant != (0.0, 0.0) and self.ambient_override is not None:
+            raise ValueError("illuminant: the light comes from the ambient light's depth; ambient_override has none")
 
 
 @dataclass(frozen=True)

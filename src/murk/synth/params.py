@@ -96,11 +96,6 @@ def sample_medium(rng: RngLike, config: MediumConfig) -> MediumParams:
     if config.ambient_tint > 0:
         tint = np.exp(g.normal(0.0, config.ambient_tint, 3))
         b_inf = b_inf * tint * (float(b_inf.mean()) / max(float((b_inf * tint).mean()), 1e-12))
-    light = None
-    if config.illuminant != (0.0, 0.0) and depth_d is not None:  # drawn last: the other draws stay as they were
-        k = float(g.uniform(*config.illuminant))
-        down = residual_ratio(wt) ** depth_d
-        light = tuple(float(v) for v in (down / down.max()) ** k)
     return MediumParams(
         water_type=wt,
         beta_per_m=(float(beta[0]), float(beta[1]), float(beta[2])),
@@ -109,7 +104,6 @@ def sample_medium(rng: RngLike, config: MediumConfig) -> MediumParams:
         distance_mode=config.distance_mode,
         near_m=float(config.near_m),
         far_m=far,
-        illuminant_rgb=light,  # type: ignore[arg-type]
     )
 
 
@@ -122,6 +116,18 @@ def forward_scatter_params(config: ForwardScatterConfig) -> ForwardScatterParams
         gamma_per_m=float(config.gamma_per_m),
         exact_step_px=float(config.exact_step_px),
     )
+
+
+def sample_illuminant(rng: RngLike, config: MediumConfig, medium: MediumParams) -> MediumParams:
+    """``medium`` with the light on the scene (``config.illuminant``): ``(N_c ** D / max_c N_c ** D) ** k``,
+    ``k ~ U[a, b]``; unchanged (and nothing drawn) when the option is off or ``B_inf`` was fixed (no depth ``D``).
+    :func:`sample_variant` draws it after every other parameter, so switching it on moves no other draw."""
+    if tuple(config.illuminant) == (0.0, 0.0) or medium.vertical_depth_m is None:
+        return medium
+    k = float(as_generator(rng).uniform(*config.illuminant))
+    down = residual_ratio(medium.water_type) ** medium.vertical_depth_m
+    light = (down / down.max()) ** k
+    return dataclasses.replace(medium, illuminant_rgb=(float(light[0]), float(light[1]), float(light[2])))
 
 
 def sample_camera(rng: RngLike, config: CameraConfig) -> CameraParams:
@@ -162,6 +168,7 @@ def sample_variant(rng: RngLike, config: SynthConfig, *, snow_sampler: Any = Non
             raise ValueError("stages: 'marine_snow' needs a particle bank (snow_sampler) to sample from")
         snow = snow_sampler(g)
     camera = sample_camera(g, config.camera) if "camera" in config.stages else None
+    medium = sample_illuminant(g, config.medium, medium)  # last: switching it on moves no other draw
     return VariantParams(stages=tuple(config.stages), medium=medium, forward_scatter=fs, snow=snow, camera=camera)
 
 

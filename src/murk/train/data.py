@@ -54,8 +54,14 @@ def items_from_synth_folder(folder: str | Path) -> list[PairItem]:
             "no manifest.jsonl: not a 'murk synth' output folder (write one with 'murk synth', or set data.kind "
             "to what the folder holds)",
         )
-    items = [
-        PairItem(r["stem"], str(folder / r["degraded"]), str(folder / r["clean"]), str(folder / r["depth"]), 1000.0)
+    items = [  # depth from the layout prior (murk synth --depth-from layout) is no target: left out (all invalid)
+        PairItem(
+            r["stem"],
+            str(folder / r["degraded"]),
+            str(folder / r["clean"]),
+            "" if r.get("depth_from") == "layout" else str(folder / r["depth"]),
+            1000.0,
+        )
         for r in read_jsonl(manifest)
     ]
     if not items:
@@ -170,7 +176,12 @@ class FileDataset(Dataset):
         return len(self.entries)
 
     def __getitem__(self, i: int) -> dict[str, Any]:
-        return first_readable(len(self), i, self._load)
+        sample = first_readable(len(self), i, self._load)
+        sample["index"] = self._index(i)  # a substitute keeps the requested index: its online water is i's own
+        return sample
+
+    def _index(self, i: int) -> int:
+        return i
 
     def _load(self, i: int) -> dict[str, Any]:
         raise NotImplementedError
@@ -189,8 +200,11 @@ class PairDataset(FileDataset):
         it = self.entries[i]
         x = read_rgb(it.input_path)
         y = read_rgb(it.target_path)
-        d = read_depth(it.depth_path, depth_scale=it.depth_scale)
-        d = np.where(np.isfinite(d) & (d > 0), d, 0.0).astype(np.float32)
+        if it.depth_path:
+            d = read_depth(it.depth_path, depth_scale=it.depth_scale)
+            d = np.where(np.isfinite(d) & (d > 0), d, 0.0).astype(np.float32)
+        else:  # no measured depth: every pixel invalid, so no depth loss
+            d = np.zeros(x.shape[:2], np.float32)
         if x.shape != y.shape or x.shape[:2] != d.shape:
             raise InputFileError(it.input_path, f"input/target/depth sizes differ: {x.shape}, {y.shape}, {d.shape}")
         x, y, d = centre_crop([x, y, d[:, :, None]], self.size_hw, source=it.input_path)
@@ -211,8 +225,16 @@ class CleanRGBDDataset(FileDataset):
         src = self.entries[i]
         rgb, depth, valid = load_pair(src, self.options)
         rgb, depth, valid = centre_crop([rgb, depth[:, :, None], valid[:, :, None]], self.size_hw, source=src.rgb_path)
-        gt = np.where(valid, depth, 0.0).astype(np.float32)
+        gt = depth_target(depth, valid, self.options)
         return {"clean": _chw(rgb), "depth_filled": _chw(depth), "depth": _chw(gt), "index": i}
+
+
+def depth_target(depth: np.ndarray, valid: np.ndarray, options: DepthOptions) -> np.ndarray:
+    """The depth a network learns from: the valid measured depth (0 = invalid); all 0 when the distance is the
+    layout prior's (``depth_from="layout"``), which drives the synthesis but is no measurement to learn."""
+    if options.depth_from == "layout":
+        return np.zeros(depth.shape, np.float32)
+    return np.where(valid, depth, 0.0).astype(np.float32)
 
 
 def rgbd_sources(folder: str | Path, depth_from: DepthFrom = "file") -> list[RGBDSource]:

@@ -22,7 +22,8 @@ from torch.utils.data import ConcatDataset
 
 from murk.io.pairs import DepthOptions, RGBDSource, load_pair
 from murk.rng import derive_seed
-from murk.train.data import FileDataset
+from murk.train.data import FileDataset, depth_target
+from murk.train.scenes_source import random_window
 
 INDEX_OFFSET = 1 << 30
 """Added to a photograph window's sample index, so that its online water (drawn from the index) never repeats a
@@ -36,11 +37,9 @@ def photo_window(
     (``image_hw`` its size): the photograph is resized by ``s`` times the factor that makes it just cover
     ``crop_hw`` (aspect kept), ``s`` uniform in ``scale``."""
     h, w = image_hw
-    th, tw = crop_hw
+    f = max(crop_hw[0] / h, crop_hw[1] / w)
     rng = np.random.default_rng(derive_seed(seed, "photo", stem, repeat))
-    s = float(rng.uniform(*scale)) * max(th / h, tw / w)
-    w_s, h_s = max(tw, round(w * s)), max(th, round(h * s))
-    return (w_s, h_s), (int(rng.integers(0, h_s - th + 1)), int(rng.integers(0, w_s - tw + 1)))
+    return random_window(rng, (w * f, h * f), crop_hw, scale)
 
 
 class PhotoDataset(FileDataset):
@@ -101,13 +100,16 @@ class PhotoDataset(FileDataset):
             from murk.restore_ops.balance import color_balance
 
             rgb = color_balance(rgb, self.balance_pct, self.balance_pct)
-        gt = np.where(valid > 0, depth, 0.0).astype(np.float32)
+        gt = depth_target(depth, valid > 0, self.options)
         return {
             "clean": torch.from_numpy(np.ascontiguousarray(rgb.transpose(2, 0, 1), dtype=np.float32)),
             "depth_filled": torch.from_numpy(np.ascontiguousarray(depth[None], dtype=np.float32)),
             "depth": torch.from_numpy(np.ascontiguousarray(gt[None])),
-            "index": INDEX_OFFSET + i,
+            "index": self._index(i),
         }
+
+    def _index(self, i: int) -> int:
+        return INDEX_OFFSET + i
 
 
 class ScenesAndPhotos(ConcatDataset):

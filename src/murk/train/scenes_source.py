@@ -36,12 +36,21 @@ def scene_window(
     positions from the same generator. ``scale == (1, 1)`` gives the centre crop of the covering render."""
     w, h = render_size(crop_hw)
     th, tw = crop_hw
-    lo, hi = scale
-    if lo == hi == 1.0:
+    if scale == (1.0, 1.0):
         return (w, h), ((h - th) // 2, (w - tw) // 2)
-    rng = np.random.default_rng(derive_seed(seed, index, "scale"))
-    s = float(rng.uniform(lo, hi))
-    w_s, h_s = max(w, round(w * s)), max(h, round(h * s))
+    return random_window(np.random.default_rng(derive_seed(seed, index, "scale")), (w, h), crop_hw, scale)
+
+
+def random_window(
+    rng: np.random.Generator, cover_wh: tuple[float, float], crop_hw: tuple[int, int], scale: tuple[float, float]
+) -> tuple[tuple[int, int], tuple[int, int]]:
+    """An image of size ``cover_wh`` (width, height: one that just covers ``crop_hw``) scaled by ``s`` uniform in
+    ``scale``, and a crop-sized window in it: ``((width, height), (y0, x0))``, drawn from ``rng`` (``s`` first, then
+    the origin, uniform over the valid positions)."""
+    w, h = cover_wh
+    th, tw = crop_hw
+    s = float(rng.uniform(*scale))
+    w_s, h_s = max(tw, round(w * s)), max(th, round(h * s))
     return (w_s, h_s), (int(rng.integers(0, h_s - th + 1)), int(rng.integers(0, w_s - tw + 1)))
 
 

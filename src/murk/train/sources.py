@@ -55,6 +55,9 @@ def check_sources(config: TrainConfig) -> None:
         detect_kind(d.val_source)
     if d.photos is not None:
         if kind != "scenes":
-            raise ValueError(f"data.photos: mixes photographs into procedural scenes; data.source is {kind}")
+            raise ValueError(
+                f"data.photos: needs data.source: scenes (the photographs are mixed into the procedural scenes), "
+                f"got {d.source} ({kind})"
+            )
         if not Path(d.photos).is_dir():
             raise ValueError(f"data.photos: {d.photos} is not a folder")

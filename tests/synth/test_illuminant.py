@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -9,27 +11,32 @@ import torch
 from murk._config import merge
 from murk.physics.jerlov import residual_ratio
 from murk.synth.config import MediumConfig, SynthConfig
-from murk.synth.params import sample_medium, sample_variant, variant_from_dict, variant_to_dict
+from murk.synth.params import sample_illuminant, sample_medium, sample_variant, variant_from_dict, variant_to_dict
 from murk.synth.render import render, render_batch_torch
 
 
 def test_off_by_default_and_switching_it_on_moves_no_other_draw() -> None:
+    stages = {"stages": ["basic", "forward_scatter", "camera"]}
     for seed in range(6):
-        plain = sample_medium(np.random.default_rng(seed), MediumConfig())
-        lit = sample_medium(np.random.default_rng(seed), MediumConfig(illuminant=(0.5, 1.0)))
-        assert plain.illuminant_rgb is None
-        assert lit.illuminant_rgb is not None and plain == lit.__class__(**{**lit.__dict__, "illuminant_rgb": None})
+        plain = sample_variant(seed, merge(SynthConfig(), stages))
+        lit = sample_variant(seed, merge(SynthConfig(), {**stages, "medium": {"illuminant": [0.5, 1.0]}}))
+        assert plain.medium is not None and lit.medium is not None and plain.medium.illuminant_rgb is None
+        assert lit.medium.illuminant_rgb is not None
+        assert dataclasses.replace(lit.medium, illuminant_rgb=None) == plain.medium
+        assert lit.camera == plain.camera and lit.forward_scatter == plain.forward_scatter
 
 
 def test_the_light_is_the_downwelling_colour_at_depth_to_a_power() -> None:
-    m = sample_medium(np.random.default_rng(3), MediumConfig(water_types=("3C",), illuminant=(1.0, 1.0)))
+    cfg = MediumConfig(water_types=("3C",), illuminant=(1.0, 1.0))
+    m = sample_illuminant(0, cfg, sample_medium(np.random.default_rng(3), cfg))
     down = residual_ratio("3C") ** m.vertical_depth_m
     np.testing.assert_allclose(m.illuminant_rgb, down / down.max(), rtol=1e-12)
     assert max(m.illuminant_rgb) == pytest.approx(1.0)  # type: ignore[arg-type]
-    half = sample_medium(np.random.default_rng(3), MediumConfig(water_types=("3C",), illuminant=(0.5, 0.5)))
+    half = sample_illuminant(0, MediumConfig(water_types=("3C",), illuminant=(0.5, 0.5)), m)
     np.testing.assert_allclose(half.illuminant_rgb, np.sqrt(down / down.max()), rtol=1e-12)
-    fixed = sample_medium(1, MediumConfig(ambient_override=(0.1, 0.2, 0.3), illuminant=(1.0, 1.0)))
-    assert fixed.illuminant_rgb is None  # no depth, no downwelling light
+    off = sample_medium(np.random.default_rng(3), MediumConfig(water_types=("3C",)))
+    assert sample_illuminant(0, MediumConfig(water_types=("3C",)), off) is off  # off: nothing drawn or changed
+    assert MediumConfig(illuminant=[0.2, 0.4]).illuminant == (0.2, 0.4)  # type: ignore[arg-type]
 
 
 def test_render_lights_the_clean_scene_before_eq1_in_both_twins() -> None:
@@ -56,3 +63,5 @@ def test_bad_ranges_are_refused_by_name() -> None:
         MediumConfig(illuminant=(0.5, 2.0))
     with pytest.raises(ValueError, match="illuminant"):
         MediumConfig(illuminant=(0.8, 0.2))
+    with pytest.raises(ValueError, match="ambient_override"):
+        MediumConfig(illuminant=(0.0, 1.0), ambient_override=(0.1, 0.2, 0.3))
