@@ -126,6 +126,19 @@ def test_changed_config_is_refused(small_rgbd: Path, tmp_path: Path) -> None:
     run_synthesis(sources, tmp_path, merge(CFG, {"workers": 2}))  # workers do not matter
 
 
+def test_a_folder_made_before_an_option_existed_still_resumes(small_rgbd: Path, tmp_path: Path) -> None:
+    import yaml
+
+    sources, _ = discover(small_rgbd)
+    run_synthesis(sources, tmp_path, CFG)
+    written = yaml.safe_load((tmp_path / "config.yaml").read_text())
+    del written["medium"]["illuminant"], written["input"]["depth_from"]  # as an older murk wrote it
+    (tmp_path / "config.yaml").write_text(yaml.safe_dump(written))
+    run_synthesis(sources, tmp_path, CFG)  # the defaults of the new options reproduce what it did: accepted
+    with pytest.raises(ValueError, match=r"differs in: medium"):
+        run_synthesis(sources, tmp_path, merge(CFG, {"medium": {"illuminant": [0.0, 1.0]}}))
+
+
 def test_marine_snow_outputs(small_rgbd: Path, tmp_path: Path) -> None:
     sources, _ = discover(small_rgbd)
     cfg = merge(
