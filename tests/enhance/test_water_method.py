@@ -89,6 +89,33 @@ def test_murk_enhance_runs_water_and_checks_its_options(
     assert gone.exit_code == 2 and "/no/w.npz" in gone.output
 
 
+def test_murk_enhance_records_the_estimated_water_of_each_image(
+    estimator_file: Path, image: np.ndarray, tmp_path: Path
+) -> None:
+    from murk.workflows.water_estimate import estimate_water
+
+    write_rgb(tmp_path / "in" / "a.png", image)
+    write_rgb(tmp_path / "in" / "b.png", np.ascontiguousarray(image[::-1]))
+    spec = f"water?estimator={estimator_file}"
+
+    def enhance(method: str, out: str) -> list[dict]:
+        res = CliRunner().invoke(app, ["enhance", str(tmp_path / "in"), "--out", str(tmp_path / out), "-m", method])
+        assert res.exit_code == 0, res.output
+        path = tmp_path / out / "estimates.jsonl"
+        return [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
+
+    rows = enhance(spec, "out")
+    assert [Path(r["image"]).name for r in rows] == ["a.png", "b.png"]
+    alone = estimate_water([tmp_path / "in" / "a.png"], estimator=estimator_file)[0]
+    assert rows[0]["veil_rgb"] == alone.as_dict()["veil_rgb"]  # the same water as murk water estimate gives
+    assert rows[0]["visibility_m"] == alone.as_dict()["visibility_m"] and "visibility_measurable" in rows[0]
+    assert len(enhance(spec, "out")) == 2  # a rerun skips the done images: no new lines
+    assert (
+        len(enhance(f"water+post?estimator={estimator_file}", "chained")) == 2
+    )  # a chain keeps what its stages estimated
+    assert enhance("lite", "plain") == []  # a method that estimates nothing writes no file
+
+
 def test_murk_water_estimate_reports_every_image_and_names_a_broken_one(
     estimator_file: Path, image: np.ndarray, tmp_path: Path
 ) -> None:

@@ -26,7 +26,8 @@ def estimate(
     """Estimate each image's water from the image and Joint-ID's distance map (docs/models/water.md). The figures
     are what restores best with that distance map on murk's synthetic water, not a calibrated measurement."""
     from murk.io.jobs import ErrorRecord
-    from murk.workflows.water_estimate import MEASURABLE_FACTOR, estimate_water
+    from murk.models.water import MEASURABLE_FACTOR
+    from murk.workflows.water_estimate import estimate_water
 
     console = make_console(quiet)
     try:
@@ -46,9 +47,9 @@ def estimate(
         veil = " ".join(f"{v:.2f}" for v in d["veil_rgb"])  # type: ignore[attr-defined]
         att = " ".join(f"{v:.3f}" for v in d["attenuation_per_m"])  # type: ignore[attr-defined]
         seen = (
-            f"visibility {r.water.visibility_m:.1f} m"
-            if r.measurable
-            else f"visibility beyond {MEASURABLE_FACTOR * r.far_distance_m:.0f} m (haze too faint to measure)"
+            f"visibility {r.view.water.visibility_m:.1f} m"
+            if r.view.measurable
+            else f"visibility beyond {MEASURABLE_FACTOR * r.view.far_distance_m:.0f} m (haze too faint to measure)"
         )
         console.print(f"{r.path}: veil RGB {veil}, attenuation RGB {att} /m, {seen}")
     if json_out is not None:

@@ -2,6 +2,10 @@
 batches of equal size, written with their size, format and bit depth (16-bit PNG/TIFF stays 16-bit unless
 another format is asked for); depth maps and previews when the method returns depth.
 
+What a method estimates on the way (``Restored.facts``: the ``water`` method's water, veil colour, attenuation and
+visibility) is appended to ``estimates.jsonl``, one line per restored image (``image``, ``output`` and the facts);
+an image restored again by a later run gets another line, the newest last.
+
 Reliability: unreadable inputs are recorded in ``errors.jsonl`` (:mod:`murk.io.jobs`; rewritten by every run)
 and skipped; rerunning skips images whose output exists (``overwrite=True`` redoes them); a full disk stops the
 run with :class:`murk.errors.OutputError`, never a truncated file under a final name.
@@ -35,7 +39,11 @@ from murk.errors import OutputError
 from murk.io.atomic import make_output_folder, remove_stale_temporaries
 from murk.io.images import BitDepth, read_image, to_float, to_uint, write_uint
 from murk.io.jobs import ErrorLog, ErrorRecord
+from murk.io.jsonl import append_jsonl
 from murk.io.listing import real_path
+
+ESTIMATES_NAME = "estimates.jsonl"
+"""The file of ``out_dir`` that receives what a method estimated per image (``Restored.facts``)."""
 
 
 @dataclass
@@ -144,6 +152,10 @@ def _restore_and_write_images(
             image = result.images[i]
             if options.side_by_side:
                 image = side_by_side(it.image, image)
+            if result.facts is not None:  # before the image, which marks the image done
+                facts = {"image": str(it.job.src), "output": str(it.job.dst), **result.facts[i]}
+                append_jsonl(out_dir / ESTIMATES_NAME, [facts])
+                report.note(f"what {restorer.name} estimated per image: {out_dir / ESTIMATES_NAME}")
             write_uint(it.job.dst, to_uint(image, it.bits), jpeg_quality=options.jpeg_quality)  # last: marks done
             report.processed += 1
         except OutputError:  # a full disk ends the run (every later write would fail too)

@@ -45,10 +45,13 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class Restored:
-    """A restored numpy batch: ``images`` (B, H, W, 3) float32 in [0, 1]; ``depth_m`` (B, H, W) or None."""
+    """A restored numpy batch: ``images`` (B, H, W, 3) float32 in [0, 1]; ``depth_m`` (B, H, W) or None;
+    ``facts``: one dict per image of what the method estimated on the way (the ``water`` method: the water), which
+    ``murk enhance`` records in ``estimates.jsonl``; None for methods that report nothing."""
 
     images: np.ndarray
     depth_m: np.ndarray | None = None
+    facts: tuple[dict[str, Any], ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -262,11 +265,12 @@ class Chain(_Composite):
         return tuple(self.stages)
 
     def restore(self, images: np.ndarray) -> Restored:
-        depth = None
+        depth, facts = None, None
         for stage in self.stages:
             out = stage.restore(images)
             images, depth = out.images, out.depth_m if out.depth_m is not None else depth
-        return Restored(images, depth)
+            facts = out.facts if out.facts is not None else facts
+        return Restored(images, depth, facts)
 
     def restore_tensor(self, images: torch.Tensor) -> RestoredTensor:
         depth = None

@@ -8,7 +8,7 @@ distance map ``d``; the water estimator (:mod:`murk.models.water`) reads the ima
 restoration give it the base's colour (:func:`murk.metrics.affine_fit`, clipped to [0, 1]). So the haze removed is the
 physics' and grows with distance; the colour is the network's. ``strength=0`` is the input in the base's global
 colour (no local change at all). The depth map is the base's. The estimated water of the last batch is kept in
-``last_water`` (``murk water`` prints it for images).
+``last_water``, and each image's is returned in ``Restored.facts`` (``murk enhance`` writes it to ``estimates.jsonl``).
 
 What it gives (docs/models/water.md): on murk's held-out synthetic water it removes more of the haze that grows with
 distance than ``jointid`` (affine-fit PSNR gain over the input), and on the real development pairs the default
@@ -24,7 +24,7 @@ import numpy as np
 from murk.enhance.declare import Checked
 from murk.enhance.restorer import Restored, Restorer, as_batch
 from murk.metrics.affine_psnr import affine_fit
-from murk.models.water import Water, WaterEstimator, load_water_estimator
+from murk.models.water import Water, WaterEstimator, WaterInView, load_water_estimator
 from murk.restore_ops.water import invert_eq1
 
 DEFAULT_STRENGTH = 0.25
@@ -64,7 +64,8 @@ class WaterRestorer(Restorer):
             mixed = image + np.float32(self.strength) * (inverted - image)
             outs.append(np.clip(affine_fit(mixed, np.clip(restored, 0.0, 1.0)), 0.0, 1.0))
         self.last_water = waters
-        return Restored(np.stack(outs).astype(np.float32), base.depth_m)
+        facts = tuple(WaterInView.of(w, d).as_dict() for w, d in zip(waters, base.depth_m, strict=True))
+        return Restored(np.stack(outs).astype(np.float32), base.depth_m, facts)
 
 
 def create_water(o: Checked) -> WaterRestorer:

@@ -11,35 +11,19 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from murk.io.jobs import ErrorRecord
-from murk.models.water import Water
-
-MEASURABLE_FACTOR = 3.0
-"""A visibility more than this many times the farthest distance in view (95th percentile) is not measurable."""
+from murk.models.water import WaterInView
 
 
 @dataclass(frozen=True)
 class WaterOfImage:
-    """One image's estimate and its distance map's median and 95th percentile (metres). ``measurable``: the
-    visibility is within :data:`MEASURABLE_FACTOR` times the 95th-percentile distance; beyond, the haze in view is
-    too faint to tell how far one could see, and the figure is only a lower bound."""
+    """One image's estimate: ``view`` (:class:`murk.models.water.WaterInView`: the water, its distances and whether
+    the visibility is ``measurable``)."""
 
     path: Path
-    water: Water
-    median_distance_m: float
-    far_distance_m: float
-
-    @property
-    def measurable(self) -> bool:
-        return self.water.visibility_m <= MEASURABLE_FACTOR * self.far_distance_m
+    view: WaterInView
 
     def as_dict(self) -> dict[str, object]:
-        return {
-            "image": str(self.path),
-            **self.water.as_dict(),
-            "visibility_measurable": self.measurable,
-            "median_distance_m": round(self.median_distance_m, 2),
-            "far_distance_m": round(self.far_distance_m, 2),
-        }
+        return {"image": str(self.path), **self.view.as_dict()}
 
 
 def estimate_water(
@@ -55,7 +39,6 @@ def estimate_water(
         InputFileError: the estimator file cannot be read.
         ValueError: ``depth_method`` gives no distance map.
     """
-    import numpy as np
 
     from murk.enhance.restorer import create
     from murk.io.images import list_images, read_rgb
@@ -83,8 +66,7 @@ def estimate_water(
             dist = depth_net.restore(image[None]).depth_m
             if dist is None:
                 raise ValueError(f"depth_method: {depth_method!r} gives no distance map; use jointid_net")
-            d = dist[0]
-            result = WaterOfImage(path, model.estimate(image, d), float(np.median(d)), float(np.percentile(d, 95)))
+            result = WaterOfImage(path, WaterInView.of(model.estimate(image, dist[0]), dist[0]))
         results.append(result)
         if on_image is not None:
             on_image(result)

@@ -53,6 +53,38 @@ class Water:
         }
 
 
+MEASURABLE_FACTOR = 3.0
+"""A visibility more than this many times the farthest distance in view (95th percentile) is not measurable."""
+
+
+@dataclass(frozen=True)
+class WaterInView:
+    """An image's estimated water with its distance map's median and 95th percentile (metres). ``measurable``: the
+    visibility is within :data:`MEASURABLE_FACTOR` times the 95th-percentile distance; beyond, the haze in view is
+    too faint to tell how far one could see, and the figure is only a lower bound."""
+
+    water: Water
+    median_distance_m: float
+    far_distance_m: float
+
+    @classmethod
+    def of(cls, water: Water, distance_m: np.ndarray) -> WaterInView:
+        """``water`` with the statistics of the distance map it was estimated with."""
+        return cls(water, float(np.median(distance_m)), float(np.percentile(distance_m, 95)))
+
+    @property
+    def measurable(self) -> bool:
+        return self.water.visibility_m <= MEASURABLE_FACTOR * self.far_distance_m
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            **self.water.as_dict(),
+            "visibility_measurable": self.measurable,
+            "median_distance_m": round(self.median_distance_m, 2),
+            "far_distance_m": round(self.far_distance_m, 2),
+        }
+
+
 def _gelu_tanh(x: np.ndarray) -> np.ndarray:
     """torch's ``gelu(approximate="tanh")``."""
     return 0.5 * x * (1.0 + np.tanh(math.sqrt(2.0 / math.pi) * (x + 0.044715 * x**3)))
