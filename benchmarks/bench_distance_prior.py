@@ -19,22 +19,22 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from scipy.stats import spearmanr
 
 from murk.data import sample_rgbd_dir
 from murk.enhance.restorer import create
 from murk.io.distance_prior import Layout, layout_distance, sample_layout
 from murk.io.pairs import DepthOptions, discover, load_pair
+from murk.metrics import depth_errors
 
 
 def ms_abs_rel(pred: np.ndarray, true: np.ndarray, valid: np.ndarray) -> float:
-    p, t = pred[valid], true[valid]
-    return float(np.mean(np.abs(p * (np.median(t) / np.median(p)) - t) / t))
+    """murk's median-scaled AbsRel (:func:`murk.metrics.depth_errors`) over the valid true pixels."""
+    return depth_errors(pred, np.where(valid, true, 0.0)).abs_rel_median
 
 
 def spearman(pred: np.ndarray, true: np.ndarray, valid: np.ndarray) -> float:
-    p, t = pred[valid][::7].astype(np.float64), true[valid][::7].astype(np.float64)
-    rp, rt = np.argsort(np.argsort(p)), np.argsort(np.argsort(t))
-    return float(np.corrcoef(rp, rt)[0, 1])
+    return float(spearmanr(pred[valid][::7], true[valid][::7]).statistic)
 
 
 def main() -> None:
