@@ -96,7 +96,7 @@ def test_wrong_shapes_are_refused() -> None:
         restorer_mod.create("greyworld")(np.zeros((4, 4, 3), np.float32))
 
 
-@pytest.mark.parametrize("method", ["greyworld", "colorbalance", "clahe", "udcp", "post"])
+@pytest.mark.parametrize("method", ["greyworld", "colorbalance", "clahe", "udcp", "desnow", "post"])
 def test_numpy_restorers_share_the_batch_contract(method: str) -> None:
     """One batch check (restorer.as_batch) for every numpy restorer: one image is told to pass images[None], an
     empty batch is refused, a list of equal frames is a batch."""

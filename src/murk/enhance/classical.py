@@ -1,4 +1,5 @@
-"""Classical restorers that a practitioner tries first: ``greyworld``, ``colorbalance``, ``clahe`` and ``udcp``.
+"""Classical restorers that a practitioner tries first: ``greyworld``, ``colorbalance``, ``clahe`` and ``udcp``; and
+``desnow``, which takes marine snow out (:mod:`murk.snow.remove`; chain it with a restorer: ``lite+desnow``).
 
 Every report should show the learned models beside them (``murk compare ... --method greyworld+clahe``).
 
@@ -22,7 +23,7 @@ Every report should show the learned models beside them (``murk compare ... --me
   ``patch`` x ``patch`` window, refined with the guided filter of He, Sun and Tang (IEEE TPAMI 35(6), 2013,
   doi:10.1109/TPAMI.2012.213) guided by the grey input, and ``J = (I - A) / max(t, t_min) + A``.
 
-All four work per image on float32 RGB in [0, 1] (numpy, OpenCV) and return no depth.
+All five work per image on float32 RGB in [0, 1] (numpy, OpenCV) and return no depth.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from murk.enhance.declare import Checked
 from murk.enhance.restorer import Restored, Restorer, as_batch
 from murk.restore_ops.affine_transfer import guided_filter
 from murk.restore_ops.balance import color_balance
+from murk.snow.remove import SnowRemoval, remove_snow
 
 
 def _check(images: np.ndarray) -> np.ndarray:
@@ -166,3 +168,23 @@ class Udcp(Restorer):
 def make_udcp(o: Checked) -> Udcp:
     """Implementation of ``udcp`` (declared in :mod:`murk.enhance.methods`)."""
     return Udcp(o.patch, o.omega, o.t_min)
+
+
+# ------------------------------------------------------------------------------------------------- marine snow
+
+
+class DeSnow(Restorer):
+    """:func:`murk.snow.remove.remove_snow` per image: the particles found, the background put back behind them."""
+
+    name = "desnow"
+
+    def __init__(self, removal: SnowRemoval) -> None:
+        self.removal = removal
+
+    def restore(self, images: np.ndarray) -> Restored:
+        return Restored(np.stack([remove_snow(im, self.removal) for im in _check(images)]))
+
+
+def make_desnow(o: Checked) -> DeSnow:
+    """Implementation of ``desnow`` (declared in :mod:`murk.enhance.methods`)."""
+    return DeSnow(SnowRemoval(o.threshold, o.size, o.max_elongation))

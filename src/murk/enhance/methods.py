@@ -145,6 +145,11 @@ CLASSICAL: tuple[Method, ...] = (
                opt("patch", "int", 15, "dark-channel window in pixels, 1-255", low=1, high=255),
                opt("omega", "float", 0.95, "share of the haze removed", low=0, high=1),
                opt("t_min", "float", 0.1, "floor of the transmission", low=1e-3, high=1)),
+    _classical("desnow", "marine snow taken out: small bright particles replaced by the background around them",
+               opt("threshold", "float", 0.1, "contrast that makes a blob snow, as a share of the frame's luma spread",
+                   low=1e-3, high=0.99),
+               opt("size", "float", 0.03, "largest particle's diameter, share of the long side", low=1e-3, high=0.25),
+               opt("max_elongation", "float", 3.0, "longest particle in widths (0: any; cables stay)", low=0)),
 )  # fmt: skip
 """The classical methods (numpy and OpenCV, never torch)."""
 

@@ -1,0 +1,186 @@
+"""Marine snow taken out of a frame (issue 46, item 4): find the particles, then put back the background behind
+them. No learning: the rules below, each there because a construction scene broke the one before it.
+
+- **Find** (:func:`find_particles`): on the frame's luma (Rec. 601), a particle is brighter by more than
+  ``threshold`` x the frame's luma spread (its 1st to 99th percentile: a particle's contrast as a colour stretch
+  would show it, so dim snow in flat green water and bright snow in a contrasty frame are found alike) than both
+  - every opening by a line of ``size`` x the long side, in 8 directions (:func:`line_opening`): a blob is darker
+    all round, a cable, a net strand or an edge holds a line along itself; and
+  - the median over a square of twice that side (:func:`background`): the bright gaps of a dark net cover most of
+    such a square, so they are its background.
+
+  A component of those pixels counts when it fits the ``size`` disc (area and extent), is not longer than
+  ``max_elongation`` times its width (the snow bank's measure, :func:`murk.snow.extract.elongation`), its brightest
+  pixel is half that above the brightest other pixel within two pixels (the corner of a bright block is
+  not), and bright blobs cover at most :data:`MAX_CROWD` of the square of four times ``size`` around it (a grating
+  is not snow). The kept particles are grown by ``grow_px`` to take their soft rim.
+- **Fill** (:func:`fill_particles`): each particle's pixels become the median background, per channel: the colour and
+  level around the particle, with no particle in it. The mask is feathered over one pixel; pixels away from every
+  particle are the input, bit for bit.
+
+It runs before or after a restorer (``desnow+lite``, ``lite+desnow``). What it gains and costs: docs/snow.md,
+"Taking real snow out: `desnow`".
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+
+@dataclass(frozen=True)
+class SnowRemoval:
+    """The settings of :func:`find_particles`. ``threshold``: the share of the frame's luma spread by which a blob
+    must be brighter than its surroundings to be a particle;
+    ``size``: the largest particle's diameter as a fraction of the frame's long side; ``max_elongation``: the
+    longest particle, in widths (0: any); ``grow_px``: pixels added around each particle."""
+
+    threshold: float = 0.1
+    size: float = 0.03
+    max_elongation: float = 3.0
+    grow_px: int = 1
+
+    def __post_init__(self) -> None:
+        if not 0.0 < float(self.threshold) < 1.0:
+            raise ValueError(f"threshold: expected a share of the luma spread in (0, 1), got {self.threshold!r}")
+        if not 0.0 < float(self.size) <= 0.25:
+            raise ValueError(f"size: expected a fraction of the long side in (0, 0.25], got {self.size!r}")
+        if self.max_elongation != 0 and not float(self.max_elongation) >= 1.0:
+            raise ValueError(f"max_elongation: expected 0 (any) or >= 1, got {self.max_elongation!r}")
+        if isinstance(self.grow_px, bool) or not isinstance(self.grow_px, int) or not 0 <= self.grow_px <= 8:
+            raise ValueError(f"grow_px: expected an int in [0, 8], got {self.grow_px!r}")
+
+    def size_px(self, height: int, width: int) -> int:
+        """The ellipse's side in pixels for a frame of that size: odd, at least 3."""
+        return max(3, round(float(self.size) * max(height, width)) | 1)
+
+
+SPREAD_PERCENTILES = (1.0, 99.0)
+SPREAD_FLOOR = 0.05
+"""The frame's luma spread: from its 1st to its 99th percentile, at least 0.05 (a blank frame finds no noise)."""
+
+MAX_CROWD = 0.12
+"""The largest share of a particle's surroundings (a square of 4 ``size`` + 1 pixels) that bright blobs may cover:
+real snow covers 1-2 % of a frame (docs/snow.md: 2,700 sites per megapixel of about 5 pixels), the bright gaps of a
+dark net or grating a third or more, so a crowd of blobs is texture, not snow."""
+
+
+def _ellipse(side_px: int) -> np.ndarray:
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (side_px, side_px))
+
+
+def _elongation(rows: np.ndarray, cols: np.ndarray, lab: np.ndarray, n: int) -> np.ndarray:
+    """Per label 0..n-1 of the pixels at ``rows``, ``cols`` labelled ``lab``: the long over the short axis of their
+    second moments, a pixel counted as a unit square (what :func:`murk.snow.extract.elongation` measures), from a few
+    bincounts instead of a loop over the components."""
+    r, c = rows.astype(np.float64), cols.astype(np.float64)
+    count = np.maximum(np.bincount(lab, minlength=n), 1).astype(np.float64)
+    mean_r, mean_c = np.bincount(lab, r, n) / count, np.bincount(lab, c, n) / count
+    var_r = np.bincount(lab, r * r, n) / count - mean_r**2 + 1.0 / 12.0
+    var_c = np.bincount(lab, c * c, n) / count - mean_c**2 + 1.0 / 12.0
+    cov = np.bincount(lab, r * c, n) / count - mean_r * mean_c
+    half_trace, root = (var_r + var_c) / 2.0, np.sqrt(((var_r - var_c) / 2.0) ** 2 + cov**2)
+    return np.asarray(np.sqrt((half_trace + root) / np.maximum(half_trace - root, 1e-12)))
+
+
+def _label_max(values: np.ndarray, lab: np.ndarray, n: int) -> np.ndarray:
+    """The largest of ``values`` per label 0..n-1 (0 for a label with none)."""
+    out = np.zeros(n, np.float32)
+    np.maximum.at(out, lab, values.astype(np.float32, copy=False))
+    return out
+
+
+def _line(side_px: int, angle: float) -> np.ndarray:
+    """A one-pixel line of ``side_px`` pixels through the centre of a square kernel, at ``angle`` radians."""
+    kernel = np.zeros((side_px, side_px), np.uint8)
+    c = (side_px - 1) / 2.0
+    dx, dy = c * np.cos(angle), c * np.sin(angle)
+    cv2.line(kernel, (round(c - dx), round(c - dy)), (round(c + dx), round(c + dy)), 1)
+    return kernel
+
+
+def line_opening(luma: np.ndarray, side_px: int, directions: int = 8) -> np.ndarray:
+    """The largest of the openings of ``luma`` (H, W; uint8 or float) by lines of ``side_px`` pixels in ``directions``
+    directions, in ``luma``'s type. A particle is brighter than its surroundings along every line through it, so
+    every opening removes it; a cable, a net strand or an edge holds a line along itself, so one opening keeps it and
+    it is no particle (``luma`` minus this is the smallest of the directional top-hats)."""
+    y = np.ascontiguousarray(luma)
+    out = np.zeros_like(y)
+    for k in range(directions):
+        np.maximum(out, cv2.morphologyEx(y, cv2.MORPH_OPEN, _line(side_px, np.pi * k / directions)), out=out)
+    return out
+
+
+def background(image: np.ndarray, side_px: int) -> np.ndarray:
+    """The background of float ``image`` (H, W) or (H, W, 3) in [0, 1]: its median over a square of ``2 side_px + 1``
+    pixels, per channel, at 8 bits (OpenCV's median of any size needs them); float32. A particle covers far less than
+    half of that square, so it has no say in the median; the bright gaps of a net or a grating cover more, so they
+    are the background there, and nothing in them stands out of it."""
+    return _median_u8(_to_u8(image), side_px).astype(np.float32) * np.float32(1.0 / 255.0)
+
+
+def _to_u8(image: np.ndarray) -> np.ndarray:
+    return np.rint(np.clip(image, 0.0, 1.0) * 255.0).astype(np.uint8)
+
+
+def _median_u8(u8: np.ndarray, side_px: int) -> np.ndarray:
+    return np.asarray(cv2.medianBlur(u8, 2 * int(side_px) + 1))
+
+
+def find_particles(image: np.ndarray, removal: SnowRemoval) -> np.ndarray:
+    """The particle mask of float RGB ``image`` (H, W, 3) in [0, 1]: (H, W) bool, True on particles and their rim
+    (the rules: module doc)."""
+    if image.ndim != 3 or image.shape[-1] != 3:
+        raise ValueError(f"image: expected (H, W, 3) RGB, got shape {image.shape}")
+    side = removal.size_px(image.shape[0], image.shape[1])
+    luma = _to_u8(cv2.cvtColor(np.ascontiguousarray(image, dtype=np.float32), cv2.COLOR_RGB2GRAY))  # 8 bits: fast
+    around = np.maximum(line_opening(luma, side), _median_u8(luma, side))
+    low, high = np.percentile(luma, SPREAD_PERCENTILES)
+    threshold = np.float32(removal.threshold * max(float(high - low), 255.0 * SPREAD_FLOOR))  # in 8-bit levels
+    found = (luma.astype(np.float32) - around > threshold).astype(np.uint8)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(found, connectivity=8)
+    if n <= 1:
+        return np.zeros(found.shape, bool)
+    rows, cols = np.nonzero(found)  # the few candidate pixels: every per-component figure is taken over them
+    lab = labels[rows, cols]
+    area = stats[:, cv2.CC_STAT_AREA]
+    extent = np.maximum(stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT])
+    near = cv2.dilate(np.where(found > 0, np.uint8(0), luma), _ellipse(5))  # the brightest non-particle near
+    crowd = cv2.blur(found.astype(np.float32), (4 * side + 1, 4 * side + 1))  # the share of bright blobs around
+    peak, ring = _label_max(luma[rows, cols], lab, n), _label_max(near[rows, cols], lab, n)
+    keep = (area <= np.pi * side * side / 4) & (extent <= side) & (peak - ring >= threshold / 2)
+    keep &= _label_max(crowd[rows, cols], lab, n) <= np.float32(MAX_CROWD)
+    if removal.max_elongation:
+        keep &= _elongation(rows, cols, lab, n) <= removal.max_elongation
+    keep[0] = False
+    mask = keep[labels].astype(np.uint8)
+    if removal.grow_px > 0:
+        mask = cv2.dilate(mask, _ellipse(2 * removal.grow_px + 1))
+    return mask.astype(bool)
+
+
+def fill_particles(image: np.ndarray, mask: np.ndarray, side_px: int) -> np.ndarray:
+    """``image`` (H, W, 3, float in [0, 1]) with the pixels under ``mask`` (H, W) replaced by their :func:`background`
+    for ``side_px`` (taken at half the size from 8 pixels up), feathered over one pixel; float32."""
+    img = np.ascontiguousarray(image, dtype=np.float32)
+    if mask.shape != img.shape[:2]:
+        raise ValueError(f"mask: expected shape {img.shape[:2]}, got {mask.shape}")
+    if not mask.any():
+        return img.copy()
+    h, w = img.shape[:2]
+    if side_px >= 8:  # the background is smooth: its median at half the size, a quarter of the cost (3 channels)
+        half = cv2.resize(img, ((w + 1) // 2, (h + 1) // 2), interpolation=cv2.INTER_AREA)
+        behind = cv2.resize(background(half, int(side_px) // 2), (w, h), interpolation=cv2.INTER_LINEAR)
+    else:
+        behind = background(img, int(side_px))
+    weight = cv2.blur(mask.astype(np.float32), (3, 3))
+    weight = np.maximum(weight, mask.astype(np.float32))[..., None]  # the particle itself fully replaced
+    return img + weight * (behind - img)
+
+
+def remove_snow(image: np.ndarray, removal: SnowRemoval) -> np.ndarray:
+    """:func:`find_particles`, then :func:`fill_particles`: ``image`` without its marine snow, float32 (H, W, 3)."""
+    side = removal.size_px(image.shape[0], image.shape[1])
+    return fill_particles(image, find_particles(image, removal), side)
