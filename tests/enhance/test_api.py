@@ -292,6 +292,30 @@ def test_stopping_a_live_recording_keeps_it_and_a_file_run_discards_it(tmp_path:
     assert any("interrupted" in n for n in file_run.notes)
 
 
+class _Measures(Restorer):
+    """Leaves each frame as it is and reports its mean (a method that estimates something per frame)."""
+
+    name = "measures"
+
+    def restore(self, images: np.ndarray) -> Restored:
+        return Restored(np.asarray(images, np.float32), facts=tuple({"mean": float(im.mean())} for im in images))
+
+
+def test_estimates_follow_their_frames_when_a_run_stops(tmp_path: Path) -> None:
+    """A stopped live recording keeps the estimates of the frames it kept; a stopped file run discards its video
+    and the estimates with it."""
+    polls = iter(range(100))
+    stop_after_4 = lambda: next(polls) >= 4  # noqa: E731
+    src = FakeSource(make_frames(10), live=True)
+    enhance_frames(src, _Measures(), tmp_path / "live.avi", should_stop=stop_after_4, read_ahead=False)
+    rows = read_jsonl(tmp_path / "live_estimates.jsonl")
+    assert [r["frame"] for r in rows] == [0, 1, 2, 3] and all(r["output"].endswith("live.avi") for r in rows)
+    polls = iter(range(100))
+    stop_after_4 = lambda: next(polls) >= 4  # noqa: E731
+    enhance_frames(FakeSource(make_frames(10), live=False), _Measures(), tmp_path / "f.avi", should_stop=stop_after_4)
+    assert not (tmp_path / "f.avi").exists() and not (tmp_path / "f_estimates.jsonl").exists()
+
+
 def test_frames_output_max_frames_and_resume(tmp_path: Path) -> None:
     out = tmp_path / "frames"
     report = enhance_frames(FakeSource(make_frames(9), live=False), PostRestorer(), out, max_frames=5)

@@ -116,6 +116,40 @@ def test_murk_enhance_records_the_estimated_water_of_each_image(
     assert enhance("lite", "plain") == []  # a method that estimates nothing writes no file
 
 
+def test_murk_enhance_records_the_estimated_water_of_each_video_frame(estimator_file: Path, tmp_path: Path) -> None:
+    """A video out gets ``<stem>_estimates.jsonl`` beside it, a folder of frames ``estimates.jsonl``: one line per
+    written frame, with the figures the method gives that decoded frame; a rerun of the video replaces the file."""
+    from murk.enhance.frames_u8 import restore_frames
+    from testkit.video import make_video, read_video
+
+    clip = make_video(tmp_path / "clip.avi", 3, h=72, w=96)
+    spec = f"water?estimator={estimator_file}"
+
+    def enhance(out: Path, *extra: str) -> None:
+        res = CliRunner().invoke(app, ["enhance", str(clip), "--out", str(out), "-m", spec, *extra])
+        assert res.exit_code == 0, res.output
+
+    def rows(path: Path) -> list[dict]:
+        return [json.loads(line) for line in path.read_text().splitlines()]
+
+    enhance(tmp_path / "out.avi")
+    got = rows(tmp_path / "out_estimates.jsonl")
+    assert [r["frame"] for r in got] == [0, 1, 2]
+    assert {r["output"] for r in got} == {str(tmp_path / "out.avi")} and got[0]["input"].endswith("clip.avi")
+    first = read_video(clip)[0]
+    alone = restore_frames(create(spec), first[None]).facts
+    assert alone is not None and got[0]["veil_rgb"] == alone[0]["veil_rgb"]
+    enhance(tmp_path / "out.avi", "--overwrite")  # the video written anew: its estimates too, not appended
+    assert len(rows(tmp_path / "out_estimates.jsonl")) == 3
+    enhance(tmp_path / "frames")
+    folder = rows(tmp_path / "frames" / "estimates.jsonl")
+    assert [Path(r["output"]).exists() for r in folder] == [True, True, True]
+    enhance(tmp_path / "frames")  # a rerun skips the written frames: no new lines
+    assert len(rows(tmp_path / "frames" / "estimates.jsonl")) == 3
+    res = CliRunner().invoke(app, ["enhance", str(clip), "--out", str(tmp_path / "plain.avi"), "-m", "lite"])
+    assert res.exit_code == 0 and not (tmp_path / "plain_estimates.jsonl").exists()
+
+
 def test_murk_water_estimate_reports_every_image_and_names_a_broken_one(
     estimator_file: Path, image: np.ndarray, tmp_path: Path
 ) -> None:

@@ -1,5 +1,7 @@
 """The frame job of ``murk enhance``: restore the frames of a video file, a camera or a stream into a video
-(source frame rate) or numbered images; optionally a coloured depth video.
+(source frame rate) or numbered images; optionally a coloured depth video. What a method estimates per frame
+(``Restored.facts``: the ``water`` method's water) goes to ``<video stem>_estimates.jsonl`` beside a video, or to
+``estimates.jsonl`` in a folder of frames: one line per frame written (``input``, ``frame``, ``output`` and the facts).
 
 Reliability: a broken frame is recorded in ``errors.jsonl`` and replaced by the previous output frame so the
 video keeps its length and timing; video files are written atomically (complete or absent), live recordings
@@ -13,12 +15,14 @@ import time
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from murk.enhance.frame_overlap import InOrder, one_thread_per_call, restore_threads
 from murk.enhance.frames_u8 import restore_frames, to_u8
 from murk.enhance.job_common import (
+    ESTIMATES_NAME,
     INPUT_ERRORS,
     RESTORE_ERRORS,
     EnhanceReport,
@@ -34,6 +38,7 @@ from murk.errors import OutputError
 from murk.io.atomic import TMP_PREFIX, make_output_folder
 from murk.io.images import IMAGE_SUFFIXES, to_float, to_uint, write_uint
 from murk.io.jobs import ErrorLog, ErrorRecord
+from murk.io.jsonl import append_jsonl
 from murk.io.readahead import ReadAhead
 from murk.io.video import DEFAULT_FPS, VIDEO_SUFFIXES, WRITABLE_VIDEO_SUFFIXES, FrameSource, VideoSink, av_available
 from murk.io.writer import BackgroundWriter
@@ -64,6 +69,9 @@ class _FrameWriter:
         self.depth_sink: VideoSink | None = None
         self.last: np.ndarray | None = None
         self.last_depth: np.ndarray | None = None
+        self.estimates = (
+            out.with_name(f"{out.stem}_estimates.jsonl") if self.as_video else out / ESTIMATES_NAME
+        )  # what the method estimated per frame
         self.backend = options.video_backend
         if self.backend == "auto":
             self.backend = "av" if source.live and av_available() else "opencv"
@@ -79,6 +87,11 @@ class _FrameWriter:
         sink = VideoSink(path, fps, size, backend=self.backend, atomic=not self.source.live)  # type: ignore[arg-type]
         self.report.outputs.append(path)
         return sink
+
+    def record(self, label: str, index: int, facts: dict[str, Any]) -> None:
+        """Append one frame's estimates (after the frame is written, so every line names a frame that exists)."""
+        output = self.out if self.as_video else self.frame_path(index)
+        append_jsonl(self.estimates, [{"input": label, "frame": index, "output": str(output), **facts}])
 
     def write(self, index: int, frame_u8: np.ndarray, depth_m: np.ndarray | None) -> None:
         if depth_m is not None and self.options.depth:
@@ -121,6 +134,8 @@ class _FrameWriter:
         """Close the videos; an incomplete atomic video (interrupted file input) is discarded. When closing one
         fails (a full disk), the others are discarded too and the error is raised."""
         sinks = [s for s in (self.sink, self.depth_sink) if s is not None]
+        if self.as_video and not complete and not self.source.live:
+            self.estimates.unlink(missing_ok=True)  # the video is discarded: so are its frames' estimates
         try:
             for sink in sinks:
                 if complete or not sink.atomic:
@@ -207,11 +222,14 @@ def enhance_frames(
     make_output_folder(writer.out_dir)
     for stale in writer.out_dir.glob(f"{TMP_PREFIX}*-{out.name}"):
         stale.unlink(missing_ok=True)
+    if writer.as_video:
+        writer.estimates.unlink(missing_ok=True)  # the video is written anew: a rerun's estimates replace these
     errors.start()
 
     items: list[_FrameItem] = []
     saw_depth = False
-    Outputs = dict[int, tuple[np.ndarray, np.ndarray | None]]
+    Output = tuple[np.ndarray, np.ndarray | None, dict[str, Any] | None]  # image, depth, facts
+    Outputs = dict[int, Output]
 
     def restore_items(batch_items: list[_FrameItem]) -> tuple[list[_FrameItem], Outputs, float]:
         """Restore one batch (on a restore thread when frames overlap); a failed group marks its frames."""
@@ -227,7 +245,8 @@ def enhance_frames(
                     it.error = f"restore failed: {type(exc).__name__}: {exc}"
                 continue
             for j, it in enumerate(group):
-                outputs[it.index] = (result.images[j], None if result.depth_m is None else result.depth_m[j])
+                depth = None if result.depth_m is None else result.depth_m[j]
+                outputs[it.index] = (result.images[j], depth, None if result.facts is None else result.facts[j])
         return batch_items, outputs, time.perf_counter() - t0
 
     def hand_on(done: tuple[list[_FrameItem], Outputs, float]) -> None:
@@ -256,18 +275,21 @@ def enhance_frames(
         for done in restoring.submit(partial(restore_items, batch_items)):
             hand_on(done)
 
-    def write_item(it: _FrameItem, output: tuple[np.ndarray, np.ndarray | None] | None) -> None:
+    def write_item(it: _FrameItem, output: Output | None) -> None:
         """Write one frame (or repeat the previous one for a broken frame) and record what failed."""
         if output is None:
             repeated = writer.repeat_last()
             stage = "read" if it.image is None else "restore"
             errors.add(ErrorRecord(label, stage, _frame_error(it, repeated), frame=it.index))
             return
-        image, depth = output  # uint8
+        image, depth, facts = output  # uint8
         panel = side_by_side(_as_u8(it.image), image) if options.side_by_side else image  # type: ignore[arg-type]
         try:
             writer.write(it.index, panel, depth)
             report.processed += 1
+            if facts is not None:
+                writer.record(label, it.index, facts)
+                report.note(f"what {restorer.name} estimated per frame: {writer.estimates}")
         except OutputError:  # a full disk ends the run; finish() discards the partial video
             raise
         except INPUT_ERRORS as exc:

@@ -41,7 +41,7 @@ def alone_takes_u8(pixels: int) -> bool:
 
 def restore_frames(restorer: Restorer, frames: np.ndarray) -> Restored:
     """Restore a batch of RGB frames (B, H, W, 3), uint8 (or uint16: the float32 path), into uint8 frames
-    (``Restored.images`` uint8; ``depth_m`` as the method gives it).
+    (``Restored.images`` uint8; ``depth_m`` and ``facts`` as the method gives them).
 
     Raises:
         what :func:`murk.enhance.job_common.restore_batch` raises.
@@ -57,13 +57,14 @@ def restore_frames(restorer: Restorer, frames: np.ndarray) -> Restored:
             if first is not None:
                 if alone:
                     return Restored(first)
-                images, depth = first, None
+                images, depth, facts = first, None, None
                 for stage in stages[1:]:  # the rest of the chain, as Chain.restore runs it
                     out = stage.restore(images)
                     images, depth = out.images, out.depth_m if out.depth_m is not None else depth
-                return Restored(to_u8(images), depth)
+                    facts = out.facts if out.facts is not None else facts
+                return Restored(to_u8(images), depth, facts)
     result = restore_batch(restorer, to_float(frames))
-    return Restored(to_u8(result.images), result.depth_m)
+    return Restored(to_u8(result.images), result.depth_m, result.facts)
 
 
 def to_u8(images: np.ndarray) -> np.ndarray:

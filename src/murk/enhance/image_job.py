@@ -22,6 +22,7 @@ import numpy as np
 
 from murk.enhance.inputs import ImageJob
 from murk.enhance.job_common import (
+    ESTIMATES_NAME,
     INPUT_ERRORS,
     RESTORE_ERRORS,
     SIXTEEN_BIT_SUFFIXES,
@@ -41,9 +42,6 @@ from murk.io.images import BitDepth, read_image, to_float, to_uint, write_uint
 from murk.io.jobs import ErrorLog, ErrorRecord
 from murk.io.jsonl import append_jsonl
 from murk.io.listing import real_path
-
-ESTIMATES_NAME = "estimates.jsonl"
-"""The file of ``out_dir`` that receives what a method estimated per image (``Restored.facts``)."""
 
 
 @dataclass

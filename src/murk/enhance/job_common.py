@@ -25,6 +25,9 @@ from murk.io.jobs import JobSummary
 
 SIXTEEN_BIT_SUFFIXES = (".png", ".tif", ".tiff")
 
+ESTIMATES_NAME = "estimates.jsonl"
+"""The file of an output folder that receives what a method estimated per image or frame (``Restored.facts``)."""
+
 ProgressFn = Callable[["EnhanceReport"], None]
 StopFn = Callable[[], bool]
 _F_co = TypeVar("_F_co", covariant=True)
