@@ -98,6 +98,8 @@ def test_fill_checks_the_mask_shape() -> None:
         ({"size": 0.0}, "size"),
         ({"size": 0.5}, "size"),
         ({"max_elongation": 0.5}, "max_elongation"),
+        ({"crowd": 0.0}, "crowd"),
+        ({"crowd": 1.5}, "crowd"),
         ({"grow_px": -1}, "grow_px"),
         ({"grow_px": True}, "grow_px"),
     ],
@@ -116,3 +118,5 @@ def test_the_desnow_method_and_its_options() -> None:
     assert chained.shape == frame.shape
     with pytest.raises(ValueError, match="threshold"):
         restorer_mod.create("desnow?threshold=2")
+    crowded = restorer_mod.create("desnow?crowd=0.001")(frame[None]).images[0]  # every particle is in a crowd
+    np.testing.assert_array_equal(crowded, frame)

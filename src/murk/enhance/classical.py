@@ -187,4 +187,4 @@ class DeSnow(Restorer):
 
 def make_desnow(o: Checked) -> DeSnow:
     """Implementation of ``desnow`` (declared in :mod:`murk.enhance.methods`)."""
-    return DeSnow(SnowRemoval(o.threshold, o.size, o.max_elongation))
+    return DeSnow(SnowRemoval(o.threshold, o.size, o.max_elongation, o.crowd))

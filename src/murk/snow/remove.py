@@ -12,7 +12,7 @@ them. No learning: the rules below, each there because a construction scene brok
   A component of those pixels counts when it fits the ``size`` disc (area and extent), is not longer than
   ``max_elongation`` times its width (the snow bank's measure, :func:`murk.snow.extract.elongation`), its brightest
   pixel is half that above the brightest other pixel within two pixels (the corner of a bright block is
-  not), and bright blobs cover at most :data:`MAX_CROWD` of the square of four times ``size`` around it (a grating
+  not), and bright blobs cover at most ``crowd`` of the square of four times ``size`` around it (a grating
   is not snow). The kept particles are grown by ``grow_px`` to take their soft rim.
 - **Fill** (:func:`fill_particles`): each particle's pixels become the median background, per channel: the colour and
   level around the particle, with no particle in it. The mask is feathered over one pixel; pixels away from every
@@ -35,11 +35,15 @@ class SnowRemoval:
     """The settings of :func:`find_particles`. ``threshold``: the share of the frame's luma spread by which a blob
     must be brighter than its surroundings to be a particle;
     ``size``: the largest particle's diameter as a fraction of the frame's long side; ``max_elongation``: the
-    longest particle, in widths (0: any); ``grow_px``: pixels added around each particle."""
+    longest particle, in widths (0: any); ``crowd``: the largest share of a particle's surroundings (a square of
+    four times ``size``) that bright blobs may cover: real snow covers 1-2 % of a frame (docs/snow.md: 2,700 sites
+    per megapixel of about 5 pixels), a coral reef's bright specks 5-10 %, the gaps of a dark net or grating a third
+    or more, so a crowd of blobs is texture; ``grow_px``: pixels added around each particle."""
 
     threshold: float = 0.1
     size: float = 0.03
     max_elongation: float = 3.0
+    crowd: float = 0.05
     grow_px: int = 1
 
     def __post_init__(self) -> None:
@@ -49,6 +53,8 @@ class SnowRemoval:
             raise ValueError(f"size: expected a fraction of the long side in (0, 0.25], got {self.size!r}")
         if self.max_elongation != 0 and not float(self.max_elongation) >= 1.0:
             raise ValueError(f"max_elongation: expected 0 (any) or >= 1, got {self.max_elongation!r}")
+        if not 0.0 < float(self.crowd) <= 1.0:
+            raise ValueError(f"crowd: expected a share in (0, 1], got {self.crowd!r}")
         if isinstance(self.grow_px, bool) or not isinstance(self.grow_px, int) or not 0 <= self.grow_px <= 8:
             raise ValueError(f"grow_px: expected an int in [0, 8], got {self.grow_px!r}")
 
@@ -60,11 +66,6 @@ class SnowRemoval:
 SPREAD_PERCENTILES = (1.0, 99.0)
 SPREAD_FLOOR = 0.05
 """The frame's luma spread: from its 1st to its 99th percentile, at least 0.05 (a blank frame finds no noise)."""
-
-MAX_CROWD = 0.12
-"""The largest share of a particle's surroundings (a square of 4 ``size`` + 1 pixels) that bright blobs may cover:
-real snow covers 1-2 % of a frame (docs/snow.md: 2,700 sites per megapixel of about 5 pixels), the bright gaps of a
-dark net or grating a third or more, so a crowd of blobs is texture, not snow."""
 
 
 def _ellipse(side_px: int) -> np.ndarray:
@@ -151,7 +152,7 @@ def find_particles(image: np.ndarray, removal: SnowRemoval) -> np.ndarray:
     crowd = cv2.blur(found.astype(np.float32), (4 * side + 1, 4 * side + 1))  # the share of bright blobs around
     peak, ring = _label_max(luma[rows, cols], lab, n), _label_max(near[rows, cols], lab, n)
     keep = (area <= np.pi * side * side / 4) & (extent <= side) & (peak - ring >= threshold / 2)
-    keep &= _label_max(crowd[rows, cols], lab, n) <= np.float32(MAX_CROWD)
+    keep &= _label_max(crowd[rows, cols], lab, n) <= np.float32(removal.crowd)
     if removal.max_elongation:
         keep &= _elongation(rows, cols, lab, n) <= removal.max_elongation
     keep[0] = False
