@@ -293,27 +293,45 @@ def test_stopping_a_live_recording_keeps_it_and_a_file_run_discards_it(tmp_path:
 
 
 class _Measures(Restorer):
-    """Leaves each frame as it is and reports its mean (a method that estimates something per frame)."""
+    """Leaves each frame as it is and reports its mean, and a figure it could not measure (NaN)."""
 
     name = "measures"
 
     def restore(self, images: np.ndarray) -> Restored:
-        return Restored(np.asarray(images, np.float32), facts=tuple({"mean": float(im.mean())} for im in images))
+        facts = tuple({"mean": float(im.mean()), "unmeasured": float("nan")} for im in images)
+        return Restored(np.asarray(images, np.float32), facts=facts)
+
+
+def _stop_after(n: int):  # type: ignore[no-untyped-def]
+    polls = iter(range(100))
+    return lambda: next(polls) >= n
 
 
 def test_estimates_follow_their_frames_when_a_run_stops(tmp_path: Path) -> None:
-    """A stopped live recording keeps the estimates of the frames it kept; a stopped file run discards its video
-    and the estimates with it."""
-    polls = iter(range(100))
-    stop_after_4 = lambda: next(polls) >= 4  # noqa: E731
+    """A file run writes its frames' estimates with the video; a stopped rerun with --overwrite keeps the previous
+    video and its estimates as they were; a stopped live recording keeps the lines of the frames it kept. A figure
+    that is not a number is written as null, and the frame counts as written."""
+    done = enhance_frames(FakeSource(make_frames(6), live=False), _Measures(), tmp_path / "f.avi")
+    rows = read_jsonl(tmp_path / "f_estimates.jsonl")
+    assert done.processed == 6 and not done.failed and [r["frame"] for r in rows] == list(range(6))
+    assert rows[0]["unmeasured"] is None and rows[0]["output"] == str(tmp_path / "f.avi")
+    before = (tmp_path / "f_estimates.jsonl").read_bytes()
+    again = enhance_frames(
+        FakeSource(make_frames(10), live=False),
+        _Measures(),
+        tmp_path / "f.avi",
+        OutputOptions(overwrite=True),
+        should_stop=_stop_after(4),
+    )
+    assert again.stopped and len(read_video(tmp_path / "f.avi")) == 6  # the previous video, kept
+    assert (tmp_path / "f_estimates.jsonl").read_bytes() == before and not list(tmp_path.glob(f"{TMP_PREFIX}*"))
     src = FakeSource(make_frames(10), live=True)
-    enhance_frames(src, _Measures(), tmp_path / "live.avi", should_stop=stop_after_4, read_ahead=False)
+    enhance_frames(src, _Measures(), tmp_path / "live.avi", should_stop=_stop_after(4), read_ahead=False)
     rows = read_jsonl(tmp_path / "live_estimates.jsonl")
     assert [r["frame"] for r in rows] == [0, 1, 2, 3] and all(r["output"].endswith("live.avi") for r in rows)
-    polls = iter(range(100))
-    stop_after_4 = lambda: next(polls) >= 4  # noqa: E731
-    enhance_frames(FakeSource(make_frames(10), live=False), _Measures(), tmp_path / "f.avi", should_stop=stop_after_4)
-    assert not (tmp_path / "f.avi").exists() and not (tmp_path / "f_estimates.jsonl").exists()
+    plain = enhance_frames(FakeSource(make_frames(3), live=False), PostRestorer(), tmp_path / "f.avi",
+                           OutputOptions(overwrite=True))  # fmt: skip
+    assert plain.processed == 3 and not (tmp_path / "f_estimates.jsonl").exists()  # a new video without estimates
 
 
 def test_frames_output_max_frames_and_resume(tmp_path: Path) -> None:

@@ -84,6 +84,29 @@ def test_the_threshold_is_a_share_of_the_frames_contrast() -> None:
     np.testing.assert_array_equal(find_particles(0.2 + 0.5 * clear, SnowRemoval()), found)
 
 
+def test_the_noise_of_flat_water_is_not_snow() -> None:
+    """Flat water with sensor noise of 1-2.5 levels in 8 bits comes back unchanged, and particles in it are found."""
+    rng = np.random.default_rng(1)
+    yy, xx = np.mgrid[0:H, 0:W]
+    discs = np.zeros((H, W), bool)
+    for cy, cx in rng.integers(10, [H - 10, W - 10], (40, 2)):
+        discs |= (yy - cy) ** 2 + (xx - cx) ** 2 <= 4
+    for sd in (1.0, 2.5):
+        water = (np.rint((0.3 + sd / 255 * rng.standard_normal((H, W, 3))) * 255) / 255).astype(np.float32)
+        np.testing.assert_array_equal(remove_snow(water, SnowRemoval()), water)
+        snowy = water.copy()
+        snowy[discs] = 0.9
+        assert find_particles(snowy, SnowRemoval())[discs].all()
+
+
+def test_frames_that_are_not_float_rgb_are_refused() -> None:
+    frame, *_ = _frame()
+    with pytest.raises(ValueError, match="uint8"):
+        remove_snow((frame * 255).astype(np.uint8), SnowRemoval())
+    with pytest.raises(ValueError, match=r"\(H, W, 3\)"):
+        find_particles(frame[..., 0], SnowRemoval())
+
+
 def test_fill_checks_the_mask_shape() -> None:
     frame, *_ = _frame()
     with pytest.raises(ValueError, match="mask"):

@@ -1,7 +1,8 @@
 """The frame job of ``murk enhance``: restore the frames of a video file, a camera or a stream into a video
 (source frame rate) or numbered images; optionally a coloured depth video. What a method estimates per frame
-(``Restored.facts``: the ``water`` method's water) goes to ``<video stem>_estimates.jsonl`` beside a video, or to
-``estimates.jsonl`` in a folder of frames: one line per frame written (``input``, ``frame``, ``output`` and the facts).
+(``Restored.facts``: the ``water`` method's water) goes to ``<out-stem>_estimates.jsonl`` beside a video output, or to
+``estimates.jsonl`` in a folder of frames: one line per frame written (``input``, ``frame``, ``output`` and the facts;
+:class:`_EstimatesLog`).
 
 Reliability: a broken frame is recorded in ``errors.jsonl`` and replaced by the previous output frame so the
 video keeps its length and timing; video files are written atomically (complete or absent), live recordings
@@ -11,11 +12,12 @@ directly and flushed (see :mod:`murk.io.video`); a full disk stops the run with 
 from __future__ import annotations
 
 import contextlib
+import os
 import time
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 import numpy as np
 
@@ -35,10 +37,10 @@ from murk.enhance.job_common import (
 from murk.enhance.preview import colorize_depth, side_by_side
 from murk.enhance.restorer import Restorer
 from murk.errors import OutputError
-from murk.io.atomic import TMP_PREFIX, make_output_folder
+from murk.io.atomic import TMP_PREFIX, make_output_folder, no_space_as_error, write_text_atomic
 from murk.io.images import IMAGE_SUFFIXES, to_float, to_uint, write_uint
 from murk.io.jobs import ErrorLog, ErrorRecord
-from murk.io.jsonl import append_jsonl
+from murk.io.jsonl import dumps, json_safe
 from murk.io.readahead import ReadAhead
 from murk.io.video import DEFAULT_FPS, VIDEO_SUFFIXES, WRITABLE_VIDEO_SUFFIXES, FrameSource, VideoSink, av_available
 from murk.io.writer import BackgroundWriter
@@ -54,6 +56,49 @@ class _FrameItem:
     error: str | None = None
     dst: Path | None = None
     replay: bool = False  # written by an earlier run: restored again only to carry the method's state over time
+
+
+class _EstimatesLog:
+    """The per-frame estimates of one run. For a video file (written atomically) the lines are held and written, all
+    at once and atomically, when the video is committed: an interrupted run leaves the previous video and its
+    estimates as they were, and a committed video without estimates removes an older file. Otherwise (a live
+    recording, a folder of frames) each line is appended as its frame is written, flushed, and fsynced at the end; a
+    live recording starts the file anew (it replaces the previous recording), a folder appends (a frame restored
+    again gets another line, the newest last)."""
+
+    def __init__(self, path: Path, *, atomic: bool, fresh: bool) -> None:
+        self.path, self.atomic, self.fresh = path, atomic, fresh
+        self.lines: list[str] = []
+        self.file: TextIO | None = None
+
+    def add(self, record: dict[str, Any]) -> None:
+        line = dumps(json_safe(record)) + "\n"  # a NaN figure becomes null, never a failed frame
+        if self.atomic:
+            self.lines.append(line)
+            return
+        with no_space_as_error(self.path, "estimates file"):
+            if self.file is None:
+                make_output_folder(self.path.parent)
+                self.file = open(self.path, "w" if self.fresh else "a", encoding="utf-8")
+            self.file.write(line)
+            self.file.flush()
+
+    def close(self, commit: bool) -> None:
+        """End the run: ``commit`` when the video (or recording) is kept."""
+        if self.file is not None:
+            try:
+                with no_space_as_error(self.path, "estimates file"):
+                    os.fsync(self.file.fileno())
+            finally:
+                self.file.close()
+                self.file = None
+        elif self.fresh and commit:
+            self.path.unlink(missing_ok=True)  # the recording replaced the previous one, which had estimates
+        if self.atomic and commit:
+            if self.lines:
+                write_text_atomic(self.path, "".join(self.lines))
+            else:
+                self.path.unlink(missing_ok=True)
 
 
 class _FrameWriter:
@@ -72,6 +117,8 @@ class _FrameWriter:
         self.estimates = (
             out.with_name(f"{out.stem}_estimates.jsonl") if self.as_video else out / ESTIMATES_NAME
         )  # what the method estimated per frame
+        atomic = self.as_video and not source.live
+        self.estimates_log = _EstimatesLog(self.estimates, atomic=atomic, fresh=self.as_video and source.live)
         self.backend = options.video_backend
         if self.backend == "auto":
             self.backend = "av" if source.live and av_available() else "opencv"
@@ -89,9 +136,9 @@ class _FrameWriter:
         return sink
 
     def record(self, label: str, index: int, facts: dict[str, Any]) -> None:
-        """Append one frame's estimates (after the frame is written, so every line names a frame that exists)."""
+        """Record one frame's estimates (after the frame is written, so every line names a frame that exists)."""
         output = self.out if self.as_video else self.frame_path(index)
-        append_jsonl(self.estimates, [{"input": label, "frame": index, "output": str(output), **facts}])
+        self.estimates_log.add({"input": label, "frame": index, "output": str(output), **facts})
 
     def write(self, index: int, frame_u8: np.ndarray, depth_m: np.ndarray | None) -> None:
         if depth_m is not None and self.options.depth:
@@ -134,8 +181,6 @@ class _FrameWriter:
         """Close the videos; an incomplete atomic video (interrupted file input) is discarded. When closing one
         fails (a full disk), the others are discarded too and the error is raised."""
         sinks = [s for s in (self.sink, self.depth_sink) if s is not None]
-        if self.as_video and not complete and not self.source.live:
-            self.estimates.unlink(missing_ok=True)  # the video is discarded: so are its frames' estimates
         try:
             for sink in sinks:
                 if complete or not sink.atomic:
@@ -145,7 +190,9 @@ class _FrameWriter:
         except BaseException:
             for sink in sinks:
                 self._discard(sink)
+            self.estimates_log.close(commit=False)
             raise
+        self.estimates_log.close(commit=complete)
 
     def _discard(self, sink: VideoSink) -> None:
         sink.abort()
@@ -222,8 +269,6 @@ def enhance_frames(
     make_output_folder(writer.out_dir)
     for stale in writer.out_dir.glob(f"{TMP_PREFIX}*-{out.name}"):
         stale.unlink(missing_ok=True)
-    if writer.as_video:
-        writer.estimates.unlink(missing_ok=True)  # the video is written anew: a rerun's estimates replace these
     errors.start()
 
     items: list[_FrameItem] = []

@@ -40,7 +40,7 @@ from murk.errors import OutputError
 from murk.io.atomic import make_output_folder, remove_stale_temporaries
 from murk.io.images import BitDepth, read_image, to_float, to_uint, write_uint
 from murk.io.jobs import ErrorLog, ErrorRecord
-from murk.io.jsonl import append_jsonl
+from murk.io.jsonl import append_jsonl, json_safe
 from murk.io.listing import real_path
 
 
@@ -151,7 +151,7 @@ def _restore_and_write_images(
             if options.side_by_side:
                 image = side_by_side(it.image, image)
             if result.facts is not None:  # before the image, which marks the image done
-                facts = {"image": str(it.job.src), "output": str(it.job.dst), **result.facts[i]}
+                facts = json_safe({"image": str(it.job.src), "output": str(it.job.dst), **result.facts[i]})
                 append_jsonl(out_dir / ESTIMATES_NAME, [facts])
                 report.note(f"what {restorer.name} estimated per image: {out_dir / ESTIMATES_NAME}")
             write_uint(it.job.dst, to_uint(image, it.bits), jpeg_quality=options.jpeg_quality)  # last: marks done

@@ -149,7 +149,7 @@ CLASSICAL: tuple[Method, ...] = (
                opt("threshold", "float", 0.1, "contrast that makes a blob snow, as a share of the frame's luma spread",
                    low=1e-3, high=0.99),
                opt("size", "float", 0.03, "largest particle's diameter, share of the long side", low=1e-3, high=0.25),
-               opt("max_elongation", "float", 3.0, "longest particle in widths (0: any; cables stay)", low=0),
+               opt("max_elongation", "float", 3.0, "longest particle, in widths (longer: a cable, an edge)", low=1),
                opt("crowd", "float", 0.05, "largest share of its surroundings that bright blobs may cover",
                    low=1e-3, high=1)),
 )  # fmt: skip

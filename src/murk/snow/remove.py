@@ -3,7 +3,8 @@ them. No learning: the rules below, each there because a construction scene brok
 
 - **Find** (:func:`find_particles`): on the frame's luma (Rec. 601), a particle is brighter by more than
   ``threshold`` x the frame's luma spread (its 1st to 99th percentile: a particle's contrast as a colour stretch
-  would show it, so dim snow in flat green water and bright snow in a contrasty frame are found alike) than both
+  would show it, so dim snow in flat green water and bright snow in a contrasty frame are found alike), and by
+  :data:`NOISE_SIGMAS` times the frame's noise, than both
   - every opening by a line of ``size`` x the long side, in 8 directions (:func:`line_opening`): a blob is darker
     all round, a cable, a net strand or an edge holds a line along itself; and
   - the median over a square of twice that side (:func:`background`): the bright gaps of a dark net cover most of
@@ -14,9 +15,11 @@ them. No learning: the rules below, each there because a construction scene brok
   pixel is half that above the brightest other pixel within two pixels (the corner of a bright block is
   not), and bright blobs cover at most ``crowd`` of the square of four times ``size`` around it (a grating
   is not snow). The kept particles are grown by ``grow_px`` to take their soft rim.
-- **Fill** (:func:`fill_particles`): each particle's pixels become the median background, per channel: the colour and
-  level around the particle, with no particle in it. The mask is feathered over one pixel; pixels away from every
-  particle are the input, bit for bit.
+- **Fill** (:func:`fill_particles`): each particle's pixels become the median background, per channel (through 8
+  bits): the colour and level around the particle, with no particle in it. The mask is feathered over one pixel;
+  pixels beyond that rim are the input, bit for bit.
+
+Frames are float RGB in [0, 1]; anything else is refused with the dtype or shape named.
 
 It runs before or after a restorer (``desnow+lite``, ``lite+desnow``). What it gains and costs: docs/snow.md,
 "Taking real snow out: `desnow`".
@@ -64,8 +67,18 @@ class SnowRemoval:
 
 
 SPREAD_PERCENTILES = (1.0, 99.0)
-SPREAD_FLOOR = 0.05
-"""The frame's luma spread: from its 1st to its 99th percentile, at least 0.05 (a blank frame finds no noise)."""
+"""The frame's luma spread: from its 1st to its 99th percentile."""
+
+NOISE_SIGMAS = 6.0
+"""A particle also stands this many times the frame's noise above its surroundings, so that the sensor noise of flat
+water is never taken for snow. The noise is 1.4826 times the median absolute deviation of the luma from its 3x3
+median (8-bit levels), at least one level: robust to the particles themselves and to the scene's edges."""
+
+
+def _noise_levels(luma_u8: np.ndarray) -> float:
+    """The noise of an 8-bit luma frame in levels (:data:`NOISE_SIGMAS`)."""
+    residual = luma_u8.astype(np.float32) - cv2.medianBlur(luma_u8, 3).astype(np.float32)
+    return max(1.0, 1.4826 * float(np.median(np.abs(residual))))
 
 
 def _ellipse(side_px: int) -> np.ndarray:
@@ -130,17 +143,24 @@ def _median_u8(u8: np.ndarray, side_px: int) -> np.ndarray:
     return np.asarray(cv2.medianBlur(u8, 2 * int(side_px) + 1))
 
 
+def _check_image(image: np.ndarray) -> None:
+    if image.ndim != 3 or image.shape[-1] != 3:
+        raise ValueError(f"image: expected (H, W, 3) RGB, got shape {image.shape}")
+    if not np.issubdtype(image.dtype, np.floating):
+        raise ValueError(f"image: expected float RGB in [0, 1], got {image.dtype} (convert 8-bit frames: x / 255)")
+
+
 def find_particles(image: np.ndarray, removal: SnowRemoval) -> np.ndarray:
     """The particle mask of float RGB ``image`` (H, W, 3) in [0, 1]: (H, W) bool, True on particles and their rim
     (the rules: module doc)."""
-    if image.ndim != 3 or image.shape[-1] != 3:
-        raise ValueError(f"image: expected (H, W, 3) RGB, got shape {image.shape}")
+    _check_image(image)
     side = removal.size_px(image.shape[0], image.shape[1])
     luma = _to_u8(cv2.cvtColor(np.ascontiguousarray(image, dtype=np.float32), cv2.COLOR_RGB2GRAY))  # 8 bits: fast
     around = np.maximum(line_opening(luma, side), _median_u8(luma, side))
     low, high = np.percentile(luma, SPREAD_PERCENTILES)
-    threshold = np.float32(removal.threshold * max(float(high - low), 255.0 * SPREAD_FLOOR))  # in 8-bit levels
-    found = (luma.astype(np.float32) - around > threshold).astype(np.uint8)
+    excess = luma.astype(np.float32) - around
+    threshold = np.float32(max(removal.threshold * float(high - low), NOISE_SIGMAS * _noise_levels(luma)))
+    found = (excess > threshold).astype(np.uint8)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(found, connectivity=8)
     if n <= 1:
         return np.zeros(found.shape, bool)
@@ -165,6 +185,7 @@ def find_particles(image: np.ndarray, removal: SnowRemoval) -> np.ndarray:
 def fill_particles(image: np.ndarray, mask: np.ndarray, side_px: int) -> np.ndarray:
     """``image`` (H, W, 3, float in [0, 1]) with the pixels under ``mask`` (H, W) replaced by their :func:`background`
     for ``side_px`` (taken at half the size from 8 pixels up), feathered over one pixel; float32."""
+    _check_image(image)
     img = np.ascontiguousarray(image, dtype=np.float32)
     if mask.shape != img.shape[:2]:
         raise ValueError(f"mask: expected shape {img.shape[:2]}, got {mask.shape}")
