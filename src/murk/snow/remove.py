@@ -77,8 +77,14 @@ median (8-bit levels), at least one level: robust to the particles themselves an
 
 def _noise_levels(luma_u8: np.ndarray) -> float:
     """The noise of an 8-bit luma frame in levels (:data:`NOISE_SIGMAS`)."""
-    residual = luma_u8.astype(np.float32) - cv2.medianBlur(luma_u8, 3).astype(np.float32)
-    return max(1.0, 1.4826 * float(np.median(np.abs(residual))))
+    residual = cv2.absdiff(luma_u8, cv2.medianBlur(luma_u8, 3))
+    return max(1.0, 1.4826 * _percentile_u8(residual, 50.0))
+
+
+def _percentile_u8(values: np.ndarray, q: float) -> float:
+    """The lowest 8-bit level at or below which ``q`` per cent of ``values`` lie (from their histogram: one pass)."""
+    counts = np.bincount(values.ravel(), minlength=256).cumsum()
+    return float(np.searchsorted(counts, q / 100.0 * counts[-1]))
 
 
 def _ellipse(side_px: int) -> np.ndarray:
@@ -129,10 +135,11 @@ def line_opening(luma: np.ndarray, side_px: int, directions: int = 8) -> np.ndar
 
 def background(image: np.ndarray, side_px: int) -> np.ndarray:
     """The background of float ``image`` (H, W) or (H, W, 3) in [0, 1]: its median over a square of ``2 side_px + 1``
-    pixels, per channel, at 8 bits (OpenCV's median of any size needs them); float32. A particle covers far less than
-    half of that square, so it has no say in the median; the bright gaps of a net or a grating cover more, so they
-    are the background there, and nothing in them stands out of it."""
-    return _median_u8(_to_u8(image), side_px).astype(np.float32) * np.float32(1.0 / 255.0)
+    pixels, per channel, at 8 bits (OpenCV's median of any size needs them), taken at half the size from 8 pixels up
+    and at a quarter from 16 (the background is smooth at that scale; the median is most of the cost); float32. A
+    particle covers far less than half of that square, so it has no say in the median; the bright gaps of a net or a
+    grating cover more, so they are the background there, and nothing in them stands out of it."""
+    return _smooth_median_u8(_to_u8(image), side_px).astype(np.float32) * np.float32(1.0 / 255.0)
 
 
 def _to_u8(image: np.ndarray) -> np.ndarray:
@@ -141,6 +148,16 @@ def _to_u8(image: np.ndarray) -> np.ndarray:
 
 def _median_u8(u8: np.ndarray, side_px: int) -> np.ndarray:
     return np.asarray(cv2.medianBlur(u8, 2 * int(side_px) + 1))
+
+
+def _smooth_median_u8(u8: np.ndarray, side_px: int) -> np.ndarray:
+    """The median of :func:`background` on 8-bit ``u8``, at the size it names, brought back to the full size."""
+    scale = 4 if side_px >= 16 else 2 if side_px >= 8 else 1
+    if scale == 1:
+        return _median_u8(u8, side_px)
+    h, w = u8.shape[:2]
+    small = cv2.resize(u8, (-(-w // scale), -(-h // scale)), interpolation=cv2.INTER_AREA)
+    return np.asarray(cv2.resize(_median_u8(small, side_px // scale), (w, h), interpolation=cv2.INTER_LINEAR))
 
 
 def _check_image(image: np.ndarray) -> None:
@@ -156,8 +173,8 @@ def find_particles(image: np.ndarray, removal: SnowRemoval) -> np.ndarray:
     _check_image(image)
     side = removal.size_px(image.shape[0], image.shape[1])
     luma = _to_u8(cv2.cvtColor(np.ascontiguousarray(image, dtype=np.float32), cv2.COLOR_RGB2GRAY))  # 8 bits: fast
-    around = np.maximum(line_opening(luma, side), _median_u8(luma, side))
-    low, high = np.percentile(luma, SPREAD_PERCENTILES)
+    around = np.maximum(line_opening(luma, side), _smooth_median_u8(luma, side))
+    low, high = (_percentile_u8(luma, q) for q in SPREAD_PERCENTILES)
     excess = luma.astype(np.float32) - around
     threshold = np.float32(max(removal.threshold * float(high - low), NOISE_SIGMAS * _noise_levels(luma)))
     found = (excess > threshold).astype(np.uint8)
@@ -184,22 +201,20 @@ def find_particles(image: np.ndarray, removal: SnowRemoval) -> np.ndarray:
 
 def fill_particles(image: np.ndarray, mask: np.ndarray, side_px: int) -> np.ndarray:
     """``image`` (H, W, 3, float in [0, 1]) with the pixels under ``mask`` (H, W) replaced by their :func:`background`
-    for ``side_px`` (taken at half the size from 8 pixels up), feathered over one pixel; float32."""
+    for ``side_px``, feathered over one pixel; float32."""
     _check_image(image)
     img = np.ascontiguousarray(image, dtype=np.float32)
     if mask.shape != img.shape[:2]:
         raise ValueError(f"mask: expected shape {img.shape[:2]}, got {mask.shape}")
     if not mask.any():
         return img.copy()
-    h, w = img.shape[:2]
-    if side_px >= 8:  # the background is smooth: its median at half the size, a quarter of the cost (3 channels)
-        half = cv2.resize(img, ((w + 1) // 2, (h + 1) // 2), interpolation=cv2.INTER_AREA)
-        behind = cv2.resize(background(half, int(side_px) // 2), (w, h), interpolation=cv2.INTER_LINEAR)
-    else:
-        behind = background(img, int(side_px))
-    weight = cv2.blur(mask.astype(np.float32), (3, 3))
-    weight = np.maximum(weight, mask.astype(np.float32))[..., None]  # the particle itself fully replaced
-    return img + weight * (behind - img)
+    behind = background(img, int(side_px))
+    weight = np.maximum(cv2.blur(mask.astype(np.float32), (3, 3)), mask.astype(np.float32))  # particles: fully
+    rows, cols = np.nonzero(weight)  # the particles and their rim: the rest of the frame is not touched
+    out = img.copy()
+    w = weight[rows, cols][:, None]
+    out[rows, cols] = img[rows, cols] + w * (behind[rows, cols] - img[rows, cols])
+    return out
 
 
 def remove_snow(image: np.ndarray, removal: SnowRemoval) -> np.ndarray:
