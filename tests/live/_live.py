@@ -37,6 +37,16 @@ class DepthRestorer(Restorer):
         return Restored(images.copy(), np.full(images.shape[:3], 3.0, np.float32))
 
 
+class FactsRestorer(Restorer):
+    """Leaves the image and reports the water it "estimated" (stands in for the ``water`` method's facts)."""
+
+    name = "facts"
+
+    def restore(self, images: np.ndarray) -> Restored:
+        water = {"visibility_m": 12.5, "visibility_measurable": True, "far_distance_m": 8.0, "unmeasured": float("nan")}
+        return Restored(images.copy(), facts=tuple(dict(water) for _ in images))
+
+
 class BuggyRestorer(Restorer):
     """Raises an error that is not one of the restore errors a frame may fail with (a bug in a method)."""
 
@@ -55,6 +65,8 @@ def make_restorer(spec: str) -> Restorer:
         return DepthRestorer()
     if spec == "buggy":
         return BuggyRestorer()
+    if spec == "facts":
+        return FactsRestorer()
     if spec.startswith("slow"):
         return SlowRestorer(float(spec.partition("?delay=")[2] or 0.05))
     return create(spec, shared={"device": "cpu", "batch": 1})

@@ -20,7 +20,7 @@ import pytest
 from murk.live.server import LiveServer, method_table
 from testkit.chromium import CHROMIUM, chromium
 from testkit.video import read_video, underwater_clip
-from tests.live._live import pipeline
+from tests.live._live import clip, pipeline
 
 DOCS_IMAGE = Path(__file__).parents[2] / "docs" / "images" / "live.png"
 
@@ -193,6 +193,28 @@ def test_the_page_says_why_a_recording_stopped(tmp_path: Path, monkeypatch) -> N
             assert "No space left on device" in page.evaluate("document.body.innerText")  # visible, not a tooltip
             seen = page.evaluate("murkStats.lastFrame")
             page.wait_for(f"murkStats.lastFrame > {seen} + 5", timeout_s=60)  # the view goes on
+    finally:
+        server.stop()
+        p.stop()
+
+
+@pytest.mark.browser
+@pytest.mark.skipif(CHROMIUM is None, reason="no Chromium on this machine (make browser-test installs it)")
+def test_the_page_shows_the_estimated_visibility(tmp_path: Path) -> None:
+    """With a method that estimates the water, the page's statistics show the latest frame's visibility; with one
+    that does not, the field is hidden."""
+    p = pipeline(clip(tmp_path, n=30, fps=30.0), tmp_path / "out", "facts", loop=True).start()
+    server = LiveServer(p, "127.0.0.1", 0, methods=method_table()).start()
+    try:
+        with chromium(tmp_path / "profile") as open_page:
+            page = open_page(server.url)
+            shown = page.wait_for(
+                "!document.getElementById('water').hidden && document.getElementById('visibility').textContent",
+                timeout_s=60,
+            )
+            assert shown == "12.5 m"
+            p.set_method("post")
+            page.wait_for("document.getElementById('water').hidden", timeout_s=60)
     finally:
         server.stop()
         p.stop()

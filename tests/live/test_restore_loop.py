@@ -118,9 +118,31 @@ def test_snapshot_writes_full_resolution_pngs_and_a_sidecar(tmp_path: Path) -> N
     assert sidecar["source"].endswith("clip.avi") and sidecar["size"] == [64, 48]
     assert sidecar["files"] == {"raw": raw.name, "restored": restored.name}
     assert f"_f{frame:06d}" in raw.name and "time" in sidecar and sidecar["capture_time_ns"] > 0
+    assert "estimates" not in sidecar  # post estimates nothing
     saved = cv2.imread(str(raw))[:, :, ::-1]
     assert saved.shape == (48, 64, 3)
     assert view is not None and view.index >= frame
+
+
+def test_what_the_method_estimates_reaches_the_status_and_the_snapshot(tmp_path: Path) -> None:
+    """The water a method estimated on the latest frame is in the page's status and in a snapshot's sidecar (a
+    figure that is not a number as null); a method that estimates nothing gives None."""
+    p = pipeline(clip(tmp_path, n=20, fps=30.0), tmp_path / "out", "facts", loop=True).start()
+    try:
+        _views(p, 2)
+        status = p.status()
+        sidecar = json.loads(p.snapshot()[-1].read_text())
+        p.set_method("post")
+        after = _views_after(p, p.latest().index, 2)[-1]  # type: ignore[union-attr]
+        while after.method != "post":
+            after = _views_after(p, after.index, 1)[-1]
+        plain = p.status()
+    finally:
+        p.stop()
+    water = {"visibility_m": 12.5, "visibility_measurable": True, "far_distance_m": 8.0, "unmeasured": None}
+    assert status["estimates"] == water and sidecar["estimates"] == water
+    json.dumps(status, allow_nan=False)  # what the page reads is valid JSON
+    assert plain["estimates"] is None
 
 
 def test_recording_is_a_playable_video_of_restored_frames(tmp_path: Path) -> None:

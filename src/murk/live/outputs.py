@@ -24,6 +24,7 @@ from murk.enhance.options import parse_spec
 from murk.io.atomic import make_output_folder, write_text_atomic
 from murk.io.depth import write_depth_png
 from murk.io.images import write_uint
+from murk.io.jsonl import json_safe
 from murk.io.video import DEFAULT_FPS, VideoSink, av_available
 
 if TYPE_CHECKING:  # the pipeline imports this module
@@ -41,7 +42,8 @@ def stamp(now: dt.datetime | None = None) -> str:
 
 def write_snapshot(out_dir: Path, view: LiveView, source: str) -> list[Path]:
     """Write ``snapshot_<time>_f<frame>_{raw,restored}.png`` (and ``_depth.png``) of a restored ``view`` and
-    ``.json`` (its description, ``source`` the source's label); return the paths, the sidecar last.
+    ``.json`` (its description, ``source`` the source's label, and what the method estimated on the frame under
+    ``estimates`` when it reports anything: the ``water`` method's water); return the paths, the sidecar last.
 
     Raises:
         OutputError: the folder cannot be written or the disk is full (nothing half-written is left).
@@ -64,7 +66,7 @@ def write_snapshot(out_dir: Path, view: LiveView, source: str) -> list[Path]:
         "size": [int(view.raw.shape[1]), int(view.raw.shape[0])],
         "files": {"raw": paths[0].name, "restored": paths[1].name}
         | ({"depth_mm_png": paths[2].name} if view.depth_m is not None else {}),
-    }
+    } | ({"estimates": json_safe(view.facts)} if view.facts is not None else {})
     meta = Path(f"{base}.json")
     write_text_atomic(meta, json.dumps(sidecar, indent=2) + "\n")
     return [*paths, meta]

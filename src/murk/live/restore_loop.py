@@ -52,6 +52,7 @@ from murk.enhance.frames_u8 import restore_frames
 from murk.enhance.job_common import RESTORE_ERRORS
 from murk.enhance.restorer import Restorer
 from murk.io.images import swap_red_blue, to_float, to_uint
+from murk.io.jsonl import json_safe
 from murk.io.readahead import ReadAhead
 from murk.live.outputs import Recorder, write_snapshot
 from murk.live.source import LiveFrame, PacedSource
@@ -97,6 +98,8 @@ class LiveView:
     done_ns: int
     method: str
     frame_id: str = ""
+    facts: dict[str, Any] | None = None
+    """What the method estimated on this frame (``Restored.facts``: the ``water`` method's water), or None."""
     _jpeg: dict[str, bytes] = field(default_factory=dict, repr=False)
     _lock: threading.RLock = field(default_factory=threading.RLock, repr=False)
 
@@ -284,6 +287,7 @@ class LivePipeline:
             done_ns=time.time_ns(),
             method=method,
             frame_id=frame.frame_id,
+            facts=None if out.facts is None else out.facts[0],
         )
         with self._rec_lock:
             recorder = self._recorder
@@ -389,7 +393,8 @@ class LivePipeline:
                 self._cond.wait(left)
 
     def status(self) -> dict[str, Any]:
-        """What the page shows: method, rates, latency, drops, errors, recording, the source's end."""
+        """What the page shows: method, rates, latency, drops, errors, recording, the source's end, and what the method
+        estimated on the latest frame (``estimates``: the ``water`` method's water; None for other methods)."""
         now = time.perf_counter()
         with self._cond:
             times = [t for t in self._restored_times if t >= now - RATE_WINDOW_S]
@@ -416,6 +421,7 @@ class LivePipeline:
             "recording": recording,
             "recording_stopped": self.recording_stopped,
             "has_depth": bool(view is not None and view.depth_m is not None),
+            "estimates": None if view is None or view.facts is None else json_safe(view.facts),
             "out_dir": str(self.out_dir),
         }
 

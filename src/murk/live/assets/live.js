@@ -144,6 +144,13 @@
       show("fps", s.fps);
       show("dropped", s.dropped);
       show("frame", s.frame);
+      const water = s.estimates && typeof s.estimates.visibility_m === "number" ? s.estimates : null;
+      $("water").hidden = !water; // the water method's estimate of the latest frame (uncalibrated metres)
+      if (water) {
+        const far = water.far_distance_m;
+        show("visibility", water.visibility_measurable || typeof far !== "number"
+          ? water.visibility_m.toFixed(1) + " m" : "beyond " + far.toFixed(1) + " m");
+      }
       const rec = $("recording");
       rec.hidden = !s.recording;
       rec.textContent = s.recording ? "recording " + s.recording : "";
