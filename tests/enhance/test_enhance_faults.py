@@ -136,3 +136,23 @@ def test_output_above_the_input_may_not_write_into_it(tmp_path: Path) -> None:
     res = runner.invoke(app, ["enhance", str(root), "--out", str(out)])  # not recursive: x.png -> dive/x.png
     assert res.exit_code == 0, res.output
     assert (out / "x.png").is_file()
+
+
+def test_full_disk_on_a_videos_estimates_keeps_the_video(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The estimates are written after the video is committed: a full disk then stops the run with an error naming
+    the estimates file, and leaves the finished video and no partial file."""
+    from murk.enhance.restorer import Restored, Restorer
+    from murk.errors import OutputError
+
+    class Measures(Restorer):
+        name = "measures"
+
+        def restore(self, images: np.ndarray) -> Restored:
+            return Restored(np.asarray(images, np.float32), facts=tuple({"mean": float(i.mean())} for i in images))
+
+    fill_disk(monkeypatch, only="_estimates.jsonl")
+    out = tmp_path / "v.avi"
+    with pytest.raises(OutputError, match=r"v_estimates\.jsonl: no space left on device"):
+        enhance_frames(FakeSource(make_frames(4), live=False), Measures(), out)
+    assert len(read_video(out)) == 4 and not (tmp_path / "v_estimates.jsonl").exists()
+    assert_nothing_partial(tmp_path)
