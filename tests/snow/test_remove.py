@@ -51,6 +51,23 @@ def test_particles_get_their_background_and_the_rest_stays_bit_for_bit() -> None
     np.testing.assert_array_equal(out[~touched], frame[~touched])
 
 
+def test_a_short_bar_and_a_knot_on_a_cable_are_not_snow() -> None:
+    """Two things the top-hats alone take for snow: a short bright bar (shorter than the lines of the openings, but
+    four times as long as wide: the elongation rule) and a bright knot touching a cable (brighter than everything
+    around it but the cable, which is as bright: the rule of standing free). Each is found once its rule is off."""
+    _, bg, _, _ = _frame()
+    frame = bg.copy()
+    frame[100, 40:48] = 0.85  # a bar 8 px long, 1 px wide (the openings' lines are 11 px)
+    frame[150, 100:300] = 0.82  # a cable
+    frame[151:153, 199:202] = 0.82  # a knot hanging from it, as bright as the cable
+    bar, knot = np.zeros((H, W), bool), np.zeros((H, W), bool)
+    bar[100, 40:48] = True
+    knot[151:153, 199:202] = True
+    found = find_particles(frame, SnowRemoval())
+    assert not found[bar].any() and not found[knot].any()
+    assert find_particles(frame, SnowRemoval(max_elongation=0))[bar].all()
+
+
 def test_the_gaps_of_a_dark_net_are_not_snow() -> None:
     """A dark net over bright water: each gap is a small bright square with darker strands all round, as a particle
     is, but the gaps crowd the frame, so none counts (the held-out scenes' nets were erased before this rule)."""

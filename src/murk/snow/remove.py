@@ -32,6 +32,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from murk.snow.extract import component_elongations
+
 
 @dataclass(frozen=True)
 class SnowRemoval:
@@ -89,20 +91,6 @@ def _percentile_u8(values: np.ndarray, q: float) -> float:
 
 def _ellipse(side_px: int) -> np.ndarray:
     return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (side_px, side_px))
-
-
-def _elongation(rows: np.ndarray, cols: np.ndarray, lab: np.ndarray, n: int) -> np.ndarray:
-    """Per label 0..n-1 of the pixels at ``rows``, ``cols`` labelled ``lab``: the long over the short axis of their
-    second moments, a pixel counted as a unit square (what :func:`murk.snow.extract.elongation` measures), from a few
-    bincounts instead of a loop over the components."""
-    r, c = rows.astype(np.float64), cols.astype(np.float64)
-    count = np.maximum(np.bincount(lab, minlength=n), 1).astype(np.float64)
-    mean_r, mean_c = np.bincount(lab, r, n) / count, np.bincount(lab, c, n) / count
-    var_r = np.bincount(lab, r * r, n) / count - mean_r**2 + 1.0 / 12.0
-    var_c = np.bincount(lab, c * c, n) / count - mean_c**2 + 1.0 / 12.0
-    cov = np.bincount(lab, r * c, n) / count - mean_r * mean_c
-    half_trace, root = (var_r + var_c) / 2.0, np.sqrt(((var_r - var_c) / 2.0) ** 2 + cov**2)
-    return np.asarray(np.sqrt((half_trace + root) / np.maximum(half_trace - root, 1e-12)))
 
 
 def _label_max(values: np.ndarray, lab: np.ndarray, n: int) -> np.ndarray:
@@ -191,7 +179,7 @@ def find_particles(image: np.ndarray, removal: SnowRemoval) -> np.ndarray:
     keep = (area <= np.pi * side * side / 4) & (extent <= side) & (peak - ring >= threshold / 2)
     keep &= _label_max(crowd[rows, cols], lab, n) <= np.float32(removal.crowd)
     if removal.max_elongation:
-        keep &= _elongation(rows, cols, lab, n) <= removal.max_elongation
+        keep &= component_elongations(rows, cols, lab, n) <= removal.max_elongation
     keep[0] = False
     mask = keep[labels].astype(np.uint8)
     if removal.grow_px > 0:
