@@ -208,6 +208,7 @@ def enhance(
 
     Prints processed/skipped/failed counts, frames per second and read/restore/write milliseconds per frame.
     Unreadable inputs go to errors.jsonl in the output folder (exit code 1); reruns skip finished outputs.
+    What the water method estimates goes to estimates.jsonl (images, frames) or <out-stem>_estimates.jsonl (a video).
     """
     from murk.enhance.job_common import OutputOptions
     from murk.enhance.restorer import check, create
