@@ -14,8 +14,9 @@ Run: PYTHONPATH=src python benchmarks/bench_residual_probe.py --real-pairs <real
   (``murk.train.losses.affine_fit_torch``), plus ``--colour-weight`` x the square of the residual's mean per image and
   channel (0: the colour may move; 10: ``lite``'s colour stays).
 - Scores: the 64 held-out scenes of ``murk study`` (seed 20261201) in the study's water and in
-  ``configs/train-small-cpu.yaml``'s (affine-fit PSNR and PSNR against the true scene, paired gain), the real pairs
-  (PSNR at 256 px, mean over sets and paired over images) and the real snow pairs (snow residue).
+  ``configs/train-small-cpu.yaml``'s, scored and printed as ``bench_arms.py`` does (affine-fit PSNR and PSNR against
+  the true scene, paired); the real pairs (PSNR at 256 px, mean over sets and paired over images) and the real snow
+  pairs (snow residue). ``R`` is no registered method, so the last two are scored here with murk's metrics.
 """
 
 from __future__ import annotations
@@ -27,17 +28,17 @@ from typing import Any
 
 import numpy as np
 import torch
+from bench_arms import heldout, paired  # this folder's: the same paired figures and held-out lines
 from torch import nn
 
 from murk._config import load_yaml, merge
-from murk.enhance.restorer import create
+from murk.enhance.restorer import Restored, Restorer, create
 from murk.io import read_rgb
 from murk.io.images import list_images
-from murk.metrics import affine_fit_psnr, psnr
+from murk.metrics import psnr
 from murk.metrics.snow_pairs import snow_residue, snow_sites
 from murk.report.compare import downscale_to
 from murk.report.heldout import make_heldout
-from murk.report.study import ci95_half_width
 from murk.restore_ops.balance import color_balance
 from murk.rng import derive_seed
 from murk.scenes import render_scene, sample_scene
@@ -127,33 +128,23 @@ def apply(net: nn.Sequential, images: np.ndarray) -> np.ndarray:
         return np.clip((t + net(t)).permute(0, 2, 3, 1).numpy(), 0.0, 1.0)
 
 
-def paired(d: np.ndarray) -> str:
-    h = ci95_half_width(float(d.std(ddof=1)), len(d))
-    return f"{d.mean():+.2f} ({d.mean() - h:+.2f} to {d.mean() + h:+.2f}), higher on {int((d > 0).sum())} of {len(d)}"
+class LitePlusResidual(Restorer):
+    """``lite``, then ``R``: the arm scored beside ``lite`` (a restorer, as murk's held-out scoring takes them)."""
+
+    name = "lite+R"
+
+    def __init__(self, net: nn.Sequential) -> None:
+        self.net, self.lite = net, create("lite")
+
+    def restore(self, images: np.ndarray) -> Restored:
+        return Restored(apply(self.net, np.clip(self.lite(images).images, 0.0, 1.0)))
 
 
 def score_heldout(net: nn.Sequential, config: Path) -> None:
+    """``murk study``'s held-out scoring (:func:`murk.report.heldout.score_heldout`) as ``bench_arms.py`` prints it."""
     data = make_heldout(64, seed=HELDOUT_SEED, size_hw=(240, 320), synthesis=synthesis(config), balance_pct=0.5)
-    base = np.clip(create("lite")(data.degraded).images, 0, 1)
-    rows = {"input": data.degraded, "lite": base, "lite + R": apply(net, base)}
-    fit = {
-        k: np.array([affine_fit_psnr(o, c, data_range=1.0) for o, c in zip(v, data.clean, strict=True)])
-        for k, v in rows.items()
-    }
-    plain = {
-        k: np.array([psnr(o, c, data_range=1.0) for o, c in zip(v, data.clean, strict=True)]) for k, v in rows.items()
-    }
-    print(
-        f"\nheld-out scenes, {config.name}'s water (64): input {plain['input'].mean():.2f} / {fit['input'].mean():.2f}"
-    )
-    for k in ("lite", "lite + R"):
-        print(
-            f"  {k}: PSNR {plain[k].mean():.2f}, affine-fit gain over the input {(fit[k] - fit['input']).mean():+.2f}"
-        )
-    print(
-        f"  lite + R - lite: affine-fit {paired(fit['lite + R'] - fit['lite'])}; "
-        f"PSNR {paired(plain['lite + R'] - plain['lite'])}"
-    )
+    arms = {"lite": create("lite"), "lite + R": LitePlusResidual(net)}
+    heldout(arms, f"held-out scenes, {config.name}'s water (64)", data, "lite")
 
 
 def score_real_pairs(net: nn.Sequential, folder: Path) -> None:
@@ -170,7 +161,7 @@ def score_real_pairs(net: nn.Sequential, folder: Path) -> None:
     means = [np.mean(np.array(v), axis=0) for v in per_set.values()]
     d = np.concatenate([np.array(v)[:, 1] - np.array(v)[:, 0] for v in per_set.values()])
     print(f"\nreal pairs ({len(d)}), mean over sets: lite {np.mean([m[0] for m in means]):.2f}, "
-          f"lite + R {np.mean([m[1] for m in means]):.2f}; paired {paired(d)}")  # fmt: skip
+          f"lite + R {np.mean([m[1] for m in means]):.2f}; paired {paired(list(d), [0.0] * len(d))}")  # fmt: skip
 
 
 def score_snow(net: nn.Sequential, folder: Path) -> None:
