@@ -63,8 +63,8 @@ def test_names_and_options_are_checked_without_torch() -> None:
         """
         import sys
         from murk.enhance.restorer import available, create, options_of
-        names = ["clahe", "colorbalance", "desnow", "greyworld", "jointid", "jointid_net", "lite", "post", "udaformer",
-                 "udcp", "ursct", "water"]
+        names = ["clahe", "colorbalance", "desnow", "detail", "greyworld", "jointid", "jointid_net", "lite", "post",
+                 "udaformer", "udcp", "ursct", "water"]
         assert available() == names
         assert options_of("jointid")["overlap"].default == 64
         for spec, text in [

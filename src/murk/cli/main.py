@@ -9,6 +9,7 @@ import typer
 from murk._version import __version__
 from murk.cli import compare as _compare
 from murk.cli import demo as _demo
+from murk.cli import detail as _detail
 from murk.cli import enhance as _enhance
 from murk.cli import eval as _eval
 from murk.cli import export as _export
@@ -65,6 +66,7 @@ def _root(
 app.command("synth")(_synth.synth)
 app.add_typer(_snow.app, name="snow")
 app.add_typer(_water.app, name="water")
+app.add_typer(_detail.app, name="detail")
 app.command("scenes")(_scenes.scenes)
 app.command("train")(_train.train)
 app.command("study")(_study.study)

@@ -86,7 +86,4 @@ def train(
     except ValueError as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(2) from None
-    typer.echo(
-        f"wrote {result.weights} ({result.samples} samples, loss {result.loss:.5f}, validation {result.val_loss:.5f}, "
-        f"{result.seconds:.0f} s)"
-    )
+    typer.echo(result.summary())

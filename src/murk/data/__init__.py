@@ -64,6 +64,12 @@ def shipped_water_weights() -> Path:
     return _HERE / "models" / "water.npz"
 
 
+def shipped_detail_weights() -> Path:
+    """Path of the detail network shipped with murk (``detail.npz``, :mod:`murk.models.detail`; model card
+    ``docs/models/detail.md``), read by the ``detail`` method."""
+    return _HERE / "models" / "detail.npz"
+
+
 def default_snow_bank() -> Path:
     """Path of the default marine-snow particle bank shipped with murk (``builtin:snow``): the particles of
     :func:`real_footage_snow_bank` relit to a mean luma of 120-230 (``murk snow relight``; docs/snow.md)."""

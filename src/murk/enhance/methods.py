@@ -77,6 +77,14 @@ def baseline_weights(*, checkpoint: str | Path | None = None, onnx: str | Path |
         _check_weights(checkpoint, None, runs_onnx=False)
 
 
+def detail_weights(*, weights: str | Path | None = None, **_: Any) -> None:
+    """Preflight of ``detail``: a given weights file is there."""
+    from murk.errors import InputFileError
+
+    if weights is not None and not Path(weights).is_file():
+        raise InputFileError(weights, "detail network weights not found")
+
+
 def water_weights(*, estimator: str | Path | None = None, **_: Any) -> None:
     """Preflight of ``water``: a given estimator file is there."""
     from murk.errors import InputFileError
@@ -244,6 +252,19 @@ BUILTIN: tuple[Method | Preset, ...] = (
         help="Eq. (1) inverted with the estimated water and Joint-ID's distance, in the network's colour",
         needs=("torch", "weights"),
         preflight="murk.enhance.methods:water_weights",
+    ),
+    Method(
+        "detail",
+        "murk.enhance.detail_restorer:create_detail",
+        (
+            opt("strength", "float", 1.0, "share of the learned residual added (0: none)", low=0, high=2),
+            opt("weights", "str | Path | None", None, "detail network weights (.npz); default: shipped"),
+            DEVICE,
+        ),
+        help="a learned local residual after a restorer (lite+detail): takes away haze, scatter and snow that a "
+        "global colour map cannot, keeps the colour; slow at full resolution",
+        needs=("torch", "weights"),
+        preflight="murk.enhance.methods:detail_weights",
     ),
     Method(
         "udaformer",

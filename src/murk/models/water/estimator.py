@@ -16,7 +16,6 @@ Weights: an ``.npz`` file (``water.npz``, shipped; model card docs/models/water.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from murk.errors import InputFileError
+from murk.models.npz_weights import read_npz_weights, write_npz_weights
 from murk.restore_ops.water import FEATURES, visibility_m, water_features
 
 HIDDEN = 128
@@ -137,13 +136,7 @@ class WaterEstimator:
 
     def save(self, path: str | Path) -> None:
         """Write the ``.npz`` file (arrays as float32, ``meta`` as JSON text)."""
-        arrays: dict[str, Any] = {k: np.asarray(v, np.float32) for k, v in self.arrays.items()}
-        arrays["meta"] = np.array(json.dumps(self.meta or {}, sort_keys=True))
-        target = Path(path)
-        tmp = target.with_name(f".{target.name}.tmp")
-        with tmp.open("wb") as fh:
-            np.savez(fh, **arrays)
-        tmp.replace(target)
+        write_npz_weights(path, self.arrays, self.meta)
 
 
 def load_water_estimator(path: str | Path | None = None) -> WaterEstimator:
@@ -156,14 +149,10 @@ def load_water_estimator(path: str | Path | None = None) -> WaterEstimator:
         from murk.data import shipped_water_weights
 
         path = shipped_water_weights()
-    p = Path(path)
-    if not p.is_file():
-        raise InputFileError(p, "water estimator weights not found")
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            arrays = {k: z[k].astype(np.float64) for k in z.files if k != "meta"}
-            meta = json.loads(str(z["meta"])) if "meta" in z.files else {}
-        return WaterEstimator(arrays, source=str(p), meta=meta)
-    except (OSError, ValueError, KeyError) as exc:
-        detail = "not an .npz archive" if "pickle" in str(exc) else str(exc)  # numpy's text suggests unsafe loading
-        raise InputFileError(p, f"not a murk water estimator (.npz with mu, sd, w1..b3): {detail}") from exc
+    source = str(Path(path))
+    return read_npz_weights(
+        path,
+        "water estimator",
+        ".npz with mu, sd, w1..b3",
+        lambda arrays, meta: WaterEstimator({k: v.astype(np.float64) for k, v in arrays.items()}, source, meta),
+    )

@@ -1,0 +1,47 @@
+"""``murk detail``: train the detail network (the learned local residual of the ``detail`` method)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from murk.cli._common import QuietOpt, command_group, make_console, print_error
+
+app = command_group("The detail stage: a learned local residual that takes away what a global colour map cannot.")
+
+
+@app.command("train")
+def train(
+    config_files: Annotated[
+        list[Path],
+        typer.Option("--config", help="Training YAML whose data.synthesis makes the water; repeat to mix waters."),
+    ],
+    out: Annotated[Path, typer.Option("--out", help="Output folder (detail.npz, log.jsonl, samples.npz).")],
+    scenes: Annotated[
+        int, typer.Option("--scenes", help="Synthetic scenes to learn from (shared by the configs).")
+    ] = 1000,
+    steps: Annotated[int, typer.Option("--steps", help="Optimiser steps.")] = 2000,
+    channels: Annotated[int, typer.Option("--channels", help="Width of the hidden convolutions.")] = 24,
+    base: Annotated[str, typer.Option("--base", help="The method whose restorations it learns to improve.")] = "lite",
+    seed: Annotated[int, typer.Option("--seed", help="Seed of the scenes and the training.")] = 7,
+    quiet: QuietOpt = False,
+) -> None:
+    """Train the detail network on a base method's restorations of murk's synthetic water (docs/models/detail.md)."""
+    from murk._config import load_yaml
+    from murk.train.config import TrainConfig
+    from murk.train.detail import DetailTrainSettings
+    from murk.workflows.detail_train import train_detail
+
+    console = make_console(quiet)
+    try:
+        syntheses = [load_yaml(TrainConfig, c).data.synthesis for c in config_files]
+        settings = DetailTrainSettings(steps=steps, channels=channels, seed=seed)
+        result = train_detail(
+            out, syntheses=syntheses, scenes=scenes, seed=seed, base=base, settings=settings, progress=console.print
+        )
+    except ValueError as exc:
+        print_error(str(exc))
+        raise typer.Exit(2) from None
+    typer.echo(result.summary())

@@ -1,0 +1,106 @@
+"""Train the detail network (:mod:`murk.models.detail`) on a base method's restorations of murk's synthetic water.
+
+A sample is a base method's restoration of a degraded scene and the true clean scene, of one size (the workflow
+:mod:`murk.workflows.detail_train` makes them). Each step takes ``batch`` random crops of ``crop_px`` pixels and
+adds the network's residual to the restorations; the loss is the mean squared error that the best gain and offset
+per image and channel leave against the clean scene (:func:`murk.train.losses.local_mse`: what no global colour
+correction can do), plus ``colour_weight`` times the mean over images and channels of the squared mean of the
+residual (the base's colour stays; without it the colour drifts, docs/train.md). Adam, a fixed number of steps,
+seeded; every sample but a tenth trains, the tenth is the validation split (the same loss on whole images) logged
+every ``log_every`` steps.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from murk.models.detail.network import DEFAULT_CHANNELS, DetailNet
+from murk.train.losses import local_mse
+
+
+@dataclass(frozen=True)
+class DetailTrainSettings:
+    """``steps`` of Adam (``lr``) on batches of ``batch`` crops of ``crop_px`` pixels, seeded by ``seed``; the
+    residual's mean per image and channel costs ``colour_weight`` times its square; the network has ``channels``."""
+
+    steps: int = 2000
+    batch: int = 16
+    crop_px: int = 96
+    lr: float = 1e-3
+    colour_weight: float = 10.0
+    channels: int = DEFAULT_CHANNELS
+    seed: int = 0
+    log_every: int = 250
+
+    def __post_init__(self) -> None:
+        if min(self.steps, self.batch, self.log_every) < 1 or self.crop_px < 16:
+            raise ValueError("steps, batch and log_every: expected at least 1; crop_px: at least 16")
+        if not self.lr > 0 or self.colour_weight < 0:
+            raise ValueError(f"lr: expected > 0, colour_weight >= 0; got {self.lr!r}, {self.colour_weight!r}")
+
+
+@dataclass(frozen=True)
+class DetailSamples:
+    """Training samples of one size: ``restored`` (the base's restorations) and ``clean`` (N, H, W, 3) in
+    [0, 1]."""
+
+    restored: np.ndarray
+    clean: np.ndarray
+
+    def __post_init__(self) -> None:
+        if self.restored.shape != self.clean.shape or self.restored.ndim != 4 or self.restored.shape[0] < 10:
+            raise ValueError(
+                f"samples: expected restored and clean (N, H, W, 3) alike, N >= 10; got {self.restored.shape}, "
+                f"{self.clean.shape}"
+            )
+
+
+def detail_loss(net: DetailNet, restored: Tensor, clean: Tensor, colour_weight: float) -> Tensor:
+    """The loss of the module doc for batches (B, 3, H, W)."""
+    residual = net(restored)
+    colour = (residual.mean(dim=(2, 3)) ** 2).mean()
+    return local_mse(restored + residual, clean) + colour_weight * colour
+
+
+def fit_detail(
+    samples: DetailSamples, settings: DetailTrainSettings, log: Callable[[dict[str, float]], None] | None = None
+) -> DetailNet:
+    """Learn the network from ``samples``; ``log`` receives ``{"step", "loss", "val_loss"}`` every
+    ``settings.log_every`` steps and at the end. Deterministic in ``settings.seed`` on the CPU.
+
+    Raises:
+        ValueError: images smaller than ``settings.crop_px``.
+    """
+    n, h, w = samples.restored.shape[:3]
+    crop = settings.crop_px
+    if min(h, w) < crop:
+        raise ValueError(f"samples: images of {w}x{h} are smaller than crop_px {crop}")
+    gen = torch.Generator().manual_seed(settings.seed)
+    torch.manual_seed(settings.seed)
+    x = torch.from_numpy(np.ascontiguousarray(samples.restored, np.float32)).permute(0, 3, 1, 2)
+    y = torch.from_numpy(np.ascontiguousarray(samples.clean, np.float32)).permute(0, 3, 1, 2)
+    order = torch.randperm(n, generator=gen)
+    val, train = order[: n // 10], order[n // 10 :]
+    net = DetailNet(settings.channels)
+    opt = torch.optim.Adam(net.parameters(), lr=settings.lr)
+    for step in range(1, settings.steps + 1):
+        idx = train[torch.randint(len(train), (settings.batch,), generator=gen)]
+        tops = torch.randint(h - crop + 1, (settings.batch,), generator=gen)
+        lefts = torch.randint(w - crop + 1, (settings.batch,), generator=gen)
+        xb = torch.stack([x[i, :, t : t + crop, s : s + crop] for i, t, s in zip(idx, tops, lefts, strict=True)])
+        yb = torch.stack([y[i, :, t : t + crop, s : s + crop] for i, t, s in zip(idx, tops, lefts, strict=True)])
+        loss = detail_loss(net, xb, yb, settings.colour_weight)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        if log is not None and (step % settings.log_every == 0 or step == settings.steps):
+            with torch.no_grad():
+                val_loss = np.mean([float(detail_loss(net, x[i : i + 1], y[i : i + 1], settings.colour_weight))
+                                    for i in val.tolist()])  # fmt: skip
+            log({"step": step, "loss": float(loss.detach()), "val_loss": float(val_loss)})
+    return net.eval()

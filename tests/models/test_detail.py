@@ -1,0 +1,57 @@
+"""The detail network (murk.models.detail): its shape rules, its file format and the shipped weights."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from murk.errors import InputFileError
+from murk.models.detail import DetailNet, load_detail, save_detail
+
+
+def test_an_untrained_network_changes_nothing_and_keeps_any_size() -> None:
+    net = DetailNet(6)
+    x = torch.rand(2, 3, 37, 53)
+    assert net(x).shape == x.shape
+    torch.testing.assert_close(net.detailed(x), x, rtol=0, atol=0)
+    for bad in (0, 2.5, True, 300):
+        with pytest.raises(ValueError, match="channels"):
+            DetailNet(bad)  # type: ignore[arg-type]
+
+
+def test_a_saved_network_reads_back_the_same(tmp_path: Path) -> None:
+    torch.manual_seed(1)
+    net = DetailNet(5)
+    for conv in net.convs:
+        torch.nn.init.normal_(conv.weight, std=0.1)
+    path = save_detail(net, tmp_path / "d.npz", {"steps": 3})
+    again, meta = load_detail(path)
+    assert meta == {"steps": 3, "channels": 5} and not again.training
+    x = torch.rand(1, 3, 20, 24)
+    with torch.no_grad():
+        torch.testing.assert_close(again(x), net(x), rtol=0, atol=0)
+
+
+def test_a_missing_or_foreign_file_is_named(tmp_path: Path) -> None:
+    with pytest.raises(InputFileError, match="not found") as missing:
+        load_detail(tmp_path / "none.npz")
+    assert "none.npz" in str(missing.value)
+    np.savez(tmp_path / "other.npz", w1=np.zeros(3), meta=np.array('{"channels": 4}'))
+    with pytest.raises(InputFileError, match="not a murk detail network") as other:
+        load_detail(tmp_path / "other.npz")
+    assert "other.npz" in str(other.value)
+
+
+def test_the_network_cannot_tell_where_the_frame_ends() -> None:
+    """Borders are padded by repetition: a flat image gets the same residual everywhere (with zero padding the
+    trained network tinted the top rows red, where the training scenes' far water was)."""
+    torch.manual_seed(2)
+    net = DetailNet(4)
+    for conv in net.convs:
+        torch.nn.init.normal_(conv.weight, std=0.3)
+    with torch.no_grad():
+        r = net(torch.full((1, 3, 30, 40), 0.4))
+    torch.testing.assert_close(r, r[:, :, :1, :1].expand_as(r), rtol=0, atol=1e-6)
