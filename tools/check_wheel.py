@@ -181,12 +181,12 @@ def check_installed(python: Path, env: dict[str, str], venv: Path, work: Path, v
     done.append(f"murk snow info: {', '.join(BANKS)} read")
 
     sample = Path(probe["sample"])
-    for method in (None, "jointid"):  # the default, and the network with the larger weights file
+    for method in (None, "jointid", "lite+detail"):  # the default, the larger weights file, an .npz network
         out = work / f"enhanced-{method or 'default'}"
         chosen = ["--method", method] if method else []
         proc = run([murk, "enhance", str(sample), "--out", str(out), *chosen], cwd=work, env=env)
         text = proc.stdout + proc.stderr
-        weights = re.findall(r"(\S+\.pt)\b", text)
+        weights = re.findall(r"(\S+\.(?:pt|npz))\b", text)
         if not (out / sample.name).is_file() or not weights or not all(inside(w, venv) for w in weights):
             raise CheckFailed(f"murk enhance {sample.name}: no output, or weights outside the new environment:\n{text}")
         names = ", ".join(Path(w).name for w in weights)

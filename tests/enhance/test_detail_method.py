@@ -77,3 +77,15 @@ def test_murk_enhance_runs_lite_detail_and_checks_its_options(
     junk = CliRunner().invoke(app, [*args, str(tmp_path / "x.png"), "-m", f"detail?weights={tmp_path / 'junk.npz'}"])
     assert junk.exit_code != 0 and "junk.npz" in junk.output and "not a murk detail network" in junk.output
     assert not (tmp_path / "x.png").exists()
+
+
+def test_the_weights_line_names_the_detail_network_after_the_restorer(net_file: Path) -> None:
+    from murk.data import shipped_lite_weights
+    from murk.enhance.restorer import weights_used
+    from murk.enhance.run import weights_line
+
+    chained = create(f"lite+detail?weights={net_file}")
+    used = weights_used(chained)
+    assert used.weights == str(shipped_lite_weights()) and [r.weights for r in used.later] == [str(net_file)]
+    line = weights_line(chained, shipped=True)
+    assert line is not None and line.endswith(f"; then detail weights: {net_file}")

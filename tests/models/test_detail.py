@@ -8,8 +8,12 @@ import numpy as np
 import pytest
 import torch
 
+from murk.data import sample_underwater_images, shipped_detail_weights
+from murk.enhance.restorer import create
 from murk.errors import InputFileError
-from murk.models.detail import DetailNet, load_detail, save_detail
+from murk.io import read_rgb
+from murk.models.detail import DEFAULT_CHANNELS, DetailNet, load_detail, save_detail
+from murk.report.compare import downscale_to
 
 
 def test_an_untrained_network_changes_nothing_and_keeps_any_size() -> None:
@@ -55,3 +59,15 @@ def test_the_network_cannot_tell_where_the_frame_ends() -> None:
     with torch.no_grad():
         r = net(torch.full((1, 3, 30, 40), 0.4))
     torch.testing.assert_close(r, r[:, :, :1, :1].expand_as(r), rtol=0, atol=1e-6)
+
+
+def test_the_shipped_network_keeps_lites_colour_and_changes_its_detail() -> None:
+    net, meta = load_detail()
+    assert net.channels == DEFAULT_CHANNELS and meta["base"] == "lite" and meta["scenes"] >= 1000
+    assert shipped_detail_weights().stat().st_size < 200_000
+    image = downscale_to(read_rgb(sample_underwater_images()[0]), 320)
+    lite = np.clip(create("lite").restore(image[None]).images[0], 0, 1)
+    out = create("lite+detail").restore(image[None]).images[0]
+    change = out - lite
+    assert np.abs(change).mean() > 0.002  # it does something ...
+    assert np.abs(change.mean(axis=(0, 1))).max() < 0.01  # ... and leaves the colour alone

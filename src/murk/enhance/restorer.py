@@ -445,10 +445,12 @@ class WeightsUsed:
         first: the first of them (left to right), e.g. Joint-ID's in ``jointid+post``; None without any.
         blended: the others that a blend averages into the output, each with its :class:`Blend` (the shipped
             ``lite`` of ``jointid``, whose blend's weight is ``lite_blend``).
+        later: the others that a chain runs after the first, outside any blend (``detail`` in ``lite+detail``).
     """
 
     first: Restorer | None = None
     blended: tuple[tuple[Restorer, Blend], ...] = ()
+    later: tuple[Restorer, ...] = ()
 
     @property
     def weights(self) -> str | None:
@@ -480,7 +482,11 @@ def weights_used(restorer: Restorer | None) -> WeightsUsed:
     walk(restorer, None)
     if not found:
         return WeightsUsed()
-    return WeightsUsed(found[0][0], tuple((stage, blend) for stage, blend in found[1:] if blend is not None))
+    return WeightsUsed(
+        found[0][0],
+        tuple((stage, blend) for stage, blend in found[1:] if blend is not None),
+        tuple(stage for stage, blend in found[1:] if blend is None),
+    )
 
 
 def options_of(name: str) -> dict[str, Option]:

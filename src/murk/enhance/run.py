@@ -142,7 +142,8 @@ def _run_bag(
 def weights_line(restorer: Restorer, *, shipped: bool) -> str | None:
     """``<stage> weights: <file>`` for a method with learned weights (and, for the weights shipped with murk,
     which network they are; then each restoration with weights that a blend averages in, with the blend's weight:
-    ``jointid``'s ``lite``); None for a method without weights (:func:`murk.enhance.restorer.weights_used`)."""
+    ``jointid``'s ``lite``; then each later stage of a chain with weights: ``lite+detail``'s ``detail``); None for a
+    method without weights (:func:`murk.enhance.restorer.weights_used`)."""
     used = weights_used(restorer)
     stage = used.first
     if stage is None:
@@ -152,4 +153,6 @@ def weights_line(restorer: Restorer, *, shipped: bool) -> str | None:
     for other, blend in used.blended:
         weight = f"{blend.weight_label or 'weight'} {blend.weight:g}"
         note += f"; with {other.name}'s restoration blended in ({weight}): {other.weights}"
+    for other in used.later:
+        note += f"; then {other.name} weights: {other.weights}"
     return f"{stage.name} weights: {stage.weights}{note}"
