@@ -71,3 +71,15 @@ def test_the_shipped_network_keeps_lites_colour_and_changes_its_detail() -> None
     change = out - lite
     assert np.abs(change).mean() > 0.002  # it does something ...
     assert np.abs(change.mean(axis=(0, 1))).max() < 0.01  # ... and leaves the colour alone
+
+
+def test_bands_of_rows_give_the_whole_frame_result() -> None:
+    torch.manual_seed(3)
+    net = DetailNet(5)
+    for conv in net.convs:
+        torch.nn.init.normal_(conv.weight, std=0.2)
+    x = torch.rand(2, 3, 41, 23)
+    with torch.no_grad():
+        whole = (x + 0.7 * net(x)).clamp(0, 1)
+        for band_px in (23, 23 * 5, 23 * 40, 10**6):  # one row, a few rows, a last short band, one pass
+            torch.testing.assert_close(net.detailed(x, 0.7, band_px=band_px), whole, rtol=0, atol=1e-6)

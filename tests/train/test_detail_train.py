@@ -82,3 +82,14 @@ def test_murk_detail_train_writes_a_network_and_never_overwrites_it(tmp_path: Pa
     (out / "detail.npz").unlink()  # the cached samples are read back: the same network again
     assert CliRunner().invoke(app, args).exit_code == 0
     assert (out / "detail.npz").read_bytes() == before
+
+
+def test_murk_detail_train_takes_the_stages_of_every_config_and_refuses_unknown_ones(tmp_path: Path) -> None:
+    args = ["detail", "train", "--config", str(CONFIG), "--scenes", "10", "--steps", "1", "--channels", "4"]
+    bad = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "bad"), "--stages", "basic,fog"])
+    assert bad.exit_code == 2 and "unknown stage(s) 'fog'" in bad.output
+    assert not (tmp_path / "bad" / "detail.npz").exists()
+    res = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "basic"), "--stages", "basic"])
+    assert res.exit_code == 0, res.output
+    with np.load(tmp_path / "basic" / "samples.npz") as z:
+        assert "stages=('basic',)" in str(z["key"])

@@ -25,11 +25,15 @@ def train(
     steps: Annotated[int, typer.Option("--steps", help="Optimiser steps.")] = 2000,
     channels: Annotated[int, typer.Option("--channels", help="Width of the hidden convolutions.")] = 24,
     base: Annotated[str, typer.Option("--base", help="The method whose restorations it learns to improve.")] = "lite",
+    stages: Annotated[
+        str | None,
+        typer.Option("--stages", help="Synthesis stages for every config, comma-separated (e.g. basic,camera)."),
+    ] = None,
     seed: Annotated[int, typer.Option("--seed", help="Seed of the scenes and the training.")] = 7,
     quiet: QuietOpt = False,
 ) -> None:
     """Train the detail network on a base method's restorations of murk's synthetic water (docs/models/detail.md)."""
-    from murk._config import load_yaml
+    from murk._config import load_yaml, merge
     from murk.train.config import TrainConfig
     from murk.train.detail import DetailTrainSettings
     from murk.workflows.detail_train import train_detail
@@ -37,6 +41,8 @@ def train(
     console = make_console(quiet)
     try:
         syntheses = [load_yaml(TrainConfig, c).data.synthesis for c in config_files]
+        if stages is not None:
+            syntheses = [merge(s, {"stages": stages.split(",")}, where="--stages") for s in syntheses]
         settings = DetailTrainSettings(steps=steps, channels=channels, seed=seed)
         result = train_detail(
             out, syntheses=syntheses, scenes=scenes, seed=seed, base=base, settings=settings, progress=console.print

@@ -4,8 +4,9 @@
 It is a stage to chain after a restorer (``lite+detail``, ``jointid+detail``): the shipped network learned to
 improve ``lite``'s restorations of murk's synthetic water, taking away what a global colour map cannot (haze that
 grows with distance, forward scatter, snow) and leaving the colour as it was. Alone (``--method detail``) it works on
-the raw input, which it was not trained for. Its cost grows with the pixels: about 0.26 s for a 640x480 frame and
-1.7 s for 1920x1080 on two CPU cores (docs/models/detail.md), so it is for files, not the live view.
+the raw input, which it was not trained for. Its cost grows with the pixels: about
+70 ms for a 640x480 frame and 0.8 s for 1920x1080 on two CPU cores (docs/models/detail.md), so it is for files, not
+the live view.
 """
 
 from __future__ import annotations

@@ -36,6 +36,9 @@ LEAK = 0.1
 DILATIONS = (1, 2, 4, 1)
 """Dilations of the first four convolutions (the fifth, the output, is 1)."""
 
+BAND_PX = 1 << 20
+"""Pixels per pass of :meth:`DetailNet.detailed` (about 100 MB of activations at 24 channels)."""
+
 RADIUS_PX = sum(DILATIONS) + 1
 """The receptive field's radius (19x19 pixels): the input is padded by this many repeated border pixels once, and
 every convolution runs without padding."""
@@ -59,14 +62,24 @@ class DetailNet(nn.Module):
 
     def forward(self, x: Tensor) -> Tensor:
         """The residual ``R(x)`` of a batch (B, 3, H, W) of RGB in [0, 1] (any size)."""
-        x = F.pad(x, (RADIUS_PX,) * 4, mode="replicate")
+        return self.unpadded(F.pad(x, (RADIUS_PX,) * 4, mode="replicate"))
+
+    def unpadded(self, padded: Tensor) -> Tensor:
+        """The residual of the pixels at least :data:`RADIUS_PX` inside ``padded`` (2 x RADIUS_PX smaller on each
+        axis): the convolutions alone, so that a band of rows of a padded frame, with its margin, gives exactly those
+        rows of the frame's residual."""
+        x = padded
         for conv in self.convs[:-1]:
             x = F.leaky_relu(conv(x), LEAK)
         return self.convs[-1](x)
 
-    def detailed(self, x: Tensor, strength: float = 1.0) -> Tensor:
-        """``clamp(x + strength R(x), 0, 1)``."""
-        return (x + strength * self(x)).clamp(0.0, 1.0)
+    def detailed(self, x: Tensor, strength: float = 1.0, band_px: int = BAND_PX) -> Tensor:
+        """``clamp(x + strength R(x), 0, 1)``, computed in bands of rows of about ``band_px`` pixels each (the same
+        result as one pass; the network's activations of a whole large frame would take 24 floats per pixel)."""
+        padded = F.pad(x, (RADIUS_PX,) * 4, mode="replicate")
+        rows = max(1, band_px // max(1, x.shape[-1]))
+        bands = [self.unpadded(padded[..., top : top + rows + 2 * RADIUS_PX, :]) for top in range(0, x.shape[-2], rows)]
+        return (x + strength * torch.cat(bands, dim=-2)).clamp(0.0, 1.0)
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The weights as float32 arrays named as in the ``.npz`` file."""
