@@ -58,7 +58,8 @@ def test_detail_runs_the_same_one_image_at_a_time(net_file: Path, image: np.ndar
     batch = np.stack([image, image[::-1].copy()])
     r = create("detail", weights=str(net_file))
     together = r.restore(batch).images
-    np.testing.assert_allclose(together[1], r.restore(batch[1:]).images[0], atol=1e-6)
+    for i in (0, 1):
+        np.testing.assert_allclose(together[i], r.restore(batch[i : i + 1]).images[0], atol=1e-6)
 
 
 def test_murk_enhance_runs_lite_detail_and_checks_its_options(
@@ -89,3 +90,24 @@ def test_the_weights_line_names_the_detail_network_after_the_restorer(net_file: 
     assert used.weights == str(shipped_lite_weights()) and [r.weights for r in used.later] == [str(net_file)]
     line = weights_line(chained, shipped=True)
     assert line is not None and line.endswith(f"; then detail weights: {net_file}")
+
+
+def test_murk_compare_records_the_detail_networks_weights(net_file: Path, image: np.ndarray, tmp_path: Path) -> None:
+    import json
+
+    write_rgb(tmp_path / "in" / "a.png", image)
+    res = CliRunner().invoke(
+        app,
+        [
+            "compare",
+            str(tmp_path / "in"),
+            "--out",
+            str(tmp_path / "rep"),
+            "--method",
+            f"lite+detail?weights={net_file}",
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "rep" / "metrics.json").read_text())
+    (method,) = [m for m in doc["methods"] if m["spec"].startswith("lite+detail")]
+    assert method["weights"].endswith("lite.pt") and method["later_weights"] == str(net_file)

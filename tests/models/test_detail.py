@@ -83,3 +83,24 @@ def test_bands_of_rows_give_the_whole_frame_result() -> None:
         whole = (x + 0.7 * net(x)).clamp(0, 1)
         for band_px in (23, 23 * 5, 23 * 40, 10**6):  # one row, a few rows, a last short band, one pass
             torch.testing.assert_close(net.detailed(x, 0.7, band_px=band_px), whole, rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("content", ["empty", "cut", "npy", "meta list", "no channels"])
+def test_a_broken_weights_file_is_named_with_its_problem(tmp_path: Path, content: str) -> None:
+    path = tmp_path / "broken.npz"
+    good = save_detail(DetailNet(3), tmp_path / "good.npz")
+    if content == "empty":
+        path.write_bytes(b"")
+    elif content == "cut":
+        path.write_bytes(good.read_bytes()[:200])
+    elif content == "npy":
+        with path.open("wb") as fh:
+            np.save(fh, np.zeros(3))
+    else:
+        with np.load(good) as z:
+            arrays = {k: z[k] for k in z.files if k != "meta"}
+        meta = "[1]" if content == "meta list" else '{"channels": null}'
+        np.savez(path, **arrays, meta=np.array(meta))
+    with pytest.raises(InputFileError, match="not a murk detail network") as err:
+        load_detail(path)
+    assert "broken.npz" in str(err.value)

@@ -59,6 +59,8 @@ def test_settings_and_samples_are_checked() -> None:
         DetailTrainSettings(crop_px=8)
     with pytest.raises(ValueError, match="colour_weight"):
         DetailTrainSettings(colour_weight=-1.0)
+    with pytest.raises(ValueError, match="channels"):
+        DetailTrainSettings(channels=0)
     s = _samples(12)
     with pytest.raises(ValueError, match="samples"):
         DetailSamples(s.restored, s.clean[:, :20])

@@ -463,6 +463,12 @@ class WeightsUsed:
         ``murk compare``'s metrics.json."""
         return "; ".join(str(stage.weights) for stage, _ in self.blended) or None
 
+    @property
+    def later_weights(self) -> str | None:
+        """The files of :attr:`later`, joined with ``"; "`` (None without any): ``later_weights`` in ``murk
+        compare``'s metrics.json."""
+        return "; ".join(str(stage.weights) for stage in self.later) or None
+
 
 def weights_used(restorer: Restorer | None) -> WeightsUsed:
     """Which weights files ``restorer``'s output came from (methods that loaded weights set ``weights``; None, the

@@ -4,6 +4,7 @@ read without pickle, written atomically."""
 from __future__ import annotations
 
 import json
+import zipfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
@@ -41,9 +42,14 @@ def read_npz_weights(
         raise InputFileError(p, f"{what} weights not found")
     try:
         with np.load(p, allow_pickle=False) as z:
+            if not isinstance(z, np.lib.npyio.NpzFile):
+                raise ValueError("a single .npy array, not an .npz archive")
             arrays = {k: z[k] for k in z.files if k != "meta"}
             meta = json.loads(str(z["meta"])) if "meta" in z.files else {}
+        if not isinstance(meta, dict):
+            raise ValueError(f"meta: expected a JSON object, got {type(meta).__name__}")
         return build(arrays, meta)
-    except (OSError, ValueError, KeyError, RuntimeError) as exc:  # json's errors are ValueErrors
-        why = "not an .npz archive" if "pickle" in str(exc) else str(exc).splitlines()[0]  # numpy suggests pickle
+    except (OSError, ValueError, KeyError, RuntimeError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+        # json's errors are ValueErrors; an empty file is an EOFError, a cut one a BadZipFile
+        why = "not an .npz archive" if "pickle" in str(exc) else (str(exc).splitlines() or [type(exc).__name__])[0]
         raise InputFileError(p, f"not a murk {what} ({layout}): {why}") from exc

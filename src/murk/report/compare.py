@@ -24,7 +24,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
@@ -41,6 +41,9 @@ from murk.metrics.stats import column_stats
 from murk.report.figures import Box, auto_boxes, comparison_grid
 from murk.report.html import SUMMARY_METRICS, html_heading, render_report
 from murk.report.methods import MethodSpec, build_restorer, check_method
+
+if TYPE_CHECKING:
+    from murk.enhance.restorer import WeightsUsed
 
 SNOW_HTML_ORDER = ("snow_residue", "snow_sites_left", "snow_colour_residue", "snow_free_gms")
 """The snow-pair columns of the report page, in its order."""
@@ -411,16 +414,13 @@ def _run_compare(
     from murk.enhance.restorer import weights_used
 
     used = {m.label: weights_used(r) for m, r in zip(methods, restorers, strict=True)}
-    weights = {label: u.weights for label, u in used.items()}
-    blended = {label: u.blended_weights for label, u in used.items()}  # what a blend of the spec averages in
     _write_tables(
         out,
         result,
         methods,
         uiqm_preset,
         uciqe_preset,
-        weights,
-        blended,
+        used,
         reference=refs is not None,
         snow=snow is not None,
     )
@@ -456,9 +456,11 @@ def _run_compare(
             + (f" Images and references were downscaled to a long side of {max_side} px first." if max_side else "")
         )
     notes += [
-        f"Weights of {lab}: {w}" + (f" (with lite's restoration blended in: {blended[lab]})" if blended[lab] else "")
-        for lab, w in weights.items()
-        if w
+        f"Weights of {lab}: {u.weights}"
+        + (f" (with lite's restoration blended in: {u.blended_weights})" if u.blended_weights else "")
+        + (f" (then: {u.later_weights})" if u.later_weights else "")
+        for lab, u in used.items()
+        if u.weights
     ]
     if resized:
         notes.append(
@@ -519,8 +521,7 @@ def _write_tables(
     methods: Sequence[MethodSpec],
     uiqm_preset: str,
     uciqe_preset: str,
-    weights: dict[str, str | None],
-    blended: dict[str, str | None],
+    used: dict[str, WeightsUsed],
     *,
     reference: bool = False,
     snow: bool = False,
@@ -543,8 +544,9 @@ def _write_tables(
                 "spec": m.text,
                 "method": m.method,
                 "checkpoint": m.checkpoint,
-                "weights": weights.get(m.label),
-                "blended_weights": blended.get(m.label),
+                "weights": used[m.label].weights,
+                "blended_weights": used[m.label].blended_weights,  # what a blend of the spec averages in
+                "later_weights": used[m.label].later_weights,  # what a chain runs after the first (lite+detail)
             }
             for m in methods
         ],

@@ -40,6 +40,8 @@ class DetailTrainSettings:
     def __post_init__(self) -> None:
         if min(self.steps, self.batch, self.log_every) < 1 or self.crop_px < 16:
             raise ValueError("steps, batch and log_every: expected at least 1; crop_px: at least 16")
+        if isinstance(self.channels, bool) or not isinstance(self.channels, int) or not 1 <= self.channels <= 256:
+            raise ValueError(f"channels: expected an int in [1, 256], got {self.channels!r}")
         if not self.lr > 0 or self.colour_weight < 0:
             raise ValueError(f"lr: expected > 0, colour_weight >= 0; got {self.lr!r}, {self.colour_weight!r}")
 
@@ -53,7 +55,8 @@ class DetailSamples:
     clean: np.ndarray
 
     def __post_init__(self) -> None:
-        if self.restored.shape != self.clean.shape or self.restored.ndim != 4 or self.restored.shape[0] < 10:
+        shape = self.restored.shape
+        if shape != self.clean.shape or len(shape) != 4 or shape[0] < 10 or shape[3] != 3:
             raise ValueError(
                 f"samples: expected restored and clean (N, H, W, 3) alike, N >= 10; got {self.restored.shape}, "
                 f"{self.clean.shape}"

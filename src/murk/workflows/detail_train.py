@@ -47,7 +47,9 @@ def make_detail_samples(
             clean.append(data.clean)
             if progress is not None:
                 progress(sum(len(r) for r in restored))
-    return DetailSamples(np.concatenate(restored).astype(np.float32), np.concatenate(clean).astype(np.float32))
+    return DetailSamples(
+        np.concatenate(restored).astype(np.float32, copy=False), np.concatenate(clean).astype(np.float32, copy=False)
+    )
 
 
 def train_detail(

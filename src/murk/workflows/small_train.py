@@ -86,7 +86,7 @@ def cached_samples(
         with np.load(cache, allow_pickle=False) as z:
             if "key" in z.files and str(z["key"]) == key:
                 arrays = {k: z[k] for k in z.files if k != "key"}
-                say(f"samples read from {cache}")
+                say(f"samples: {len(next(iter(arrays.values()), []))} read from {cache}")
                 return arrays
     arrays = make()
     tmp = cache.with_name(f".{cache.stem}.tmp.npz")
