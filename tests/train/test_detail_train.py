@@ -95,3 +95,5 @@ def test_murk_detail_train_takes_the_stages_of_every_config_and_refuses_unknown_
     assert res.exit_code == 0, res.output
     with np.load(tmp_path / "basic" / "samples.npz") as z:
         assert "stages=('basic',)" in str(z["key"])
+    _, meta = load_detail(tmp_path / "basic" / "detail.npz")
+    assert meta["configs"] == [str(CONFIG)] and meta["stages"] == [["basic"]]

@@ -33,19 +33,21 @@ def train(
     quiet: QuietOpt = False,
 ) -> None:
     """Train the detail network on a base method's restorations of murk's synthetic water (docs/models/detail.md)."""
-    from murk._config import load_yaml, merge
-    from murk.train.config import TrainConfig
     from murk.train.detail import DetailTrainSettings
     from murk.workflows.detail_train import train_detail
 
     console = make_console(quiet)
     try:
-        syntheses = [load_yaml(TrainConfig, c).data.synthesis for c in config_files]
-        if stages is not None:
-            syntheses = [merge(s, {"stages": stages.split(",")}, where="--stages") for s in syntheses]
         settings = DetailTrainSettings(steps=steps, channels=channels, seed=seed)
         result = train_detail(
-            out, syntheses=syntheses, scenes=scenes, seed=seed, base=base, settings=settings, progress=console.print
+            out,
+            configs=config_files,
+            stages=None if stages is None else stages.split(","),
+            base=base,
+            scenes=scenes,
+            settings=settings,
+            seed=seed,
+            progress=lambda msg: console.print(msg, markup=False, highlight=False),
         )
     except ValueError as exc:
         print_error(str(exc))

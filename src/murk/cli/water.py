@@ -81,7 +81,7 @@ def train(
         settings = WaterTrainSettings(steps=steps, seed=seed)
         result = train_water(
             out, synthesis=cfg.data.synthesis, scenes=scenes, seed=seed, settings=settings,
-            progress=lambda msg: console.print(msg),
+            progress=lambda msg: console.print(msg, markup=False, highlight=False),
         )  # fmt: skip
     except ValueError as exc:
         typer.echo(f"error: {exc}", err=True)

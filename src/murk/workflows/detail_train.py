@@ -55,18 +55,26 @@ def make_detail_samples(
 def train_detail(
     out: Path,
     *,
-    syntheses: Sequence[object],
+    configs: Sequence[Path],
+    stages: Sequence[str] | None = None,
     base: str = "lite",
     scenes: int = 1000,
     settings: DetailTrainSettings | None = None,
     seed: int = 7,
     progress: Callable[[str], None] | None = None,
 ) -> TrainResult:
-    """Make (or read back) the samples, learn, write ``OUT/detail.npz`` and ``OUT/log.jsonl``; ``progress`` hears
-    each step of it. Refuses (ValueError) fewer than 10 scenes, no synthesis, a ``detail.npz`` already in ``out`` and
-    a bad base method; an ``out`` that cannot be made raises OSError."""
-    if scenes < 10 or not syntheses:
-        raise ValueError(f"scenes: expected at least 10 and at least one config, got {scenes} and {len(syntheses)}")
+    """Make (or read back) the samples of the water of ``configs`` (their ``data.synthesis``, with ``stages`` instead
+    of theirs when given), learn, write ``OUT/detail.npz`` and ``OUT/log.jsonl``; ``progress`` hears each step of it.
+    Refuses (ValueError) fewer than 10 scenes, no config, a bad config or stage, a ``detail.npz`` already in ``out``
+    and a bad base method; an ``out`` that cannot be made raises OSError."""
+    from murk._config import load_yaml, merge
+    from murk.train.config import TrainConfig
+
+    if scenes < 10 or not configs:
+        raise ValueError(f"scenes: expected at least 10 and at least one config, got {scenes} and {len(configs)}")
+    syntheses = [load_yaml(TrainConfig, c).data.synthesis for c in configs]
+    if stages is not None:
+        syntheses = [merge(s, {"stages": list(stages)}, where="stages") for s in syntheses]
     weights = weights_path(out, "detail.npz", "network")
     settings = settings or DetailTrainSettings()
     say = progress or (lambda _msg: None)
@@ -85,6 +93,8 @@ def train_detail(
     net = fit_detail(samples, settings, log)
     log.write(out / "log.jsonl")
     meta = {
+        "configs": [str(c) for c in configs],
+        "stages": [list(s.stages) for s in syntheses],
         "scenes": scenes,
         "seed": seed,
         "base": base,
