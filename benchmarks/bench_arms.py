@@ -2,7 +2,8 @@
 
 Run: PYTHONPATH=src python benchmarks/bench_arms.py NAME=SPEC [NAME=SPEC ...] --ref NAME
      [--real-pairs DIR] [--snow-pairs DIR] [--heldout-scenes 64] [--heldout-photos DIR]
-     [--config configs/train-lite-mild-scratch-cpu.yaml] [--threads 2] [--out DIR]
+     [--config configs/train-lite-mild-scratch-cpu.yaml] [--stages basic,forward_scatter,marine_snow] [--threads 2]
+     [--out DIR]
 
 SPEC is a method spec as ``murk compare --method`` takes it (``lite``, ``jointid``, ``water?strength=0.5``,
 ``lite:runs/x/latest.pt``), or a ``.pt`` file (a ``lite`` checkpoint, a training run's ``latest.pt``). Every measure
@@ -14,8 +15,8 @@ higher. The measures are ``murk study``'s, computed by the same functions:
 - ``--snow-pairs``: a folder with ``snowy/`` and ``clean/`` (real snowy images and their snow-free twins); the snow
   residue of ``murk compare --snow-clean`` (lower is better).
 - ``--heldout-scenes N``: N held-out procedural scenes at 320x240, photographic targets (balanced at 0.5 %),
-  degraded with ``--config``'s synthesis (basic, forward scatter, marine snow); PSNR against the TRUE clean scene,
-  the affine-fit PSNR's gain over the input's, and the depth errors of methods that give depth
+  degraded with ``--config``'s synthesis (``--stages``: basic, forward scatter, marine snow by default); PSNR against
+  the TRUE clean scene, the affine-fit PSNR's gain over the input's, and the depth errors of methods that give depth
   (:func:`murk.report.heldout.score_heldout`).
 - ``--heldout-photos DIR``: clean photographs the arms never trained on, each at 320x240 with the layout prior's
   distance (murk.io.distance_prior), balanced at 0.5 % and degraded the same way; the same measures (no depth: the
@@ -147,6 +148,7 @@ def main() -> None:
     ap.add_argument("--heldout-scenes", type=int, default=64)
     ap.add_argument("--heldout-photos", type=Path)
     ap.add_argument("--config", type=Path, default=Path("configs/train-lite-mild-scratch-cpu.yaml"))
+    ap.add_argument("--stages", default="basic,forward_scatter,marine_snow", help="the held-out water's stages")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--out", type=Path, help="where murk compare's reports go (default: a temporary folder)")
     args = ap.parse_args()
@@ -162,9 +164,7 @@ def main() -> None:
         if args.snow_pairs:
             snow_pairs(texts, names, args.snow_pairs, args.ref, out)
     arms = {n: build_restorer(parse_method(t)) for n, t in zip(names, texts, strict=True)}
-    synthesis = merge(
-        load_yaml(TrainConfig, args.config).data.synthesis, {"stages": ["basic", "forward_scatter", "marine_snow"]}
-    )
+    synthesis = merge(load_yaml(TrainConfig, args.config).data.synthesis, {"stages": args.stages.split(",")})
     if args.heldout_scenes:
         data = make_heldout(
             args.heldout_scenes, seed=HELDOUT_SEED, size_hw=(240, 320), synthesis=synthesis, balance_pct=0.5

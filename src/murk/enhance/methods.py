@@ -261,8 +261,8 @@ BUILTIN: tuple[Method | Preset, ...] = (
             opt("weights", "str | Path | None", None, "detail network weights (.npz); default: shipped"),
             DEVICE,
         ),
-        help="a learned local residual after a restorer (lite+detail): takes away haze, scatter and snow that a "
-        "global colour map cannot, keeps the colour; slow at full resolution",
+        help="a learned local residual after a restorer (lite+detail): takes out marine snow and some forward-scatter "
+        "blur, keeps the colour; slow at full resolution",
         needs=("torch", "weights"),
         preflight="murk.enhance.methods:detail_weights",
     ),

@@ -7,9 +7,9 @@ last convolution starts at zero, so an untrained ``R`` changes nothing. The inpu
 border pixels (:data:`RADIUS_PX`) and the convolutions run unpadded: with zero padding the network learned where the
 frame's top is (the far water of the training scenes) and tinted it red. It is trained (:mod:`murk.train.detail`) on a
 base method's restorations of murk's synthetic water against the true clean scene, with the error that no global gain
-and offset per channel removes, plus a term that keeps the residual's mean per image and channel near zero: it takes
-away what a global colour correction cannot (haze that grows with distance, forward scatter, snow) and leaves the
-base's colour alone.
+and offset per channel removes, plus a term that keeps the residual's mean per image and channel near zero, so the
+base's colour stays. Measured (docs/models/detail.md), it takes out marine snow and some forward-scatter blur, not the
+haze that grows with distance (its field is too small to see distance); on water with neither it costs a little.
 
 Weights: an ``.npz`` file (``detail.npz``, shipped; model card docs/models/detail.md) holding each convolution's
 ``conv{k}.weight`` and ``conv{k}.bias`` (float32) and ``meta`` (JSON text with ``channels`` and how it was trained).
