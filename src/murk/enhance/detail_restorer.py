@@ -3,8 +3,8 @@
 
 It is a stage to chain after a restorer (``lite+detail``, ``jointid+detail``): the shipped network learned to
 improve ``lite``'s restorations of murk's synthetic water where a global colour map cannot, leaving the colour as it
-was; measured, it takes out marine snow and some forward-scatter blur, not the haze that grows with distance. Alone (``--method detail``) it works on
-the raw input, which it was not trained for. Its cost grows with the pixels: about
+was; measured, it takes out marine snow and some forward-scatter blur, not the haze that grows with distance. Alone
+(``--method detail``) it works on the raw input, which it was not trained for. Its cost grows with the pixels: about
 70 ms for a 640x480 frame and 0.8 s for 1920x1080 on two CPU cores (docs/models/detail.md), so it is for files, not
 the live view.
 """
