@@ -4,19 +4,22 @@ Run: PYTHONPATH=src python benchmarks/bench_detail.py [--sizes 640x480,1920x1080
      [--rounds 5] [--threads 2]
 
 One of murk's sample underwater images resized to each size; every method restores it once to warm up, then the
-methods take turns for ``--rounds`` rounds (interleaved, so that a change of load falls on all of them); the median
-per method and size is printed, and each chained method's ratio to the method before its ``+``.
+methods take turns for ``--rounds`` rounds (``_common.interleaved``: a change of load falls on all of them); the
+median per method and size is printed, and each chained method's ratio to the method before its ``+``.
 """
 
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
+import sys
+from pathlib import Path
 
 import cv2
 import numpy as np
 import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import interleaved
 
 from murk.data import sample_underwater_images
 from murk.enhance.restorer import create
@@ -37,19 +40,12 @@ def main() -> None:
     for size in args.sizes.split(","):
         w, h = (int(v) for v in size.split("x"))
         frame = cv2.resize(image, (w, h), interpolation=cv2.INTER_AREA)[None].astype(np.float32)
-        times: dict[str, list[float]] = {m: [] for m in methods}
-        for r in methods.values():
-            r.restore(frame)
-        for _ in range(args.rounds):
-            for name, r in methods.items():
-                t0 = time.perf_counter()
-                r.restore(frame)
-                times[name].append(time.perf_counter() - t0)
-        med = {m: statistics.median(v) for m, v in times.items()}
-        for m, s in med.items():
+        calls = {m: lambda r=r, f=frame: r.restore(f) for m, r in methods.items()}
+        med = interleaved(calls, rounds=args.rounds, inner=1)
+        for m, ms in med.items():
             base = m.rsplit("+", 1)[0]
-            ratio = f", {s / med[base]:.1f}x {base}" if "+" in m and base in med else ""
-            print(f"{size} {m}: {s * 1000:.0f} ms per frame{ratio}")
+            ratio = f", {ms / med[base]:.1f}x {base}" if "+" in m and base in med else ""
+            print(f"{size} {m}: {ms:.0f} ms per frame{ratio}")
 
 
 if __name__ == "__main__":
