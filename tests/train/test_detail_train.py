@@ -3,6 +3,7 @@ sharp originals are the targets; and ``murk detail train`` end to end, small."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -13,7 +14,11 @@ from typer.testing import CliRunner
 
 from murk.cli.main import app
 from murk.models.detail import DetailNet, load_detail
+from murk.models.detail.network import RADIUS_PX
+from murk.train.config import TrainConfig
 from murk.train.detail import DetailSamples, DetailTrainSettings, detail_loss, fit_detail
+from murk.train.losses import local_mse
+from murk.workflows.detail_train import sample_parts
 
 CONFIG = Path(__file__).parents[2] / "configs" / "train-small-cpu.yaml"
 
@@ -44,6 +49,25 @@ def test_fit_detail_learns_what_no_colour_map_can_and_is_seeded() -> None:
     assert float(means.max()) < 0.02
 
 
+def test_frame_crops_see_what_inference_sees_and_own_crops_do_not() -> None:
+    samples = _samples(20)
+    net = DetailNet(4)
+    torch.nn.init.normal_(net.convs[-1].weight, std=0.05)
+    x = torch.from_numpy(samples.restored[:1]).permute(0, 3, 1, 2)
+    y = torch.from_numpy(samples.clean[:1]).permute(0, 3, 1, 2)
+    r = RADIUS_PX
+    padded = torch.nn.functional.pad(x, (r,) * 4, mode="replicate")
+    with torch.no_grad():
+        whole = (x + net(x))[..., 5:21, 7:23]  # what inference gives inside the frame
+        framed = detail_loss(net, padded[..., 5 : 21 + 2 * r, 7 : 23 + 2 * r], y[..., 5:21, 7:23], 0.0, margin=True)
+        own = detail_loss(net, x[..., 5:21, 7:23], y[..., 5:21, 7:23], 0.0)
+    assert float(framed) == pytest.approx(float(local_mse(whole, y[..., 5:21, 7:23])), rel=1e-5)
+    assert abs(float(own) - float(framed)) > 1e-6 * float(framed)
+    settings = DetailTrainSettings(steps=40, batch=4, crop_px=16, channels=4, log_every=40, seed=2)
+    a, b = fit_detail(samples, settings), fit_detail(samples, replace(settings, crops="own"))
+    assert any(not torch.equal(p, q) for p, q in zip(a.parameters(), b.parameters(), strict=True))
+
+
 def test_the_colour_term_is_what_keeps_the_colour() -> None:
     net = DetailNet(4)
     torch.nn.init.constant_(net.convs[-1].bias, 0.1)  # a residual that shifts every channel by 0.1
@@ -61,6 +85,8 @@ def test_settings_and_samples_are_checked() -> None:
         DetailTrainSettings(colour_weight=-1.0)
     with pytest.raises(ValueError, match="channels"):
         DetailTrainSettings(channels=0)
+    with pytest.raises(ValueError, match="crops: expected one of frame, own"):
+        DetailTrainSettings(crops="edge")
     s = _samples(12)
     with pytest.raises(ValueError, match="samples"):
         DetailSamples(s.restored, s.clean[:, :20])
@@ -97,3 +123,31 @@ def test_murk_detail_train_takes_the_stages_of_every_config_and_refuses_unknown_
         assert "stages=('basic',)" in str(z["key"])
     _, meta = load_detail(tmp_path / "basic" / "detail.npz")
     assert meta["configs"] == [str(CONFIG)] and meta["stages"] == [["basic"]]
+
+
+def test_eq1_share_takes_scatter_and_snow_out_of_that_share_of_each_config() -> None:
+    from murk._config import load_yaml
+
+    water = load_yaml(TrainConfig, CONFIG).data.synthesis
+    assert [(s.stages, n) for s, n in sample_parts([water, water], 11, 0.0)] == [(water.stages, 6), (water.stages, 5)]
+    parts = sample_parts([water, water], 11, 0.5)
+    assert [n for _, n in parts] == [3, 3, 3, 2] and sum(n for _, n in parts) == 11
+    assert water.stages == ("basic", "forward_scatter", "marine_snow")
+    assert [s.stages for s, _ in parts] == [water.stages, ("basic",), water.stages, ("basic",)]
+    assert parts[1][0].medium == water.medium  # the same water, without its blur and snow
+    assert [(s.stages, n) for s, n in sample_parts([water], 10, 1.0)] == [(("basic",), 10)]
+    with pytest.raises(ValueError, match="eq1_share: expected a share in"):
+        sample_parts([water], 10, 1.5)
+
+
+def test_murk_detail_train_eq1_share_and_crops_are_recorded(tmp_path: Path) -> None:
+    args = ["detail", "train", "--config", str(CONFIG), "--scenes", "10", "--steps", "1", "--channels", "4",
+            "--out", str(tmp_path / "mix"), "--eq1-share", "0.3", "--crops", "own"]  # fmt: skip
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 0, res.output
+    _, meta = load_detail(tmp_path / "mix" / "detail.npz")
+    assert meta["eq1_share"] == 0.3 and meta["settings"]["crops"] == "own"
+    assert meta["parts"] == [{"stages": ["basic", "forward_scatter", "marine_snow"], "scenes": 7},
+                             {"stages": ["basic"], "scenes": 3}]  # fmt: skip
+    bad = CliRunner().invoke(app, [*args[:-4], "--out", str(tmp_path / "bad"), "--eq1-share", "2"])
+    assert bad.exit_code == 2 and "eq1_share" in bad.output

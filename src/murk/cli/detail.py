@@ -29,6 +29,15 @@ def train(
         str | None,
         typer.Option("--stages", help="Synthesis stages for every config, comma-separated (e.g. basic,camera)."),
     ] = None,
+    eq1_share: Annotated[
+        float,
+        typer.Option(
+            "--eq1-share", help="Share of each config's scenes degraded by Eq. (1) alone (no scatter, no snow)."
+        ),
+    ] = 0.0,
+    crops: Annotated[
+        str, typer.Option("--crops", help="Training crops cut from the padded frame ('frame') or padded alone ('own').")
+    ] = "frame",
     seed: Annotated[int, typer.Option("--seed", help="Seed of the scenes and the training.")] = 7,
     quiet: QuietOpt = False,
 ) -> None:
@@ -38,11 +47,12 @@ def train(
 
     console = make_console(quiet)
     try:
-        settings = DetailTrainSettings(steps=steps, channels=channels, seed=seed)
+        settings = DetailTrainSettings(steps=steps, channels=channels, seed=seed, crops=crops)
         result = train_detail(
             out,
             configs=config_files,
             stages=None if stages is None else stages.split(","),
+            eq1_share=eq1_share,
             base=base,
             scenes=scenes,
             settings=settings,

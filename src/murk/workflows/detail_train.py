@@ -2,9 +2,13 @@
 to improve those restorations (:func:`murk.train.detail.fit_detail`) and is written.
 
 Scenes: the small trainers' (:mod:`murk.workflows.small_train`), shared out evenly between the training configs, each
-degraded with its config's ``data.synthesis`` and seeded ``derive_seed(seed, "detail", config index, chunk)``. The
-base method (``lite`` by default) restores every degraded scene; its restoration and the clean scene are the sample,
-kept in ``OUT/samples.npz`` for a second run with the same settings.
+degraded with its config's ``data.synthesis``. With ``eq1_share`` that share of each config's scenes is degraded by
+Eq. (1) alone (its stages less ``forward_scatter`` and ``marine_snow``), so that the network also sees water with no
+blur or snow to take away and learns to leave it alone (docs/train.md: without such scenes it costs 0.4-0.6 dB there).
+Each part (a config's water, then its Eq. (1)-only water) is seeded ``derive_seed(seed, "detail", part index,
+chunk)``. The base method (``lite`` by default) restores every degraded scene; its restoration and the clean scene
+are the sample, kept in ``OUT/samples.npz`` for a second run with the same settings. An ``eq1_share`` outside [0, 1] is
+refused (ValueError).
 
 ``OUT`` receives ``detail.npz`` (the network; its ``meta`` holds the settings and counts), ``log.jsonl`` (both
 losses every ``log_every`` steps) and ``samples.npz``.
@@ -17,6 +21,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -24,11 +29,35 @@ from murk.models.detail.network import save_detail
 from murk.train.detail import DetailSamples, DetailTrainSettings, fit_detail
 from murk.workflows.small_train import CHUNK, SCENE_HW, LossLog, TrainResult, cached_samples, weights_path
 
+EQ1_DROPS = ("forward_scatter", "marine_snow")
+"""The stages an Eq. (1)-only part leaves out."""
+
+
+def sample_parts(syntheses: Sequence[Any], scenes: int, eq1_share: float) -> list[tuple[Any, int]]:
+    """``(synthesis, scene count)`` of every part, in seeding order: each config's ``scenes / len(syntheses)``, of
+    which ``eq1_share`` (rounded) in its Eq. (1)-only water; parts of no scene are left out.
+
+    Raises:
+        ValueError: ``eq1_share`` outside [0, 1].
+    """
+    from murk._config import merge
+
+    if not 0.0 <= eq1_share <= 1.0:
+        raise ValueError(f"eq1_share: expected a share in [0, 1], got {eq1_share!r}")
+    parts: list[tuple[Any, int]] = []
+    for c, synthesis in enumerate(syntheses):
+        share = scenes // len(syntheses) + (c < scenes % len(syntheses))
+        eq1 = round(share * eq1_share)
+        plain = merge(synthesis, {"stages": [s for s in synthesis.stages if s not in EQ1_DROPS]}, where="stages")
+        parts += [(synthesis, share - eq1), (plain, eq1)]
+    return [(synthesis, n) for synthesis, n in parts if n > 0]
+
 
 def make_detail_samples(
-    scenes: int, *, seed: int, syntheses: Sequence[object], base: str, progress: Callable[[int], None] | None = None
+    parts: Sequence[tuple[Any, int]], *, seed: int, base: str, progress: Callable[[int], None] | None = None
 ) -> DetailSamples:
-    """``scenes`` samples as the module says, ``progress`` told the count after each chunk."""
+    """The samples of ``parts`` (:func:`sample_parts`) as the module says, ``progress`` told the count after each
+    chunk."""
     from murk.enhance.restorer import create
     from murk.report.heldout import make_heldout
     from murk.rng import derive_seed
@@ -36,8 +65,7 @@ def make_detail_samples(
     restorer = create(base)
     restored: list[np.ndarray] = []
     clean: list[np.ndarray] = []
-    for c, synthesis in enumerate(syntheses):
-        share = scenes // len(syntheses) + (c < scenes % len(syntheses))
+    for c, (synthesis, share) in enumerate(parts):
         for k in range(-(-share // CHUNK)):
             n = min(CHUNK, share - k * CHUNK)
             data = make_heldout(
@@ -57,6 +85,7 @@ def train_detail(
     *,
     configs: Sequence[Path],
     stages: Sequence[str] | None = None,
+    eq1_share: float = 0.0,
     base: str = "lite",
     scenes: int = 1000,
     settings: DetailTrainSettings | None = None,
@@ -64,7 +93,8 @@ def train_detail(
     progress: Callable[[str], None] | None = None,
 ) -> TrainResult:
     """Make (or read back) the samples of the water of ``configs`` (their ``data.synthesis``, with ``stages`` instead
-    of theirs when given), learn, write ``OUT/detail.npz`` and ``OUT/log.jsonl``; ``progress`` hears each step of it.
+    of theirs when given; ``eq1_share`` of them by Eq. (1) alone), learn, write ``OUT/detail.npz`` and
+    ``OUT/log.jsonl``; ``progress`` hears each step of it.
     Refuses (ValueError) fewer than 10 scenes, no config, a bad config or stage, a ``detail.npz`` already in ``out``
     and a bad base method; an ``out`` that cannot be made raises OSError."""
     from murk._config import load_yaml, merge
@@ -75,16 +105,15 @@ def train_detail(
     syntheses = [load_yaml(TrainConfig, c).data.synthesis for c in configs]
     if stages is not None:
         syntheses = [merge(s, {"stages": list(stages)}, where="stages") for s in syntheses]
+    parts = sample_parts(syntheses, scenes, eq1_share)
     weights = weights_path(out, "detail.npz", "network")
     settings = settings or DetailTrainSettings()
     say = progress or (lambda _msg: None)
     started = time.perf_counter()
-    key = json.dumps({"scenes": scenes, "seed": seed, "base": base, "syntheses": [repr(s) for s in syntheses]})
+    key = json.dumps({"seed": seed, "base": base, "parts": [[repr(s), n] for s, n in parts]})
 
     def make() -> dict[str, np.ndarray]:
-        made = make_detail_samples(
-            scenes, seed=seed, syntheses=syntheses, base=base, progress=lambda n: say(f"samples: {n} of {scenes}")
-        )
+        made = make_detail_samples(parts, seed=seed, base=base, progress=lambda n: say(f"samples: {n} of {scenes}"))
         return {"restored": made.restored, "clean": made.clean}
 
     arrays = cached_samples(out / "samples.npz", key, make, say)
@@ -95,6 +124,8 @@ def train_detail(
     meta = {
         "configs": [str(c) for c in configs],
         "stages": [list(s.stages) for s in syntheses],
+        "eq1_share": eq1_share,
+        "parts": [{"stages": list(s.stages), "scenes": n} for s, n in parts],
         "scenes": scenes,
         "seed": seed,
         "base": base,
