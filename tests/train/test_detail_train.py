@@ -12,6 +12,7 @@ import pytest
 import torch
 from typer.testing import CliRunner
 
+import murk
 from murk.cli.main import app
 from murk.models.detail import DetailNet, load_detail
 from murk.models.detail.network import RADIUS_PX
@@ -39,7 +40,10 @@ def test_fit_detail_learns_what_no_colour_map_can_and_is_seeded() -> None:
     settings = DetailTrainSettings(steps=300, batch=8, crop_px=32, channels=8, lr=3e-3, log_every=60, seed=1)
     net = fit_detail(samples, settings, rows.append)
     assert rows[-1]["val_loss"] < 0.8 * rows[0]["val_loss"], rows
+    torch.manual_seed(123)
+    state = torch.random.get_rng_state()
     again = fit_detail(samples, settings)
+    assert torch.equal(torch.random.get_rng_state(), state)  # the caller's generator is left alone
     for a, b in zip(net.parameters(), again.parameters(), strict=True):
         torch.testing.assert_close(a, b, rtol=0, atol=0)
     # the colour term keeps the residual's mean per image and channel near zero: the restoration's colour stays
@@ -102,6 +106,9 @@ def test_murk_detail_train_writes_a_network_and_never_overwrites_it(tmp_path: Pa
     assert res.exit_code == 0, res.output
     net, meta = load_detail(out / "detail.npz")
     assert net.channels == 4 and meta["scenes"] == 10 and meta["base"] == "lite" and meta["settings"]["steps"] == 2
+    # the samples' key and the meta name the base's weights by content, and murk's version
+    assert meta["murk"] == murk.__version__ and [Path(f).name for f in meta["weights"]] == ["lite.pt"]
+    assert all(len(h) == 16 for h in meta["weights"].values())
     assert (out / "log.jsonl").read_text().count("val_loss") == 1
     before = (out / "detail.npz").read_bytes()
     again = CliRunner().invoke(app, args)
@@ -151,3 +158,17 @@ def test_murk_detail_train_eq1_share_and_crops_are_recorded(tmp_path: Path) -> N
                              {"stages": ["basic"], "scenes": 3}]  # fmt: skip
     bad = CliRunner().invoke(app, [*args[:-4], "--out", str(tmp_path / "bad"), "--eq1-share", "2"])
     assert bad.exit_code == 2 and "eq1_share" in bad.output
+
+
+def test_samples_made_by_other_base_weights_are_made_again(tmp_path: Path) -> None:
+    from murk.enhance.restorer import create
+    from murk.workflows.small_train import base_fingerprint
+
+    shipped = base_fingerprint(create("lite"))
+    copy = tmp_path / "lite-copy.pt"
+    copy.write_bytes(Path(next(iter(shipped["weights"]))).read_bytes())
+    same_bytes = base_fingerprint(create(f"lite?checkpoint={copy}"))
+    assert list(same_bytes["weights"].values()) == list(shipped["weights"].values())  # named by content ...
+    copy.write_bytes(copy.read_bytes() + b"\0")  # ... so a changed file is another key
+    assert base_fingerprint(create(f"lite?checkpoint={copy}"))["weights"] != same_bytes["weights"]
+    assert base_fingerprint(create("colorbalance"))["weights"] == {}

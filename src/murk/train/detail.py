@@ -103,7 +103,6 @@ def fit_detail(
     if min(h, w) < crop:
         raise ValueError(f"samples: images of {w}x{h} are smaller than crop_px {crop}")
     gen = torch.Generator().manual_seed(settings.seed)
-    torch.manual_seed(settings.seed)
     x = torch.from_numpy(np.ascontiguousarray(samples.restored, np.float32)).permute(0, 3, 1, 2)
     y = torch.from_numpy(np.ascontiguousarray(samples.clean, np.float32)).permute(0, 3, 1, 2)
     margin = settings.crops == "frame"
@@ -112,7 +111,9 @@ def fit_detail(
     side = crop + 2 * RADIUS_PX if margin else crop
     order = torch.randperm(n, generator=gen)
     val, train = order[: n // 10], order[n // 10 :]
-    net = DetailNet(settings.channels)
+    with torch.random.fork_rng(devices=[]):  # the initial weights are seeded; the caller's generator is left alone
+        torch.manual_seed(settings.seed)
+        net = DetailNet(settings.channels)
     opt = torch.optim.Adam(net.parameters(), lr=settings.lr)
     for step in range(1, settings.steps + 1):
         idx = train[torch.randint(len(train), (settings.batch,), generator=gen)]

@@ -27,7 +27,15 @@ import numpy as np
 
 from murk.models.detail.network import save_detail
 from murk.train.detail import DetailSamples, DetailTrainSettings, fit_detail
-from murk.workflows.small_train import CHUNK, SCENE_HW, LossLog, TrainResult, cached_samples, weights_path
+from murk.workflows.small_train import (
+    CHUNK,
+    SCENE_HW,
+    LossLog,
+    TrainResult,
+    base_fingerprint,
+    cached_samples,
+    weights_path,
+)
 
 EQ1_DROPS = ("forward_scatter", "marine_snow")
 """The stages an Eq. (1)-only part leaves out."""
@@ -54,15 +62,13 @@ def sample_parts(syntheses: Sequence[Any], scenes: int, eq1_share: float) -> lis
 
 
 def make_detail_samples(
-    parts: Sequence[tuple[Any, int]], *, seed: int, base: str, progress: Callable[[int], None] | None = None
+    parts: Sequence[tuple[Any, int]], *, seed: int, restorer: Any, progress: Callable[[int], None] | None = None
 ) -> DetailSamples:
-    """The samples of ``parts`` (:func:`sample_parts`) as the module says, ``progress`` told the count after each
-    chunk."""
-    from murk.enhance.restorer import create
+    """The samples of ``parts`` (:func:`sample_parts`) as the module says, restored by ``restorer`` (the base
+    method's), ``progress`` told the count after each chunk."""
     from murk.report.heldout import make_heldout
     from murk.rng import derive_seed
 
-    restorer = create(base)
     restored: list[np.ndarray] = []
     clean: list[np.ndarray] = []
     for c, (synthesis, share) in enumerate(parts):
@@ -98,6 +104,7 @@ def train_detail(
     Refuses (ValueError) fewer than 10 scenes, no config, a bad config or stage, a ``detail.npz`` already in ``out``
     and a bad base method; an ``out`` that cannot be made raises OSError."""
     from murk._config import load_yaml, merge
+    from murk.enhance.restorer import create
     from murk.train.config import TrainConfig
 
     if scenes < 10 or not configs:
@@ -110,10 +117,14 @@ def train_detail(
     settings = settings or DetailTrainSettings()
     say = progress or (lambda _msg: None)
     started = time.perf_counter()
-    key = json.dumps({"seed": seed, "base": base, "parts": [[repr(s), n] for s, n in parts]})
+    restorer = create(base)
+    made_by = {"base": base, **base_fingerprint(restorer)}
+    key = json.dumps({"seed": seed, **made_by, "parts": [[repr(s), n] for s, n in parts]})
 
     def make() -> dict[str, np.ndarray]:
-        made = make_detail_samples(parts, seed=seed, base=base, progress=lambda n: say(f"samples: {n} of {scenes}"))
+        made = make_detail_samples(
+            parts, seed=seed, restorer=restorer, progress=lambda n: say(f"samples: {n} of {scenes}")
+        )
         return {"restored": made.restored, "clean": made.clean}
 
     arrays = cached_samples(out / "samples.npz", key, make, say)
@@ -128,7 +139,7 @@ def train_detail(
         "parts": [{"stages": list(s.stages), "scenes": n} for s, n in parts],
         "scenes": scenes,
         "seed": seed,
-        "base": base,
+        **made_by,
         "settings": asdict(settings),
         "val_loss": log.last["val_loss"],
     }

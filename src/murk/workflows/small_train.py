@@ -43,6 +43,24 @@ class TrainResult:
         )
 
 
+def base_fingerprint(restorer: Any) -> dict[str, Any]:
+    """What a base restorer's outputs depend on beyond its spec, for a samples key: murk's version and each weights
+    file it loaded (:func:`murk.enhance.restorer.weights_used`) with the first 16 hex digits of its SHA-256, so that
+    samples made with other weights or another murk are made again, not read back."""
+    import hashlib
+
+    from murk import __version__
+    from murk.enhance.restorer import weights_used
+
+    used = weights_used(restorer)
+    stages = [used.first, *(r for r, _ in used.blended), *used.later]
+    files = [str(r.weights) for r in stages if r is not None]
+    return {
+        "murk": __version__,
+        "weights": {f: hashlib.sha256(Path(f).read_bytes()).hexdigest()[:16] for f in files if Path(f).is_file()},
+    }
+
+
 def weights_path(out: Path, name: str, what: str) -> Path:
     """``out / name``, the run's weights file, with ``out`` made.
 
