@@ -1,14 +1,15 @@
 """Two or more restorers (trained arms, shipped methods) side by side on the measures of issue 46, paired.
 
-Run: PYTHONPATH=src python benchmarks/bench_arms.py NAME=SPEC [NAME=SPEC ...] --ref NAME
+Run: PYTHONPATH=src python benchmarks/bench_arms.py NAME=SPEC [NAME=SPEC ...] --ref NAME[,NAME...]
      [--real-pairs DIR] [--snow-pairs DIR] [--heldout-scenes 64] [--heldout-photos DIR]
      [--config configs/train-lite-mild-scratch-cpu.yaml] [--stages basic,forward_scatter,marine_snow] [--threads 2]
      [--out DIR]
 
 SPEC is a method spec as ``murk compare --method`` takes it (``lite``, ``jointid``, ``water?strength=0.5``,
 ``lite:runs/x/latest.pt``), or a ``.pt`` file (a ``lite`` checkpoint, a training run's ``latest.pt``). Every measure
-is paired over images against the ``--ref`` arm: mean difference, its 95 % interval and the images where the arm is
-higher. The measures are ``murk study``'s, computed by the same functions:
+is paired over images against each ``--ref`` arm (comma-separated: every other arm against each of them): mean
+difference, its 95 % interval and the images where the arm is higher. The measures are ``murk study``'s, computed by
+the same functions:
 - ``--real-pairs``: real paired photographs (``<set>/input``, ``<set>/reference``), long side 256, scored with
   ``murk compare --ref`` (:func:`murk.report.study.evaluate_real_pairs`): PSNR, SSIM and CIEDE2000 as the mean over
   sets (each set counted once), ``colorbalance`` beside.
@@ -68,14 +69,19 @@ def contrasts_text(contrasts: list[dict[str, Any]], keys: tuple[str, ...], what:
         print(f"{what} {c['a']} - {c['b']}: " + "; ".join(f"{k} {interval(c[k])}" for k in keys))
 
 
-def real_pairs(texts: list[str], names: list[str], folder: Path, ref: str, out: Path) -> None:
+def against(names: list[str], refs: list[str]) -> list[tuple[str, str]]:
+    """Every arm of ``names`` against each of ``refs`` (itself left out), ref by ref."""
+    return [(n, r) for r in refs for n in names if n != r]
+
+
+def real_pairs(texts: list[str], names: list[str], folder: Path, refs: list[str], out: Path) -> None:
     labels = [*names, "colorbalance"]
     res = evaluate_real_pairs(
         folder,
         [parse_method(t) for t in [*texts, "colorbalance"]],
         out / "real_pairs",
         max_side=256,
-        contrasts=[(n, ref) for n in labels if n != ref],
+        contrasts=against(labels, refs),
     )
     print("\n| real pairs, mean over sets | PSNR | SSIM | CIEDE2000 |\n|---|---|---|---|")
     for lab in labels:
@@ -84,15 +90,13 @@ def real_pairs(texts: list[str], names: list[str], folder: Path, ref: str, out: 
     contrasts_text(res["contrasts"], ("psnr", "ciede2000"), "real pairs")
 
 
-def snow_pairs(texts: list[str], names: list[str], folder: Path, ref: str, out: Path) -> None:
+def snow_pairs(texts: list[str], names: list[str], folder: Path, refs: list[str], out: Path) -> None:
     res = run_compare(
         list_images(folder / "snowy"), [parse_method(t) for t in texts], out / "snow", snow_clean=folder / "clean"
     )
     rows = [{**r, "set": "snow"} for r in res.rows]
     print("\nsnow residue, mean: " + "; ".join(f"{n} {res.summary[n]['snow_residue']['mean']:.3f}" for n in names))
-    contrasts_text(
-        paired_contrasts(rows, [(n, ref) for n in names if n != ref], SNOW_CONTRAST_KEYS), ("snow_residue",), "snow"
-    )
+    contrasts_text(paired_contrasts(rows, against(names, refs), SNOW_CONTRAST_KEYS), ("snow_residue",), "snow")
 
 
 def paired(a: list[float], b: list[float]) -> str:
@@ -101,7 +105,7 @@ def paired(a: list[float], b: list[float]) -> str:
     return f"{d.mean():+.3f} ({d.mean() - h:+.3f} to {d.mean() + h:+.3f}), higher on {int((d > 0).sum())} of {len(d)}"
 
 
-def heldout(arms: dict[str, Any], name: str, data: HeldoutSet, ref: str) -> None:
+def heldout(arms: dict[str, Any], name: str, data: HeldoutSet, refs: list[str]) -> None:
     per_scene: dict[str, dict[str, list[float]]] = {}
     scores = score_heldout(data, arms, per_scene=per_scene)
     inp = scores["input"]
@@ -114,10 +118,9 @@ def heldout(arms: dict[str, Any], name: str, data: HeldoutSet, ref: str) -> None
             else ""
         )
         print(f"  {k}: PSNR {row['psnr']:.2f}, affine-fit gain over the input {row['affine_psnr_gain']:+.2f}{depth}")
-    for k in arms:
-        if k != ref:
-            fit = paired(per_scene[k]["affine_psnr"], per_scene[ref]["affine_psnr"])
-            print(f"  {k} - {ref}: affine-fit {fit}; PSNR {paired(per_scene[k]['psnr'], per_scene[ref]['psnr'])}")
+    for k, ref in against(list(arms), refs):
+        fit = paired(per_scene[k]["affine_psnr"], per_scene[ref]["affine_psnr"])
+        print(f"  {k} - {ref}: affine-fit {fit}; PSNR {paired(per_scene[k]['psnr'], per_scene[ref]['psnr'])}")
 
 
 def heldout_photos(folder: Path, synthesis: Any) -> HeldoutSet:
@@ -142,7 +145,7 @@ def heldout_photos(folder: Path, synthesis: Any) -> HeldoutSet:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("arms", nargs="+", help="NAME=SPEC")
-    ap.add_argument("--ref", required=True)
+    ap.add_argument("--ref", required=True, help="the arm(s) every other arm is paired against, comma-separated")
     ap.add_argument("--real-pairs", type=Path)
     ap.add_argument("--snow-pairs", type=Path)
     ap.add_argument("--heldout-scenes", type=int, default=64)
@@ -155,24 +158,25 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     pairs = [a.split("=", 1) for a in args.arms]
     names, texts = [n for n, _ in pairs], [method_text(n, s) for n, s in pairs]
-    if args.ref not in names:
-        ap.error(f"--ref {args.ref}: not one of the arms ({', '.join(names)})")
+    refs = args.ref.split(",")
+    if not set(refs) <= set(names):
+        ap.error(f"--ref {args.ref}: not all of them arms ({', '.join(names)})")
     with tempfile.TemporaryDirectory() as tmp:
         out = args.out or Path(tmp)
         if args.real_pairs:
-            real_pairs(texts, names, args.real_pairs, args.ref, out)
+            real_pairs(texts, names, args.real_pairs, refs, out)
         if args.snow_pairs:
-            snow_pairs(texts, names, args.snow_pairs, args.ref, out)
+            snow_pairs(texts, names, args.snow_pairs, refs, out)
     arms = {n: build_restorer(parse_method(t)) for n, t in zip(names, texts, strict=True)}
     synthesis = merge(load_yaml(TrainConfig, args.config).data.synthesis, {"stages": args.stages.split(",")})
     if args.heldout_scenes:
         data = make_heldout(
             args.heldout_scenes, seed=HELDOUT_SEED, size_hw=(240, 320), synthesis=synthesis, balance_pct=0.5
         )
-        heldout(arms, f"held-out scenes ({args.heldout_scenes})", data, args.ref)
+        heldout(arms, f"held-out scenes ({args.heldout_scenes})", data, refs)
     if args.heldout_photos:
         photos = heldout_photos(args.heldout_photos, synthesis)
-        heldout(arms, f"held-out photographs ({len(photos.clean)})", photos, args.ref)
+        heldout(arms, f"held-out photographs ({len(photos.clean)})", photos, refs)
 
 
 if __name__ == "__main__":
