@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 
 from murk.cli.main import app
 from murk.data import sample_underwater_images
-from murk.enhance.restorer import create
+from murk.enhance.restorer import create, weights_used
 from murk.io import read_rgb, write_rgb
 from murk.metrics import affine_fit
 from murk.models.water import WaterEstimator, load_water_estimator
@@ -79,6 +79,12 @@ def test_murk_enhance_runs_water_and_checks_its_options(
     res = CliRunner().invoke(app, ["enhance", str(tmp_path / "in.png"), "-o", str(tmp_path / "out.png"), "-m", spec])
     assert res.exit_code == 0, res.output
     assert read_rgb(tmp_path / "out.png").shape == image.shape
+    # the weights line names the estimator as water's weights, then the Joint-ID it builds on
+    line = next(x for x in res.output.splitlines() if "weights:" in x)
+    assert line.startswith(f"water weights: {estimator_file}; distance and colour from the weights "), line
+    assert line.endswith("jointid-small.pt"), line
+    used = weights_used(create(spec))
+    assert used.weights == str(estimator_file) and str(used.base_weights).endswith("jointid-small.pt")
     bad = CliRunner().invoke(
         app, ["enhance", str(tmp_path / "in.png"), "-o", str(tmp_path / "x.png"), "-m", "water?strength=2"]
     )

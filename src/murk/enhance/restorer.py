@@ -147,6 +147,9 @@ class Restorer:
     device: torch.device = _CPUDevice()  # type: ignore[assignment]
     weights: str | None = None
     """The weights file the method loaded (set by the implementations of network methods); None without one."""
+    base_weights: str | None = None
+    """The weights of a network the method runs inside itself and builds on (``water``'s Joint-ID, which gives it
+    distance and colour); None without one."""
 
     def restore(self, images: np.ndarray) -> Restored:
         """Restore a numpy batch (B, H, W, 3) float32 in [0, 1].
@@ -462,6 +465,12 @@ class WeightsUsed:
         """The files of :attr:`blended`, joined with ``"; "`` (None without any): ``blended_weights`` in
         ``murk compare``'s metrics.json."""
         return "; ".join(str(stage.weights) for stage, _ in self.blended) or None
+
+    @property
+    def base_weights(self) -> str | None:
+        """The weights of the network :attr:`first` builds on (None without one): ``base_weights`` in ``murk
+        compare``'s metrics.json (``water``'s Joint-ID)."""
+        return None if self.first is None else self.first.base_weights
 
     @property
     def later_weights(self) -> str | None:

@@ -141,15 +141,18 @@ def _run_bag(
 
 def weights_line(restorer: Restorer, *, shipped: bool) -> str | None:
     """``<stage> weights: <file>`` for a method with learned weights (and, for the weights shipped with murk,
-    which network they are; then each restoration with weights that a blend averages in, with the blend's weight:
-    ``jointid``'s ``lite``; then each later stage of a chain with weights: ``lite+detail``'s ``detail``); None for a
-    method without weights (:func:`murk.enhance.restorer.weights_used`)."""
+    which network they are; the weights of a network it builds on: ``water``'s Joint-ID; then each restoration with
+    weights that a blend averages in, with the blend's weight: ``jointid``'s ``lite``; then each later stage of a chain
+    with weights: ``lite+detail``'s ``detail``); None for a method without weights
+    (:func:`murk.enhance.restorer.weights_used`)."""
     used = weights_used(restorer)
     stage = used.first
     if stage is None:
         return None
     what = {"jointid": "the 'small' Joint-ID murk trained", "lite": "the 'lite' network murk trained"}.get(stage.name)
     note = f" (shipped with murk: {what}, docs/models.md)" if shipped and what else ""
+    if stage.base_weights:
+        note += f"; distance and colour from the weights {stage.base_weights}"
     for other, blend in used.blended:
         weight = f"{blend.weight_label or 'weight'} {blend.weight:g}"
         note += f"; with {other.name}'s restoration blended in ({weight}): {other.weights}"

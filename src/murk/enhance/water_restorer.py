@@ -42,9 +42,10 @@ class WaterRestorer(Restorer):
         self.strength, self.t_min = float(strength), float(t_min)
         from murk.enhance.restorer import weights_used
 
-        self.weights = weights_used(base).weights
-        """The base's network weights (the weights line of ``murk enhance``); the estimator's file is
-        ``estimator.source``."""
+        self.weights = estimator.source or None
+        """The estimator's file (the weights line of ``murk enhance``)."""
+        self.base_weights = weights_used(base).weights
+        """The base's network weights (Joint-ID's: the distance and the colour)."""
         self.last_water: list[Water] = []
 
     @property

@@ -457,6 +457,7 @@ def _run_compare(
         )
     notes += [
         f"Weights of {lab}: {u.weights}"
+        + (f" (built on: {u.base_weights})" if u.base_weights else "")
         + (f" (with lite's restoration blended in: {u.blended_weights})" if u.blended_weights else "")
         + (f" (then: {u.later_weights})" if u.later_weights else "")
         for lab, u in used.items()
@@ -545,6 +546,7 @@ def _write_tables(
                 "method": m.method,
                 "checkpoint": m.checkpoint,
                 "weights": used[m.label].weights,
+                "base_weights": used[m.label].base_weights,  # the network the first builds on (water's Joint-ID)
                 "blended_weights": used[m.label].blended_weights,  # what a blend of the spec averages in
                 "later_weights": used[m.label].later_weights,  # what a chain runs after the first (lite+detail)
             }

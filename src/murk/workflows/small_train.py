@@ -54,7 +54,7 @@ def base_fingerprint(restorer: Any) -> dict[str, Any]:
 
     used = weights_used(restorer)
     stages = [used.first, *(r for r, _ in used.blended), *used.later]
-    files = [str(r.weights) for r in stages if r is not None]
+    files = [str(f) for r in stages if r is not None for f in (r.weights, r.base_weights) if f]
     return {
         "murk": __version__,
         "weights": {f: hashlib.sha256(Path(f).read_bytes()).hexdigest()[:16] for f in files if Path(f).is_file()},
