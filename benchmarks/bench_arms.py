@@ -70,8 +70,11 @@ def contrasts_text(contrasts: list[dict[str, Any]], keys: tuple[str, ...], what:
 
 
 def against(names: list[str], refs: list[str]) -> list[tuple[str, str]]:
-    """Every arm of ``names`` against each of ``refs`` (itself left out), ref by ref."""
-    return [(n, r) for r in refs for n in names if n != r]
+    """Every arm of ``names`` against each of ``refs`` (itself left out), ref by ref; two refs are paired once."""
+    pairs: list[tuple[str, str]] = []
+    for r in refs:
+        pairs += [(n, r) for n in names if n != r and (r, n) not in pairs]
+    return pairs
 
 
 def real_pairs(texts: list[str], names: list[str], folder: Path, refs: list[str], out: Path) -> None:
@@ -159,8 +162,9 @@ def main() -> None:
     pairs = [a.split("=", 1) for a in args.arms]
     names, texts = [n for n, _ in pairs], [method_text(n, s) for n, s in pairs]
     refs = args.ref.split(",")
-    if not set(refs) <= set(names):
-        ap.error(f"--ref {args.ref}: not all of them arms ({', '.join(names)})")
+    unknown = [r for r in refs if r not in names]
+    if unknown:
+        ap.error(f"--ref: {', '.join(unknown)} not among the arms ({', '.join(names)})")
     with tempfile.TemporaryDirectory() as tmp:
         out = args.out or Path(tmp)
         if args.real_pairs:

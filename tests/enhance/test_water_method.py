@@ -182,3 +182,16 @@ def test_murk_water_train_never_overwrites_an_estimator(estimator_file: Path, tm
     res = CliRunner().invoke(app, ["water", "train", "--config", str(config), "--out", str(out), "--scenes", "10"])
     assert res.exit_code == 2 and "never overwritten" in res.output
     assert (out / "water.npz").read_bytes() == estimator_file.read_bytes()
+
+
+def test_murk_water_train_keys_its_samples_by_the_depth_networks_weights(tmp_path: Path) -> None:
+    config = Path(__file__).parents[2] / "configs" / "train-small-cpu.yaml"
+    out = tmp_path / "run"
+    args = ["water", "train", "--config", str(config), "--out", str(out), "--scenes", "10", "--steps", "2"]
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 0, res.output
+    meta = load_water_estimator(out / "water.npz").meta or {}
+    # Joint-ID's network (jointid_net, no lite blended in) gives the distance maps: named by content
+    assert [name for name, _ in meta["base_weights"]] == ["jointid-small.pt"]
+    with np.load(out / "samples.npz") as z:
+        assert "jointid-small.pt" in str(z["key"])

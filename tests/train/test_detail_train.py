@@ -107,8 +107,8 @@ def test_murk_detail_train_writes_a_network_and_never_overwrites_it(tmp_path: Pa
     net, meta = load_detail(out / "detail.npz")
     assert net.channels == 4 and meta["scenes"] == 10 and meta["base"] == "lite" and meta["settings"]["steps"] == 2
     # the samples' key and the meta name the base's weights by content, and murk's version
-    assert meta["murk"] == murk.__version__ and [Path(f).name for f in meta["weights"]] == ["lite.pt"]
-    assert all(len(h) == 16 for h in meta["weights"].values())
+    assert meta["murk"] == murk.__version__ and [name for name, _ in meta["base_weights"]] == ["lite.pt"]
+    assert all(len(h) == 16 for _, h in meta["base_weights"])
     assert (out / "log.jsonl").read_text().count("val_loss") == 1
     before = (out / "detail.npz").read_bytes()
     again = CliRunner().invoke(app, args)
@@ -133,24 +133,28 @@ def test_murk_detail_train_takes_the_stages_of_every_config_and_refuses_unknown_
 
 
 def test_eq1_share_takes_scatter_and_snow_out_of_that_share_of_each_config() -> None:
-    from murk._config import load_yaml
+    from murk._config import load_yaml, merge
 
     water = load_yaml(TrainConfig, CONFIG).data.synthesis
     assert [(s.stages, n) for s, n in sample_parts([water, water], 11, 0.0)] == [(water.stages, 6), (water.stages, 5)]
     parts = sample_parts([water, water], 11, 0.5)
-    assert [n for _, n in parts] == [3, 3, 3, 2] and sum(n for _, n in parts) == 11
+    assert [n for _, n in parts] == [3, 3, 2, 3] and sum(n for _, n in parts) == 11  # halves rounded up
     assert water.stages == ("basic", "forward_scatter", "marine_snow")
     assert [s.stages for s, _ in parts] == [water.stages, ("basic",), water.stages, ("basic",)]
     assert parts[1][0].medium == water.medium  # the same water, without its blur and snow
     assert [(s.stages, n) for s, n in sample_parts([water], 10, 1.0)] == [(("basic",), 10)]
     with pytest.raises(ValueError, match="eq1_share: expected a share in"):
         sample_parts([water], 10, 1.5)
+    scatter_only = merge(water, {"stages": ["forward_scatter"]}, where="stages")
+    assert [n for _, n in sample_parts([scatter_only], 10, 0.0)] == [10]  # no Eq. (1) part asked: none made
+    with pytest.raises(ValueError, match="eq1_share: the stages forward_scatter keep none"):
+        sample_parts([scatter_only], 10, 0.5)
 
 
 def test_murk_detail_train_eq1_share_and_crops_are_recorded(tmp_path: Path) -> None:
     args = ["detail", "train", "--config", str(CONFIG), "--scenes", "10", "--steps", "1", "--channels", "4",
-            "--out", str(tmp_path / "mix"), "--eq1-share", "0.3", "--crops", "own"]  # fmt: skip
-    res = CliRunner().invoke(app, args)
+            "--eq1-share", "0.3", "--crops", "own"]  # fmt: skip
+    res = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "mix")])
     assert res.exit_code == 0, res.output
     _, meta = load_detail(tmp_path / "mix" / "detail.npz")
     assert meta["eq1_share"] == 0.3 and meta["settings"]["crops"] == "own"
@@ -158,17 +162,23 @@ def test_murk_detail_train_eq1_share_and_crops_are_recorded(tmp_path: Path) -> N
                              {"stages": ["basic"], "scenes": 3}]  # fmt: skip
     bad = CliRunner().invoke(app, [*args[:-4], "--out", str(tmp_path / "bad"), "--eq1-share", "2"])
     assert bad.exit_code == 2 and "eq1_share" in bad.output
+    crops = CliRunner().invoke(app, [*args[:-2], "--out", str(tmp_path / "bad"), "--crops", "edge"])
+    assert crops.exit_code == 2 and "crops: expected one of frame, own" in crops.output
 
 
 def test_samples_made_by_other_base_weights_are_made_again(tmp_path: Path) -> None:
+    from murk.data import shipped_lite_weights
     from murk.enhance.restorer import create
     from murk.workflows.small_train import base_fingerprint
 
     shipped = base_fingerprint(create("lite"))
-    copy = tmp_path / "lite-copy.pt"
-    copy.write_bytes(Path(next(iter(shipped["weights"]))).read_bytes())
-    same_bytes = base_fingerprint(create(f"lite?checkpoint={copy}"))
-    assert list(same_bytes["weights"].values()) == list(shipped["weights"].values())  # named by content ...
+    copy = tmp_path / "elsewhere" / "lite.pt"
+    copy.parent.mkdir()
+    copy.write_bytes(shipped_lite_weights().read_bytes())
+    assert base_fingerprint(create(f"lite?checkpoint={copy}")) == shipped  # by name and content, not by folder ...
     copy.write_bytes(copy.read_bytes() + b"\0")  # ... so a changed file is another key
-    assert base_fingerprint(create(f"lite?checkpoint={copy}"))["weights"] != same_bytes["weights"]
-    assert base_fingerprint(create("colorbalance"))["weights"] == {}
+    assert base_fingerprint(create(f"lite?checkpoint={copy}")) != shipped
+    assert base_fingerprint(create("colorbalance"))["base_weights"] == []
+    # a method built on a base restorer (water on Joint-ID, which blends lite in): every file, once
+    names = [name for name, _ in base_fingerprint(create("water+detail"))["base_weights"]]
+    assert names == ["water.npz", "jointid-small.pt", "lite.pt", "detail.npz"]

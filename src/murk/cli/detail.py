@@ -32,11 +32,17 @@ def train(
     eq1_share: Annotated[
         float,
         typer.Option(
-            "--eq1-share", help="Share of each config's scenes degraded by Eq. (1) alone (no scatter, no snow)."
+            "--eq1-share",
+            help="Share in [0, 1] of each config's scenes degraded without its forward_scatter and marine_snow stages.",
         ),
     ] = 0.0,
     crops: Annotated[
-        str, typer.Option("--crops", help="Training crops cut from the padded frame ('frame') or padded alone ('own').")
+        str,
+        typer.Option(
+            "--crops",
+            help="Training crops cut from the frame padded once, as inference pads it ('frame'), or each crop padded "
+            "at its own edges ('own', as the first shipped weights).",
+        ),
     ] = "frame",
     seed: Annotated[int, typer.Option("--seed", help="Seed of the scenes and the training.")] = 7,
     quiet: QuietOpt = False,

@@ -1,18 +1,18 @@
 """Train the detail network (:mod:`murk.models.detail`) on a base method's restorations of murk's synthetic water.
 
 A sample is a base method's restoration of a degraded scene and the true clean scene, of one size (the workflow
-:mod:`murk.workflows.detail_train` makes them). Each step takes ``batch`` random crops of ``crop_px`` pixels and
-adds the network's residual to the restorations. With ``crops="frame"`` (the default) every crop is cut from the
-restoration padded once by :data:`~murk.models.detail.network.RADIUS_PX` repeated border pixels, with that margin, and
-the network runs unpadded on it (:meth:`DetailNet.unpadded`): every pixel of the loss sees the neighbourhood it sees at
-inference, the frame's own border only at the frame's edge. ``crops="own"`` pads each crop at its own edges (the
-shipped weights of 2026-12-06, 13:40, were learnt so: about a third of each 96x96 crop's loss then sees a border that
-inference does not). the loss is the mean squared error that the best gain and offset
-per image and channel leave against the clean scene (:func:`murk.train.losses.local_mse`: what no global colour
-correction can do), plus ``colour_weight`` times the mean over images and channels of the squared mean of the
-residual (the base's colour stays; without it the colour drifts, docs/train.md). Adam, a fixed number of steps,
-seeded; every sample but a tenth trains, the tenth is the validation split (the same loss on whole images) logged
-every ``log_every`` steps.
+:mod:`murk.workflows.detail_train` makes them). Each step takes ``batch`` random crops of ``crop_px`` pixels and adds
+the network's residual to the restorations. With ``crops="frame"`` (the default) every crop is cut from the restoration
+padded once by :data:`~murk.models.detail.network.RADIUS_PX` repeated border pixels, with that margin, and the network
+runs unpadded on it (:meth:`DetailNet.unpadded`): every pixel of the loss sees the neighbourhood it sees at inference,
+the frame's own border only at the frame's edge. ``crops="own"`` pads each crop at its own edges (the first shipped
+weights, 2026-12-06 13:40, were learnt so: about a third of each 96x96 crop's loss then sees a border that inference
+does not). Frame crops hold one padded copy of the restorations (about 1.1x their memory). The loss is the mean squared
+error that the best gain and offset per image and channel leave against the clean scene
+(:func:`murk.train.losses.local_mse`: what no global colour correction can do), plus ``colour_weight`` times the mean
+over images and channels of the squared mean of the residual (the base's colour stays; without it the colour drifts,
+docs/train.md). Adam, a fixed number of steps, seeded; every sample but a tenth trains, the tenth is the validation
+split (the same loss on whole images) logged every ``log_every`` steps.
 """
 
 from __future__ import annotations
@@ -111,8 +111,8 @@ def fit_detail(
     side = crop + 2 * RADIUS_PX if margin else crop
     order = torch.randperm(n, generator=gen)
     val, train = order[: n // 10], order[n // 10 :]
-    with torch.random.fork_rng(devices=[]):  # the initial weights are seeded; the caller's generator is left alone
-        torch.manual_seed(settings.seed)
+    with torch.random.fork_rng(devices=[]):  # the initial weights are seeded; the caller's CPU generator is kept
+        torch.default_generator.manual_seed(settings.seed)
         net = DetailNet(settings.channels)
     opt = torch.optim.Adam(net.parameters(), lr=settings.lr)
     for step in range(1, settings.steps + 1):

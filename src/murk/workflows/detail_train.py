@@ -17,6 +17,7 @@ losses every ``log_every`` steps) and ``samples.npz``.
 from __future__ import annotations
 
 import json
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict
@@ -43,10 +44,14 @@ EQ1_DROPS = ("forward_scatter", "marine_snow")
 
 def sample_parts(syntheses: Sequence[Any], scenes: int, eq1_share: float) -> list[tuple[Any, int]]:
     """``(synthesis, scene count)`` of every part, in seeding order: each config's ``scenes / len(syntheses)``, of
-    which ``eq1_share`` (rounded) in its Eq. (1)-only water; parts of no scene are left out.
+    which ``eq1_share`` (rounded half up) in its Eq. (1)-only water, that part second. Parts of no scene are left out
+    before the parts are numbered for their seeds: with ``eq1_share`` 0 the configs are numbered 0, 1, ... as
+    without the option; with a share strictly between 0 and 1 (and enough scenes), config ``c``'s parts are ``2c``
+    and ``2c + 1``.
 
     Raises:
-        ValueError: ``eq1_share`` outside [0, 1].
+        ValueError: ``eq1_share`` outside [0, 1]; a config whose stages keep no stage once ``forward_scatter`` and
+            ``marine_snow`` are taken out, when it has Eq. (1)-only scenes.
     """
     from murk._config import merge
 
@@ -55,9 +60,16 @@ def sample_parts(syntheses: Sequence[Any], scenes: int, eq1_share: float) -> lis
     parts: list[tuple[Any, int]] = []
     for c, synthesis in enumerate(syntheses):
         share = scenes // len(syntheses) + (c < scenes % len(syntheses))
-        eq1 = round(share * eq1_share)
-        plain = merge(synthesis, {"stages": [s for s in synthesis.stages if s not in EQ1_DROPS]}, where="stages")
-        parts += [(synthesis, share - eq1), (plain, eq1)]
+        eq1 = math.floor(share * eq1_share + 0.5)
+        parts.append((synthesis, share - eq1))
+        if eq1:
+            kept = [s for s in synthesis.stages if s not in EQ1_DROPS]
+            if not kept:
+                raise ValueError(
+                    f"eq1_share: the stages {', '.join(synthesis.stages)} keep none once forward_scatter and "
+                    "marine_snow are taken out; give basic, or leave eq1_share at 0"
+                )
+            parts.append((merge(synthesis, {"stages": kept}, where="stages"), eq1))
     return [(synthesis, n) for synthesis, n in parts if n > 0]
 
 
@@ -101,8 +113,8 @@ def train_detail(
     """Make (or read back) the samples of the water of ``configs`` (their ``data.synthesis``, with ``stages`` instead
     of theirs when given; ``eq1_share`` of them by Eq. (1) alone), learn, write ``OUT/detail.npz`` and
     ``OUT/log.jsonl``; ``progress`` hears each step of it.
-    Refuses (ValueError) fewer than 10 scenes, no config, a bad config or stage, a ``detail.npz`` already in ``out``
-    and a bad base method; an ``out`` that cannot be made raises OSError."""
+    Refuses (ValueError) fewer than 10 scenes, no config, a bad config or stage, an ``eq1_share`` outside [0, 1], a
+    ``detail.npz`` already in ``out`` and a bad base method; an ``out`` that cannot be made raises OSError."""
     from murk._config import load_yaml, merge
     from murk.enhance.restorer import create
     from murk.train.config import TrainConfig

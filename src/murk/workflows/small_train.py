@@ -44,20 +44,31 @@ class TrainResult:
 
 
 def base_fingerprint(restorer: Any) -> dict[str, Any]:
-    """What a base restorer's outputs depend on beyond its spec, for a samples key: murk's version and each weights
-    file it loaded (:func:`murk.enhance.restorer.weights_used`) with the first 16 hex digits of its SHA-256, so that
-    samples made with other weights or another murk are made again, not read back."""
+    """What a base restorer's outputs depend on beyond its spec, for a samples key: murk's version (it changes only
+    when the version is raised) and ``base_weights``, ``[file name, the first 16 hex digits of its SHA-256]`` of each
+    weights file it loaded (:func:`murk.enhance.restorer.weights_used`, and the same inside a method that builds on a
+    ``base`` restorer: ``water``'s Joint-ID and its blended ``lite``), so that samples made with other weights are made
+    again, not read back. Named by content and file name, not by folder: the same weights elsewhere give the same
+    key."""
     import hashlib
 
     from murk import __version__
-    from murk.enhance.restorer import weights_used
+    from murk.enhance.restorer import Restorer, weights_used
 
-    used = weights_used(restorer)
-    stages = [used.first, *(r for r, _ in used.blended), *used.later]
-    files = [str(f) for r in stages if r is not None for f in (r.weights, r.base_weights) if f]
+    files: list[Path] = []
+
+    def walk(r: Any) -> None:
+        used = weights_used(r)
+        for stage in (used.first, *(s for s, _ in used.blended), *used.later):
+            if stage is not None and stage.weights and Path(stage.weights) not in files:
+                files.append(Path(stage.weights))
+            if isinstance(getattr(stage, "base", None), Restorer):
+                walk(stage.base)  # type: ignore[union-attr]
+
+    walk(restorer)
     return {
         "murk": __version__,
-        "weights": {f: hashlib.sha256(Path(f).read_bytes()).hexdigest()[:16] for f in files if Path(f).is_file()},
+        "base_weights": [[f.name, hashlib.sha256(f.read_bytes()).hexdigest()[:16]] for f in files if f.is_file()],
     }
 
 

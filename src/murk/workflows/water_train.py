@@ -24,7 +24,15 @@ import numpy as np
 
 from murk.restore_ops.water import FEATURE_HW
 from murk.train.water import WaterSamples, WaterTrainSettings, fit_water
-from murk.workflows.small_train import CHUNK, SCENE_HW, LossLog, TrainResult, cached_samples, weights_path
+from murk.workflows.small_train import (
+    CHUNK,
+    SCENE_HW,
+    LossLog,
+    TrainResult,
+    base_fingerprint,
+    cached_samples,
+    weights_path,
+)
 
 
 def _small(a: np.ndarray) -> np.ndarray:
@@ -82,7 +90,12 @@ def train_water(
     settings = settings or WaterTrainSettings()
     say = progress or (lambda _msg: None)
     t0 = time.perf_counter()
-    key = json.dumps({"scenes": scenes, "seed": seed, "depth_method": depth_method, "synthesis": repr(synthesis)})
+    from murk.enhance.restorer import create
+
+    made_by = base_fingerprint(create(depth_method))  # the distance maps' network, by content
+    key = json.dumps(
+        {"scenes": scenes, "seed": seed, "depth_method": depth_method, **made_by, "synthesis": repr(synthesis)}
+    )
     arrays = cached_samples(
         out / "samples.npz", key,
         lambda: dict(vars(make_water_samples(
@@ -100,6 +113,7 @@ def train_water(
         "scenes": scenes,
         "seed": seed,
         "depth_method": depth_method,
+        **made_by,
         "settings": asdict(settings),
         "val_loss": last.get("val_loss"),
     }
