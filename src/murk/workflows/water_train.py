@@ -24,15 +24,7 @@ import numpy as np
 
 from murk.restore_ops.water import FEATURE_HW
 from murk.train.water import WaterSamples, WaterTrainSettings, fit_water
-from murk.workflows.small_train import (
-    CHUNK,
-    SCENE_HW,
-    LossLog,
-    TrainResult,
-    base_fingerprint,
-    cached_samples,
-    weights_path,
-)
+from murk.workflows.small_train import CHUNK, SCENE_HW, LossLog, TrainResult, cached_samples, weights_path
 
 
 def _small(a: np.ndarray) -> np.ndarray:
@@ -91,6 +83,7 @@ def train_water(
     say = progress or (lambda _msg: None)
     t0 = time.perf_counter()
     from murk.enhance.restorer import create
+    from murk.workflows.small_train import base_fingerprint
 
     made_by = base_fingerprint(create(depth_method))  # the distance maps' network, by content
     key = json.dumps(
