@@ -9,7 +9,8 @@ frame's top is (the far water of the training scenes) and tinted it red. It is t
 base method's restorations of murk's synthetic water against the true clean scene, with the error that no global gain
 and offset per channel removes, plus a term that keeps the residual's mean per image and channel near zero, so the
 base's colour stays. Measured (docs/models/detail.md), it takes out marine snow and some forward-scatter blur, not the
-haze that grows with distance (its field is too small to see distance); on water with neither it costs a little.
+haze that grows with distance (its field is too small to see distance, and seeing Joint-ID's distance as an input
+did not help: docs/train.md); on water with neither the shipped weights leave the image as it was.
 
 Weights: an ``.npz`` file (``detail.npz``, shipped; model card docs/models/detail.md) holding each convolution's
 ``conv{k}.weight`` and ``conv{k}.bias`` (float32) and ``meta`` (JSON text with ``channels`` and how it was trained).
