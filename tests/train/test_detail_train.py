@@ -182,3 +182,29 @@ def test_samples_made_by_other_base_weights_are_made_again(tmp_path: Path) -> No
     # a method built on a base restorer (water on Joint-ID, which blends lite in): every file, once
     names = [name for name, _ in base_fingerprint(create("water+detail"))["base_weights"]]
     assert names == ["water.npz", "jointid-small.pt", "lite.pt", "detail.npz"]
+
+
+def test_murk_detail_train_learns_from_photographs_in_every_parts_water(tmp_path: Path) -> None:
+    from murk.io import write_rgb
+
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    rng = np.random.default_rng(0)
+    for name in ("a.png", "b.jpg"):
+        write_rgb(photos / name, rng.uniform(0, 1, (90, 120, 3)).astype(np.float32))
+    args = ["detail", "train", "--config", str(CONFIG), "--scenes", "10", "--steps", "1", "--channels", "4",
+            "--eq1-share", "0.5"]  # fmt: skip
+    res = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "run"), "--photos", str(photos)])
+    assert res.exit_code == 0, res.output
+    assert "samples: 4 from 2 photographs" in res.output  # 2 photographs x 2 waters (snowy, Eq. (1) only)
+    assert "(14 samples," in res.output  # and the 10 scenes
+    _, meta = load_detail(tmp_path / "run" / "detail.npz")
+    assert meta["photos"]["folder"] == str(photos) and [f for f, _ in meta["photos"]["files"]] == ["a.png", "b.jpg"]
+    with np.load(tmp_path / "run" / "samples.npz") as z:
+        assert z["restored"].shape == (14, 240, 320, 3) and "b.jpg" in str(z["key"])
+    (photos / "c.jpg").write_text("not an image")
+    bad = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "bad"), "--photos", str(photos)])
+    assert bad.exit_code == 2 and "c.jpg" in bad.output, bad.output
+    gone = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "gone"), "--photos", str(tmp_path / "none")])
+    assert gone.exit_code != 0 and "none" in gone.output, gone.output
+    assert not (tmp_path / "bad" / "detail.npz").exists() and not (tmp_path / "gone" / "detail.npz").exists()

@@ -44,6 +44,10 @@ def train(
             "at its own edges ('own', as the first shipped weights).",
         ),
     ] = "frame",
+    photos: Annotated[
+        Path | None,
+        typer.Option("--photos", help="Folder of clean photographs, each also degraded in every part's water."),
+    ] = None,
     seed: Annotated[int, typer.Option("--seed", help="Seed of the scenes and the training.")] = 7,
     quiet: QuietOpt = False,
 ) -> None:
@@ -59,6 +63,7 @@ def train(
             configs=config_files,
             stages=None if stages is None else stages.split(","),
             eq1_share=eq1_share,
+            photos=photos,
             base=base,
             scenes=scenes,
             settings=settings,

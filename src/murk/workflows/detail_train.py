@@ -10,6 +10,12 @@ chunk)``. The base method (``lite`` by default) restores every degraded scene; i
 are the sample, kept in ``OUT/samples.npz`` for a second run with the same settings. An ``eq1_share`` outside [0, 1] is
 refused (ValueError).
 
+With ``photos`` (a folder of clean in-air photographs, CC BY / CC0 or whatever their licence allows to ship) every
+photograph is also a sample in every part's water: centre-cropped and resized to the scenes' size, balanced as they
+are, given the layout prior's distance (:mod:`murk.io.distance_prior`), degraded with each part's synthesis (seeded
+``derive_seed(seed, "detail-photos", part index)``) and restored by the base. Real content teaches the network that
+the fine texture of a photograph is not snow (docs/train.md: +0.15 dB after the fit on held-out photographs).
+
 ``OUT`` receives ``detail.npz`` (the network; its ``meta`` holds the settings and counts), ``log.jsonl`` (both
 losses every ``log_every`` steps) and ``samples.npz``.
 """
@@ -98,12 +104,69 @@ def make_detail_samples(
     )
 
 
+def load_photos(folder: Path, *, seed: int) -> tuple[np.ndarray, np.ndarray, list[Path]]:
+    """``(clean (N, H, W, 3), distance_m (N, H, W), files)`` of the photographs in ``folder`` at the scenes'
+    size, balanced at 0.5 % / 0.5 % as the scenes are, with the layout prior's distance (seeded per photograph).
+
+    Raises:
+        ValueError: no photograph in ``folder``, or one that cannot be read (named, with its problem).
+        InputFileError: ``folder`` does not exist.
+    """
+    from murk.io.pairs import DepthOptions, discover, load_pair
+    from murk.restore_ops.balance import color_balance
+    from murk.rng import derive_seed
+    from murk.synth.common import fit_size
+
+    sources, problems = discover(folder, "layout")
+    if problems:
+        raise ValueError(f"photos: {problems[0].input}: {problems[0].error}")
+    if not sources:
+        raise ValueError(f"photos: no photograph in {folder}")
+    cleans, dists, names = [], [], []
+    for k, src in enumerate(sources):
+        try:
+            rgb, dist, valid = load_pair(
+                src, DepthOptions(depth_from="layout", layout_seed=derive_seed(seed, "photo", k))
+            )
+        except (OSError, ValueError) as exc:
+            raise ValueError(f"photos: {src.rgb_path}: {exc}") from None
+        rgb, dist, _ = fit_size(rgb, dist, valid, (SCENE_HW[1], SCENE_HW[0]))
+        cleans.append(color_balance(rgb, 0.5, 0.5))
+        dists.append(dist)
+        names.append(Path(src.rgb_path))
+    return np.stack(cleans).astype(np.float32), np.stack(dists).astype(np.float32), names
+
+
+def make_photo_samples(
+    clean: np.ndarray, distance_m: np.ndarray, waters: Sequence[Any], *, seed: int, restorer: Any
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(restored, clean)``: each photograph (:func:`load_photos`) degraded by each of ``waters`` (syntheses) and
+    restored by ``restorer``, ``len(waters) x N`` of them, water by water."""
+    import torch
+
+    from murk.rng import derive_seed
+    from murk.train.data import OnlineDegrader
+
+    rgb, dist = torch.from_numpy(clean).permute(0, 3, 1, 2), torch.from_numpy(distance_m)[:, None]
+    restored = []
+    for w, synthesis in enumerate(waters):
+        degraded = OnlineDegrader(synthesis, seed=derive_seed(seed, "detail-photos", w))(
+            rgb, dist, 0, list(range(len(clean)))
+        )
+        degraded_np = degraded.clamp(0.0, 1.0).permute(0, 2, 3, 1).numpy().astype(np.float32)
+        restored += [
+            np.clip(restorer.restore(degraded_np[i : i + 8]).images, 0.0, 1.0) for i in range(0, len(clean), 8)
+        ]
+    return np.concatenate(restored).astype(np.float32), np.concatenate([clean] * len(waters))
+
+
 def train_detail(
     out: Path,
     *,
     configs: Sequence[Path],
     stages: Sequence[str] | None = None,
     eq1_share: float = 0.0,
+    photos: Path | None = None,
     base: str = "lite",
     scenes: int = 1000,
     settings: DetailTrainSettings | None = None,
@@ -111,10 +174,11 @@ def train_detail(
     progress: Callable[[str], None] | None = None,
 ) -> TrainResult:
     """Make (or read back) the samples of the water of ``configs`` (their ``data.synthesis``, with ``stages`` instead
-    of theirs when given; ``eq1_share`` of them by Eq. (1) alone), learn, write ``OUT/detail.npz`` and
-    ``OUT/log.jsonl``; ``progress`` hears each step of it.
-    Refuses (ValueError) fewer than 10 scenes, no config, a bad config or stage, an ``eq1_share`` outside [0, 1], a
-    ``detail.npz`` already in ``out`` and a bad base method; an ``out`` that cannot be made raises OSError."""
+    of theirs when given; ``eq1_share`` of them by Eq. (1) alone; with ``photos``, the photographs in every part's
+    water too), learn, write ``OUT/detail.npz`` and ``OUT/log.jsonl``; ``progress`` hears each step of it. Refuses
+    (ValueError) fewer than 10 scenes, no config, a bad config or stage, an ``eq1_share`` outside [0, 1], a
+    ``detail.npz`` already in ``out``, a bad base method and a photograph that cannot be read; an ``out`` that cannot
+    be made raises OSError."""
     from murk._config import load_yaml, merge
     from murk.enhance.restorer import create
     from murk.train.config import TrainConfig
@@ -131,13 +195,24 @@ def train_detail(
     started = time.perf_counter()
     restorer = create(base)
     made_by = {"base": base, **base_fingerprint(restorer)}
-    key = json.dumps({"seed": seed, **made_by, "parts": [[repr(s), n] for s, n in parts]})
+    photo_set = None if photos is None else load_photos(photos, seed=seed)
+    photo_files = [[f.name, f.stat().st_size] for f in ([] if photo_set is None else photo_set[2])]
+    key = json.dumps({"seed": seed, **made_by, "parts": [[repr(s), n] for s, n in parts], "photos": photo_files})
 
     def make() -> dict[str, np.ndarray]:
         made = make_detail_samples(
             parts, seed=seed, restorer=restorer, progress=lambda n: say(f"samples: {n} of {scenes}")
         )
-        return {"restored": made.restored, "clean": made.clean}
+        if photo_set is None:
+            return {"restored": made.restored, "clean": made.clean}
+        shot, shot_clean = make_photo_samples(
+            photo_set[0], photo_set[1], [w for w, _ in parts], seed=seed, restorer=restorer
+        )
+        say(f"samples: {len(shot)} from {len(photo_files)} photographs")
+        return {
+            "restored": np.concatenate([made.restored, shot]),
+            "clean": np.concatenate([made.clean, shot_clean]),
+        }
 
     arrays = cached_samples(out / "samples.npz", key, make, say)
     samples = DetailSamples(arrays["restored"], arrays["clean"])
@@ -150,6 +225,7 @@ def train_detail(
         "eq1_share": eq1_share,
         "parts": [{"stages": list(s.stages), "scenes": n} for s, n in parts],
         "scenes": scenes,
+        "photos": None if photos is None else {"folder": str(photos), "files": photo_files},
         "seed": seed,
         **made_by,
         "settings": asdict(settings),
