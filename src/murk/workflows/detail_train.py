@@ -110,16 +110,15 @@ def load_photos(folder: Path, *, seed: int) -> tuple[np.ndarray, np.ndarray, lis
 
     Raises:
         ValueError: no photograph in ``folder``, or one that cannot be read (named, with its problem).
-        InputFileError: ``folder`` does not exist.
+        InputFileError: ``folder`` does not exist, or two of its files share a stem (as ``murk train --photos``).
     """
-    from murk.io.pairs import DepthOptions, discover, load_pair
+    from murk.io.pairs import DepthOptions, load_pair
     from murk.restore_ops.balance import color_balance
     from murk.rng import derive_seed
     from murk.synth.common import fit_size
+    from murk.train.data import rgbd_sources
 
-    sources, problems = discover(folder, "layout")
-    if problems:
-        raise ValueError(f"photos: {problems[0].input}: {problems[0].error}")
+    sources = rgbd_sources(folder, "layout")
     if not sources:
         raise ValueError(f"photos: no photograph in {folder}")
     cleans, dists, names = [], [], []
