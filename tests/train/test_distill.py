@@ -67,3 +67,54 @@ def test_murk_train_with_a_teacher_logs_the_distill_term(tmp_path: Path) -> None
     recs = [json.loads(line) for line in (run / "log.jsonl").read_text().splitlines()]
     distill = [rec["distill"] for rec in recs if rec.get("kind") == "train"]
     assert len(distill) == 2 and all(math.isfinite(v) and v > 0 for v in distill)
+
+
+def test_a_method_teacher_is_named_by_its_spec() -> None:
+    LossWeights(distill=1.0, teacher="method:water?strength=0.5")  # the method is built when training starts
+    for bad in ("method:", "method: ", "methods:water"):
+        with pytest.raises(ValueError, match="method:SPEC"):
+            LossWeights(distill=1.0, teacher=bad)
+
+
+def test_the_method_teacher_restores_as_the_method_does() -> None:
+    from murk.enhance.restorer import create
+    from murk.train.config import TrainConfig
+    from murk.workflows.distill import MethodTeacher, method_teacher
+
+    x = torch.rand(2, 3, 40, 56, generator=torch.Generator().manual_seed(5))
+    teacher = method_teacher(TrainConfig(loss=LossWeights(distill=1.0, teacher="method:colorbalance?low=2")))
+    assert isinstance(teacher, MethodTeacher)
+    ref = create("colorbalance?low=2").restore(x.permute(0, 2, 3, 1).numpy()).images
+    got = teacher(x)
+    assert got.shape == x.shape and not got.requires_grad
+    assert torch.allclose(got.permute(0, 2, 3, 1), torch.from_numpy(ref), atol=1e-6)
+    assert not torch.allclose(got, x, atol=1e-2)  # the balance changed the input
+    # a network teacher, or no distillation: training loads its own teacher (or none)
+    assert method_teacher(TrainConfig(loss=LossWeights(distill=1.0, teacher="lite"))) is None
+    assert method_teacher(TrainConfig(loss=LossWeights(teacher="method:water"))) is None
+
+
+def test_the_training_loop_alone_refuses_a_method_teacher_before_writing_anything(tmp_path: Path) -> None:
+    from murk.train.config import TrainConfig
+    from murk.train.loop import train
+
+    config = TrainConfig(loss=LossWeights(distill=1.0, teacher="method:water"), out=str(tmp_path / "run"))
+    with pytest.raises(ValueError, match=r"method:water is a restoration method.*murk\.workflows\.distill"):
+        train(config)
+    assert not (tmp_path / "run").exists()
+
+
+def test_murk_train_with_a_method_teacher_logs_the_distill_term(tmp_path: Path) -> None:
+    cfg = {
+        "model": {"kind": "lite", "variant": "base"},
+        "data": {"source": "scenes", "scenes_count": 4, "crop_hw": [32, 64], "workers": 0, "val_fraction": 0.25},
+        "loss": {"distill": 1.0, "teacher": "method:colorbalance"},
+        "eval": {"every": 4, "val_batches": 1, "real": None},
+        "steps": 4,
+        "batch": 2,
+        "log_every": 2,
+    }
+    run = train_cli(tmp_path, cfg)
+    recs = [json.loads(line) for line in (run / "log.jsonl").read_text().splitlines()]
+    distill = [rec["distill"] for rec in recs if rec.get("kind") == "train"]
+    assert len(distill) == 2 and all(math.isfinite(v) and v > 0 for v in distill)

@@ -92,7 +92,7 @@ def train(
             shown = "  ".join(f"{k} {v:.4g}" for k, v in rec.items() if k not in ("kind", "step") and v is not None)
             console.print(f"eval @ {rec['step']}: {shown}", highlight=False)
 
-    from murk.train.loop import train as run_train  # torch
+    from murk.workflows.distill import train_network as run_train  # torch
 
     summary = run_train(config, resume=resume, stop_after=stop_after, on_log=on_log)
     detail = (

@@ -44,8 +44,9 @@ class LossWeights:
     distill * L2_teacher)``. 0: the original loss."""
     teacher: str | None = None
     """The teacher of ``distill``: ``lite`` or ``jointid`` (the shipped weights) or ``lite:PATH`` /
-    ``jointid:PATH`` (a checkpoint). It restores each training input (after augmentation) without gradient, with
-    its own input balance."""
+    ``jointid:PATH`` (a checkpoint), or ``method:SPEC``, any restoration method as ``murk enhance --method`` takes it
+    (``method:water``; run by :mod:`murk.workflows.distill`, which ``murk train`` calls). It restores each training
+    input (after augmentation) without gradient, with its own input balance."""
     local: float = 0.0
     """Weight of the local term inside the enhancement term: the row-wise L2 left after the output's best gain and
     offset per image and channel onto the clean scene (:func:`murk.train.losses.local_l2`), i.e. the error no
@@ -58,10 +59,10 @@ class LossWeights:
         check_range("distill", self.distill, 0.0, 1e6)
         check_range("local", self.local, 0.0, 1e6)
         if self.distill > 0:
-            kind = (self.teacher or "").split(":", 1)[0]
-            if kind not in ("lite", "jointid"):
+            kind, _, rest = (self.teacher or "").partition(":")
+            if kind not in ("lite", "jointid", "method") or (kind == "method" and not rest.strip()):
                 raise ValueError(
-                    f"teacher: expected lite, jointid, lite:PATH or jointid:PATH with loss.distill > 0, "
+                    f"teacher: expected lite, jointid, lite:PATH, jointid:PATH or method:SPEC with loss.distill > 0, "
                     f"got {self.teacher!r}"
                 )
 

@@ -129,6 +129,7 @@ def train(
     resume: bool = False,
     stop_after: int | None = None,
     on_log: Callable[[dict[str, Any]], None] | None = None,
+    method_teacher: torch.nn.Module | None = None,
 ) -> TrainSummary:
     """Train the network of ``config.model`` (Joint-ID, or ``lite``: see :mod:`murk.train.networks`) as
     ``config`` says. Under ``torchrun`` (``WORLD_SIZE`` > 1) it runs DDP: gloo on CPU, NCCL on CUDA, each process
@@ -139,8 +140,14 @@ def train(
         resume: continue from ``<out>/latest.pt`` (bit-exact on the CPU).
         stop_after: stop after this many steps in this invocation (a time-boxed job; resume later).
         on_log: called with every log record (the CLI prints progress with it).
+        method_teacher: the teacher of ``loss.teacher: method:SPEC``, a module that maps a batch (B, 3, H, W) in
+            [0, 1] to the method's restoration (built by :mod:`murk.workflows.distill`, since this layer does not
+            run restoration methods).
+
+    Raises:
+        ValueError: ``loss.teacher`` names a method and no ``method_teacher`` was given.
     """
-    run = _set_up(config, resume=resume, stop_after=stop_after, on_log=on_log)
+    run = _set_up(config, resume=resume, stop_after=stop_after, on_log=on_log, method_teacher=method_teacher)
     clock = _Throughput()
     batches = _batches_from(run, run.start)
     run.net.train()
@@ -191,13 +198,17 @@ class _Run:
 
 
 def _set_up(
-    config: TrainConfig, *, resume: bool, stop_after: int | None, on_log: Callable[[dict[str, Any]], None] | None
+    config: TrainConfig,
+    *,
+    resume: bool,
+    stop_after: int | None,
+    on_log: Callable[[dict[str, Any]], None] | None,
+    method_teacher: torch.nn.Module | None,
 ) -> _Run:
     """Everything before the first step: process and device, data, run folder, model, optimiser, the state of a
     resumed run, the summary and the error log."""
-    from murk.train.networks import load_teacher
-
     rt = init_runtime(config.device)
+    teacher = _teacher(config, rt.device, method_teacher)  # a method without its module stops here, before any file
     out = Path(config.out)
     check_run_folder(out, config, resume=resume)
     data = _training_data(config)  # a bad source or snow bank stops here, before anything is written
@@ -209,7 +220,6 @@ def _set_up(
     n_train = len(cast(Sized, data.train))  # every training set has a length; torch's Dataset does not declare it
     spe, total, schedule = plan_steps(config, n_train, rt.world)
     model = build_model(config, rt.device)
-    teacher = load_teacher(config.loss.teacher, rt.device) if config.loss.distill > 0 and config.loss.teacher else None
     optim = build_optimiser(config, model, schedule.lr(0), rt.device)
     start, best = resume_state(out / "latest.pt", config, model, optim, rt.device) if resume else (0, {})
     net = _wrap(model, config, rt)
@@ -243,6 +253,25 @@ def _set_up(
         logger=logger,
         on_log=on_log,
     )
+
+
+def _teacher(
+    config: TrainConfig, device: torch.device, method_teacher: torch.nn.Module | None
+) -> tuple[str, torch.nn.Module] | None:
+    """``(kind, module)`` of the distillation teacher, or None when the run does not distil."""
+    from murk.train.networks import load_teacher
+
+    spec = config.loss.teacher
+    if config.loss.distill <= 0 or not spec:
+        return None
+    if spec.startswith("method:"):
+        if method_teacher is None:
+            raise ValueError(
+                f"teacher: {spec} is a restoration method; murk train (murk.workflows.distill.train_network) runs it, "
+                f"murk.train.loop.train needs its module as method_teacher"
+            )
+        return "method", method_teacher
+    return load_teacher(spec, device)
 
 
 def _training_data(config: TrainConfig) -> DataSetup:
@@ -337,8 +366,11 @@ def _loss(run: _Run, batch: _StepBatch) -> LossTerms:
     if run.teacher is not None:
         with torch.no_grad():
             t_kind, t_net = run.teacher
-            balance = getattr(t_net, "input_balance_pct", None)
-            taught = run_network(t_kind, t_net, batch.inputs, balance)[0].float().clamp(0.0, 1.0)
+            if t_kind == "method":  # the method takes the raw input and balances it itself, if it does
+                taught = t_net(batch.inputs).float().clamp(0.0, 1.0)
+            else:
+                balance = getattr(t_net, "input_balance_pct", None)
+                taught = run_network(t_kind, t_net, batch.inputs, balance)[0].float().clamp(0.0, 1.0)
     return jointid_loss(
         enhanced.float(),
         batch.targets,
