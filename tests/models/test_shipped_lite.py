@@ -16,8 +16,9 @@ def test_shipped_lite_file_is_small_safe_and_documented() -> None:
     assert path.is_file() and path.stat().st_size <= 1 * 2**20
     obj = torch.load(path, weights_only=True)
     assert obj["meta"]["command"].startswith("murk train --config configs/train-lite-cpu.yaml")
-    assert "configs/train-lite-mild-cpu.yaml" in obj["meta"]["command"]  # the last stage, config in the repo
-    assert obj["meta"]["steps"] == 11500 and obj["meta"]["input_balance_pct"] == 1.0  # issue 27: stage 4, milder water
+    assert "configs/train-lite-mild-cpu.yaml" in obj["meta"]["command"]  # milder water (issue 27)
+    assert "configs/train-lite-water-cpu.yaml" in obj["meta"]["command"]  # the last stage (issue 46)
+    assert obj["meta"]["steps"] == 13000 and obj["meta"]["input_balance_pct"] == 1.0
 
 
 def test_shipped_lite_restores_heldout_scenes_and_keeps_real_images_sane() -> None:

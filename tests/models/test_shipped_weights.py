@@ -82,6 +82,7 @@ def test_recorded_run_configs_equal_the_shipped_configs() -> None:
         "configs/train-small-distill-cpu.yaml": "docs/models/jointid-small-distill-config.yaml",
         "configs/train-lite-mild-cpu.yaml": "docs/models/lite-mild-config.yaml",
         "configs/train-small-depthhead-cpu.yaml": "docs/models/jointid-small-depthhead-config.yaml",
+        "configs/train-lite-water-cpu.yaml": "docs/models/lite-water-config.yaml",
     }
     # Stage 6 ran from the files of that day (the head from the then-shipped stage-5 file, the distillation from the
     # head's first run); the shipped configs name where a reproduction finds them (docs/models.md, "Stage 6").
