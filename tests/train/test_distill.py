@@ -71,27 +71,50 @@ def test_murk_train_with_a_teacher_logs_the_distill_term(tmp_path: Path) -> None
 
 def test_a_method_teacher_is_named_by_its_spec() -> None:
     LossWeights(distill=1.0, teacher="method:water?strength=0.5")  # the method is built when training starts
-    for bad in ("method:", "method: ", "methods:water"):
+    for bad in ("method:", "method: ", "method: water", "methods:water"):
         with pytest.raises(ValueError, match="method:SPEC"):
             LossWeights(distill=1.0, teacher=bad)
 
 
-def test_the_method_teacher_restores_as_the_method_does() -> None:
+def test_the_method_teacher_restores_as_the_method_does_on_the_device_it_is_given() -> None:
     from murk.enhance.restorer import create
     from murk.train.config import TrainConfig
     from murk.workflows.distill import MethodTeacher, method_teacher
 
-    x = torch.rand(2, 3, 40, 56, generator=torch.Generator().manual_seed(5))
-    teacher = method_teacher(TrainConfig(loss=LossWeights(distill=1.0, teacher="method:colorbalance?low=2")))
-    assert isinstance(teacher, MethodTeacher)
-    ref = create("colorbalance?low=2").restore(x.permute(0, 2, 3, 1).numpy()).images
+    x = torch.rand(2, 3, 40, 56, generator=torch.Generator().manual_seed(5)).requires_grad_(True)
+    build = method_teacher(TrainConfig(loss=LossWeights(distill=1.0, teacher="method:colorbalance?low=2")))
+    assert build is not None
+    teacher = build(torch.device("cpu"))
+    assert isinstance(teacher, MethodTeacher) and teacher.restorer.device == torch.device("cpu")
+    ref = create("colorbalance?low=2").restore(x.detach().permute(0, 2, 3, 1).numpy()).images
     got = teacher(x)
-    assert got.shape == x.shape and not got.requires_grad
+    assert got.shape == x.shape and not got.requires_grad  # no gradient flows into the teacher
     assert torch.allclose(got.permute(0, 2, 3, 1), torch.from_numpy(ref), atol=1e-6)
     assert not torch.allclose(got, x, atol=1e-2)  # the balance changed the input
+    # a network method is built on the device given (under torchrun: each rank's own), not the config's
+    assert build_device_of("method:lite", "cpu:0") == torch.device("cpu:0") != torch.device("cpu")
     # a network teacher, or no distillation: training loads its own teacher (or none)
     assert method_teacher(TrainConfig(loss=LossWeights(distill=1.0, teacher="lite"))) is None
     assert method_teacher(TrainConfig(loss=LossWeights(teacher="method:water"))) is None
+
+
+def build_device_of(spec: str, device: str) -> torch.device:
+    from murk.train.config import TrainConfig
+    from murk.workflows.distill import method_teacher
+
+    build = method_teacher(TrainConfig(loss=LossWeights(distill=1.0, teacher=spec)))
+    assert build is not None
+    return torch.device(build(torch.device(device)).restorer.device)
+
+
+def test_an_unknown_method_teacher_is_named_as_loss_teacher_before_anything_is_built() -> None:
+    from murk.train.config import TrainConfig
+    from murk.workflows.distill import method_teacher
+
+    with pytest.raises(ValueError, match=r"loss\.teacher: method:nosuch: .*unknown 'nosuch'"):
+        method_teacher(TrainConfig(loss=LossWeights(distill=1.0, teacher="method:nosuch")))
+    with pytest.raises(ValueError, match=r"loss\.teacher: method:water\?strenght=1: .*strength"):
+        method_teacher(TrainConfig(loss=LossWeights(distill=1.0, teacher="method:water?strenght=1")))
 
 
 def test_the_training_loop_alone_refuses_a_method_teacher_before_writing_anything(tmp_path: Path) -> None:

@@ -60,7 +60,7 @@ class LossWeights:
         check_range("local", self.local, 0.0, 1e6)
         if self.distill > 0:
             kind, _, rest = (self.teacher or "").partition(":")
-            if kind not in ("lite", "jointid", "method") or (kind == "method" and not rest.strip()):
+            if kind not in ("lite", "jointid", "method") or (kind == "method" and (not rest or rest != rest.strip())):
                 raise ValueError(
                     f"teacher: expected lite, jointid, lite:PATH, jointid:PATH or method:SPEC with loss.distill > 0, "
                     f"got {self.teacher!r}"

@@ -129,7 +129,7 @@ def train(
     resume: bool = False,
     stop_after: int | None = None,
     on_log: Callable[[dict[str, Any]], None] | None = None,
-    method_teacher: torch.nn.Module | None = None,
+    method_teacher: Callable[[torch.device], torch.nn.Module] | None = None,
 ) -> TrainSummary:
     """Train the network of ``config.model`` (Joint-ID, or ``lite``: see :mod:`murk.train.networks`) as
     ``config`` says. Under ``torchrun`` (``WORLD_SIZE`` > 1) it runs DDP: gloo on CPU, NCCL on CUDA, each process
@@ -140,9 +140,10 @@ def train(
         resume: continue from ``<out>/latest.pt`` (bit-exact on the CPU).
         stop_after: stop after this many steps in this invocation (a time-boxed job; resume later).
         on_log: called with every log record (the CLI prints progress with it).
-        method_teacher: the teacher of ``loss.teacher: method:SPEC``, a module that maps a batch (B, 3, H, W) in
-            [0, 1] to the method's restoration (built by :mod:`murk.workflows.distill`, since this layer does not
-            run restoration methods).
+        method_teacher: for ``loss.teacher: method:SPEC``, what builds the teacher on this process's device (under
+            ``torchrun``, ``cuda:LOCAL_RANK``): a module that maps a batch (B, 3, H, W) in [0, 1] to the method's
+            restoration (:mod:`murk.workflows.distill` gives it, since this layer does not run restoration
+            methods).
 
     Raises:
         ValueError: ``loss.teacher`` names a method and no ``method_teacher`` was given.
@@ -203,7 +204,7 @@ def _set_up(
     resume: bool,
     stop_after: int | None,
     on_log: Callable[[dict[str, Any]], None] | None,
-    method_teacher: torch.nn.Module | None,
+    method_teacher: Callable[[torch.device], torch.nn.Module] | None,
 ) -> _Run:
     """Everything before the first step: process and device, data, run folder, model, optimiser, the state of a
     resumed run, the summary and the error log."""
@@ -256,7 +257,7 @@ def _set_up(
 
 
 def _teacher(
-    config: TrainConfig, device: torch.device, method_teacher: torch.nn.Module | None
+    config: TrainConfig, device: torch.device, method_teacher: Callable[[torch.device], torch.nn.Module] | None
 ) -> tuple[str, torch.nn.Module] | None:
     """``(kind, module)`` of the distillation teacher, or None when the run does not distil."""
     from murk.train.networks import load_teacher
@@ -268,9 +269,9 @@ def _teacher(
         if method_teacher is None:
             raise ValueError(
                 f"teacher: {spec} is a restoration method; murk train (murk.workflows.distill.train_network) runs it, "
-                f"murk.train.loop.train needs its module as method_teacher"
+                f"murk.train.loop.train needs what builds it as method_teacher"
             )
-        return "method", method_teacher
+        return "method", method_teacher(device)
     return load_teacher(spec, device)
 
 

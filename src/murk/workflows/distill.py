@@ -3,8 +3,13 @@
 ``loss.teacher: method:SPEC`` (with ``loss.distill`` > 0) names a method as ``murk enhance --method`` takes it, for
 example ``method:water``: Joint-ID's distance, the water estimator and the inversion of Eq. (1) together. Training
 (:mod:`murk.train`) sits below the restoration methods (:mod:`murk.enhance`) and does not run them, so this module
-builds the method, wraps it as a module (:class:`MethodTeacher`) and hands it to :func:`murk.train.loop.train`.
-Every other config trains exactly as :func:`murk.train.loop.train` alone would.
+hands :func:`murk.train.loop.train` what builds the method on the process's device (under ``torchrun``, each rank's
+own GPU), wrapped as a module (:class:`MethodTeacher`). Every other config trains exactly as
+:func:`murk.train.loop.train` alone would.
+
+The method is built from the files murk ships at the time of the run (``method:water`` runs the shipped Joint-ID,
+``lite``, and water estimator); neither the run's ``config.yaml`` nor its checkpoints record them, so a run resumed
+after those files changed learns from the new ones, and a rerun needs the commit of the first.
 """
 
 from __future__ import annotations
@@ -36,19 +41,29 @@ class MethodTeacher(torch.nn.Module):
         return out.to(images.device, images.dtype)
 
 
-def method_teacher(config: TrainConfig) -> MethodTeacher | None:
-    """The teacher module of ``loss.teacher: method:SPEC``, built on the run's device; None for any other config
-    (no distillation, or a ``lite`` / ``jointid`` network teacher, which training loads itself).
+def method_teacher(config: TrainConfig) -> Callable[[torch.device], MethodTeacher] | None:
+    """What builds the teacher of ``loss.teacher: method:SPEC`` on a device; None for any other config (no
+    distillation, or a ``lite`` / ``jointid`` network teacher, which training loads itself). SPEC's names and
+    options are checked here, before training starts.
 
     Raises:
-        ValueError: an unknown method or option in SPEC (named by :func:`murk.enhance.restorer.create`).
+        ValueError: an unknown method or option in SPEC, named as ``loss.teacher``'s.
     """
-    from murk.enhance.restorer import create
+    from murk.enhance.restorer import check, create
 
     spec = config.loss.teacher or ""
     if config.loss.distill <= 0 or not spec.startswith(METHOD_PREFIX):
         return None
-    return MethodTeacher(create(spec[len(METHOD_PREFIX) :], shared={"device": config.device}))
+    method = spec[len(METHOD_PREFIX) :]
+    try:
+        check(method, shared={"device": config.device})
+    except ValueError as exc:
+        raise ValueError(f"loss.teacher: {spec}: {exc}") from exc
+
+    def build(device: torch.device) -> MethodTeacher:
+        return MethodTeacher(create(method, shared={"device": str(device)}))
+
+    return build
 
 
 def train_network(
