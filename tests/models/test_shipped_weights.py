@@ -31,6 +31,8 @@ def test_shipped_file_is_small_safe_and_the_small_variant() -> None:
     assert "murk train --config configs/train-small-distill-cpu.yaml" in obj["meta"]["command"]  # stage 6: all
     assert "murk train --config configs/train-small-depthhead-cpu.yaml" in obj["meta"]["command"]  # stage 7: depth
     assert obj["meta"]["stage7"]["trainable"] == "depth_head"
+    assert "murk train --config configs/train-small-water-head-cpu.yaml" in obj["meta"]["command"]  # stage 8: colour
+    assert obj["meta"]["stage8"]["trainable"] == "colour_head" and obj["meta"]["stage8"]["teacher"] == "method:water"
     assert obj["meta"]["input_balance_pct"] == 1.0
 
 
@@ -83,6 +85,7 @@ def test_recorded_run_configs_equal_the_shipped_configs() -> None:
         "configs/train-lite-mild-cpu.yaml": "docs/models/lite-mild-config.yaml",
         "configs/train-small-depthhead-cpu.yaml": "docs/models/jointid-small-depthhead-config.yaml",
         "configs/train-lite-water-cpu.yaml": "docs/models/lite-water-config.yaml",
+        "configs/train-small-water-head-cpu.yaml": "docs/models/jointid-small-water-head-config.yaml",
     }
     # Stage 6 ran from the files of that day (the head from the then-shipped stage-5 file, the distillation from the
     # head's first run); the shipped configs name where a reproduction finds them (docs/models.md, "Stage 6").
@@ -96,6 +99,10 @@ def test_recorded_run_configs_equal_the_shipped_configs() -> None:
         "configs/train-small-depthhead-cpu.yaml": (
             "src/murk/data/models/jointid-small.pt",
             "runs/jointid-small-stage6.pt",
+        ),
+        "configs/train-small-water-head-cpu.yaml": (
+            "src/murk/data/models/jointid-small.pt",
+            "runs/jointid-small-stage7.pt",
         ),
     }
     # Stage 6's teacher was the `lite` shipped that day (stage 4), which lite's stage 5 has since replaced.
