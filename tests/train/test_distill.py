@@ -53,11 +53,16 @@ def test_the_shipped_lite_teacher_restores_like_its_restorer() -> None:
     assert float((got[0].permute(1, 2, 0) - torch.from_numpy(ref).clamp(0, 1)).abs().max()) < 2e-3
 
 
-def test_murk_train_with_a_teacher_logs_the_distill_term(tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    ("model", "teacher"),
+    [({"variant": "tiny"}, "lite"), ({"kind": "lite", "variant": "base"}, "method:colorbalance")],
+    ids=["network-teacher", "method-teacher"],
+)
+def test_murk_train_with_a_teacher_logs_the_distill_term(tmp_path: Path, model: dict, teacher: str) -> None:
     cfg = {
-        "model": {"variant": "tiny"},
+        "model": model,
         "data": {"source": "scenes", "scenes_count": 4, "crop_hw": [32, 64], "workers": 0, "val_fraction": 0.25},
-        "loss": {"distill": 1.0, "teacher": "lite"},
+        "loss": {"distill": 1.0, "teacher": teacher},
         "eval": {"every": 4, "val_batches": 1, "real": None},
         "steps": 4,
         "batch": 2,
@@ -125,19 +130,3 @@ def test_the_training_loop_alone_refuses_a_method_teacher_before_writing_anythin
     with pytest.raises(ValueError, match=r"method:water is a restoration method.*murk\.workflows\.distill"):
         train(config)
     assert not (tmp_path / "run").exists()
-
-
-def test_murk_train_with_a_method_teacher_logs_the_distill_term(tmp_path: Path) -> None:
-    cfg = {
-        "model": {"kind": "lite", "variant": "base"},
-        "data": {"source": "scenes", "scenes_count": 4, "crop_hw": [32, 64], "workers": 0, "val_fraction": 0.25},
-        "loss": {"distill": 1.0, "teacher": "method:colorbalance"},
-        "eval": {"every": 4, "val_batches": 1, "real": None},
-        "steps": 4,
-        "batch": 2,
-        "log_every": 2,
-    }
-    run = train_cli(tmp_path, cfg)
-    recs = [json.loads(line) for line in (run / "log.jsonl").read_text().splitlines()]
-    distill = [rec["distill"] for rec in recs if rec.get("kind") == "train"]
-    assert len(distill) == 2 and all(math.isfinite(v) and v > 0 for v in distill)
