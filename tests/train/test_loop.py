@@ -5,6 +5,7 @@ import os
 import socket
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -219,17 +220,24 @@ def test_scenes_source_trains_and_matches_murk_scenes(tmp_path: Path) -> None:
     assert summary.steps_done == 2 and "val_psnr" in summary.last_eval
 
 
-def test_depth_head_parameters_feed_only_the_depth_output() -> None:
-    from murk.models.jointid import build_jointid, depth_head_parameter_names
+@pytest.mark.parametrize("head", ["depth", "enhance"])
+def test_head_parameters_feed_only_their_own_output(head: str) -> None:
+    from murk.models.jointid import VARIANTS, JointID, depth_head_parameter_names, enhance_head_parameter_names
 
     torch.manual_seed(0)
-    model = build_jointid("tiny")
-    model(torch.rand(1, 3, 32, 64)).enhanced.mean().backward()
-    head = set(depth_head_parameter_names(model))
-    assert head and all(model.get_parameter(n).grad is None for n in head)
+    model = JointID(replace(VARIANTS["tiny"], global_colour=True))
+    names = (depth_head_parameter_names if head == "depth" else enhance_head_parameter_names)(model)
+    own, other = ("depth_m", "enhanced") if head == "depth" else ("enhanced", "depth_m")
+    getattr(model(torch.rand(1, 3, 32, 64)), other).mean().backward()
+    assert names and all(model.get_parameter(n).grad is None for n in names)
     model.zero_grad(set_to_none=True)
-    model(torch.rand(1, 3, 32, 64)).depth_m.mean().backward()
-    assert all(model.get_parameter(n).grad is not None for n in head)
+    getattr(model(torch.rand(1, 3, 32, 64)), own).mean().backward()
+    assert all(model.get_parameter(n).grad is not None for n in names)
+    if head == "enhance":  # every other parameter reaches the depth map, so the set is as large as it can be
+        rest = {n for n, p in model.named_parameters() if n not in names and ".norm_layer_2." not in n}
+        model.zero_grad(set_to_none=True)
+        model(torch.rand(1, 3, 32, 64)).depth_m.mean().backward()
+        assert all(model.get_parameter(n).grad is not None for n in rest)
 
 
 def test_trainable_depth_head_changes_depth_and_leaves_the_enhanced_image_exact(
@@ -259,11 +267,41 @@ def test_trainable_depth_head_changes_depth_and_leaves_the_enhanced_image_exact(
     assert not torch.equal(ob.depth_m, oa.depth_m)
 
 
-def test_trainable_depth_head_needs_a_checkpoint_and_a_jointid() -> None:
+def test_trainable_enhance_head_changes_the_image_and_leaves_depth_exact(synth_folder: Path, tmp_path: Path) -> None:
+    from murk.models.jointid import build_jointid, save_checkpoint
+
+    torch.manual_seed(5)
+    start = tmp_path / "start.pt"
+    save_checkpoint(build_jointid("tiny"), start)
+    cfg = _config(
+        tmp_path / "run",
+        synth_folder,
+        steps=4,
+        model={"variant": "tiny", "init_checkpoint": str(start), "trainable": "enhance_head"},
+        optim={"lr": 1e-2, "min_lr": 1e-2},
+    )
+    train(cfg)
+    before, after = load_checkpoint(start), load_checkpoint(tmp_path / "run" / "latest.pt")
+    a, b = _params(start), _params(tmp_path / "run" / "latest.pt")
+    changed = {k for k in a if not torch.equal(a[k], b[k])}
+    assert changed and all(
+        k.startswith(("enhanced_structure.decoder.up_skip_conv", "enhanced_structure.decoder.linear_pred1"))
+        or k.startswith("decoder_eh_joint_block_4.")
+        for k in changed
+    )
+    x = torch.rand(2, 3, 32, 64)
+    with torch.no_grad():
+        ob, oa = before(x), after(x)
+    assert torch.equal(ob.depth_m, oa.depth_m)
+    assert not torch.equal(ob.enhanced, oa.enhanced)
+
+
+@pytest.mark.parametrize("head", ["depth_head", "enhance_head"])
+def test_trainable_heads_need_a_checkpoint_and_a_jointid(head: str) -> None:
     with pytest.raises(ValueError, match="init_checkpoint"):
-        merge(TrainConfig(), {"model": {"trainable": "depth_head"}})
+        merge(TrainConfig(), {"model": {"trainable": head}})
     with pytest.raises(ValueError, match="jointid only"):
-        merge(TrainConfig(), {"model": {"kind": "lite", "trainable": "depth_head", "init_checkpoint": "x.pt"}})
+        merge(TrainConfig(), {"model": {"kind": "lite", "trainable": head, "init_checkpoint": "x.pt"}})
 
 
 def test_colour_head_trains_alone_on_weights_saved_without_it(synth_folder: Path, tmp_path: Path) -> None:

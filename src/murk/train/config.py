@@ -84,12 +84,16 @@ class ModelConfig:
     trust_checkpoint: bool = False
     """Load ``init_checkpoint`` (and a resumed ``latest.pt``) even when it pickles objects other than tensors and
     plain data (``torch.load(weights_only=False)``: runs code from the file; only for files you trust)."""
-    trainable: Literal["all", "depth_head", "colour_head"] = "all"
+    trainable: Literal["all", "depth_head", "enhance_head", "colour_head"] = "all"
     """``all``, or ``depth_head``: train only the depth decoder's skip convolutions and head
     (:func:`murk.models.jointid.depth_head_parameter_names`), the parameters that feed nothing but the depth
     output, so the enhanced image of ``init_checkpoint`` stays exactly as it was (jointid only; needs
-    ``init_checkpoint``), or ``colour_head``: train only the global colour head (needs ``global_colour`` and
-    ``init_checkpoint``; the rest of the network stays as it was)."""
+    ``init_checkpoint``), or ``enhance_head``: the mirror image, train only the parameters that feed nothing but
+    the enhanced image (:func:`murk.models.jointid.enhance_head_parameter_names`: the enhancement decoder's skip
+    convolutions and head, its finest joint block, the global colour head), so the depth map of
+    ``init_checkpoint`` stays exactly as it was (jointid only; needs ``init_checkpoint``), or ``colour_head``:
+    train only the global colour head (needs ``global_colour`` and ``init_checkpoint``; the rest of the network
+    stays as it was)."""
     global_colour: bool = False
     """jointid: add murk's global colour head (:class:`murk.models.jointid.network.GlobalColourHead`): a per-image,
     per-channel gain and offset of the output logits from pooled features. It starts at identity, so
@@ -115,7 +119,7 @@ class ModelConfig:
                 raise ValueError("global_colour: applies to model.kind jointid only")
         if self.input_balance_pct is not None:
             check_range("input_balance_pct", self.input_balance_pct, 0.0, 49.0)
-        if self.trainable in ("depth_head", "colour_head") and not self.init_checkpoint:
+        if self.trainable != "all" and not self.init_checkpoint:
             raise ValueError(
                 f"trainable: {self.trainable} trains one head of existing weights; set model.init_checkpoint"
             )

@@ -117,11 +117,16 @@ def frozen_parameter_names(kind: str, model: nn.Module) -> list[str]:
 
 
 def trainable_parameter_names(config: ModelConfig, model: nn.Module) -> set[str]:
-    """The parameters ``config.trainable`` lets the optimiser change: all, the depth head's or the colour head's."""
+    """The parameters ``config.trainable`` lets the optimiser change: all, the depth head's, the enhancement head's
+    or the colour head's."""
     if config.trainable == "depth_head":
         from murk.models.jointid import depth_head_parameter_names
 
         return set(depth_head_parameter_names(model))
+    if config.trainable == "enhance_head":
+        from murk.models.jointid import enhance_head_parameter_names
+
+        return set(enhance_head_parameter_names(model))
     if config.trainable == "colour_head":
         return {n for n, _ in model.named_parameters() if n.startswith("global_colour_head.")}
     return {n for n, _ in model.named_parameters()}

@@ -206,7 +206,7 @@ def plan_steps(config: TrainConfig, n_train: int, world: int) -> tuple[int, int,
 
 def build_model(config: TrainConfig, device: torch.device) -> torch.nn.Module:
     """The network of ``config.model``, seeded by ``config.seed``, on ``device``; checkpoint-only parameters
-    (never used in forward) are frozen, and with ``model.trainable: depth_head`` everything but the depth head."""
+    (never used in forward) are frozen, and with ``model.trainable`` other than ``all`` everything but that head."""
     from murk.train.networks import build_network, frozen_parameter_names, trainable_parameter_names
 
     torch.manual_seed(config.seed)

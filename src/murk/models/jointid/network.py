@@ -269,6 +269,22 @@ def depth_head_parameter_names(model: nn.Module) -> list[str]:
     ]
 
 
+ENHANCE_HEAD_MODULES = (
+    "decoder_eh_joint_block_4",
+    "global_colour_head",
+    *(f"enhanced_structure.decoder.{m}" for m in DEPTH_HEAD_MODULES),
+)
+"""The modules that feed only the enhanced image: the enhancement decoder's skip convolutions and head, the joint
+block of its finest scale (whose output goes only to the skip path) and murk's global colour head. The other
+enhancement modules also reach the depth map, through the ``de`` joint blocks."""
+
+
+def enhance_head_parameter_names(model: nn.Module) -> list[str]:
+    """Names of the parameters that affect the enhanced image and nothing else (:data:`ENHANCE_HEAD_MODULES`).
+    Training only these (``model.trainable: enhance_head``) leaves the depth output unchanged bit for bit."""
+    return [n for n, _ in model.named_parameters() if any(n.startswith(m + ".") for m in ENHANCE_HEAD_MODULES)]
+
+
 def init_weights(model: JointID) -> JointID:
     """Initialise for training from scratch (no pretrained backbone), as the training recipe does.
 
