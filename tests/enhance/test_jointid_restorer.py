@@ -152,10 +152,10 @@ def test_onnx_backend_matches_torch(tmp_path, tiny, tiny_ckpt):
     path = export_onnx(tiny, tmp_path / "tiny.onnx")
     rgb = np.random.default_rng(3).random((2, 45, 70, 3), dtype=np.float32)
     for options in ({}, {"tile": 64, "overlap": 32}):
-        ref = JointIDRestorer(tiny, **options).restore(rgb)  # the network alone (refine 0)
+        ref = JointIDRestorer(tiny, exposure="input", **options).restore(rgb)  # the network alone (refine 0)
         out = create("jointid", checkpoint=path, refine=0.0, lite_blend=0, **options).restore(
             rgb
-        )  # .onnx -> ONNX Runtime
+        )  # .onnx -> ONNX Runtime; the exposure step after the graph, as after the torch network
         np.testing.assert_allclose(out.images, ref.images, rtol=0, atol=2e-5)
         np.testing.assert_allclose(out.depth_m, ref.depth_m, rtol=0, atol=1e-4)
     assert "OnnxJointID" in repr(create("jointid", onnx=path))
@@ -175,7 +175,7 @@ def test_onnx_backend_of_balanced_weights_matches_torch_at_any_size(tmp_path, ti
     path = export_onnx(balanced, tmp_path / "balanced.onnx")
     for hw in ((45, 70), (64, 96)):  # padded and not
         rgb = (0.2 + 0.5 * np.random.default_rng(hw[0]).random((2, *hw, 3))).astype(np.float32)
-        ref = JointIDRestorer(balanced).restore(rgb)
+        ref = JointIDRestorer(balanced, exposure="input").restore(rgb)  # the exposure of the balanced frame
         out = create("jointid", checkpoint=path, refine=0.0, lite_blend=0).restore(rgb)
         np.testing.assert_allclose(out.images, ref.images, rtol=0, atol=2e-5)
         np.testing.assert_allclose(out.depth_m, ref.depth_m, rtol=0, atol=1e-4)
@@ -286,8 +286,8 @@ def test_refine_transfers_the_restoration_onto_the_input_and_leaves_depth(tiny_c
     )
 
     x = underwater[None].astype(np.float32)
-    plain = create("jointid", checkpoint=tiny_ckpt, refine=0.0, lite_blend=0).restore(x)  # the network alone
-    default = create("jointid", checkpoint=tiny_ckpt, lite_blend=0).restore(x)  # lite's blend: the next test
+    plain = create("jointid", checkpoint=tiny_ckpt, refine=0.0, lite_blend=0, exposure="network").restore(x)
+    default = create("jointid", checkpoint=tiny_ckpt, lite_blend=0, exposure="network").restore(x)  # blend: next
     radius = transfer_radius_px(240, 300, 0.125)
     assert (radius, transfer_step(radius)) == (38, 3)  # the fast guided filter's subsample: every third pixel
     transfer = affine_transfer(x[0], plain.images[0], radius, 1e-4, step=3)
@@ -295,7 +295,7 @@ def test_refine_transfers_the_restoration_onto_the_input_and_leaves_depth(tiny_c
     # The default: refine=0.125 with the particle guard at 0.04.
     np.testing.assert_allclose(default.images[0], np.clip(guarded, 0, 1), atol=1e-6)
     refined = create(
-        f"jointid?refine=0.125,refine_eps=0.001,refine_guard=0,lite_blend=0,checkpoint={tiny_ckpt}"
+        f"jointid?refine=0.125,refine_eps=0.001,refine_guard=0,lite_blend=0,exposure=network,checkpoint={tiny_ckpt}"
     ).restore(x)
     expected = np.clip(affine_transfer(x[0], plain.images[0], radius, 1e-3, step=3), 0, 1)
     np.testing.assert_allclose(refined.images[0], expected, atol=1e-6)
@@ -380,3 +380,50 @@ def test_the_jointid_preset_gives_the_bytes_of_the_blend_it_replaced(tiny_ckpt, 
         assert np.array_equal(now.depth_m, net.restore(x).depth_m)
     alone = create("jointid?lite_blend=0", checkpoint=tiny_ckpt)
     assert isinstance(alone, JointIDRestorer) and np.array_equal(alone.restore(x).images, net.restore(x).images)
+
+
+def _mean_luma(images: np.ndarray) -> np.ndarray:
+    return (images * np.array([0.299, 0.587, 0.114], np.float32)).sum(-1).mean(axis=(1, 2))
+
+
+def test_exposure_keeps_the_balanced_inputs_mean_luma_and_nothing_else(tiny, tiny_ckpt, underwater):
+    from murk.restore_ops.balance import color_balance
+
+    balanced = copy.deepcopy(tiny)
+    balanced.input_balance_pct = 1.0
+    x = np.stack([underwater, 0.5 * underwater]).astype(np.float32)
+    own = JointIDRestorer(balanced).restore(x)  # the default of a restorer built around a network: its own output
+    kept = JointIDRestorer(balanced, exposure="input").restore(x)
+    target = _mean_luma(np.stack([color_balance(f, 1.0, 1.0) for f in x]))
+    k = target / _mean_luma(own.images)
+    assert np.abs(k - 1).min() > 0.01  # the tiny network changes the exposure: there is something to keep
+    # One gain per frame: what the step adds is exactly that gain (clamped), and the mean luma is the input's
+    np.testing.assert_allclose(kept.images, np.clip(own.images * k[:, None, None, None], 0, 1), atol=2e-6)
+    np.testing.assert_allclose(_mean_luma(kept.images), target, atol=2e-3)  # the clamp takes a little back
+    assert np.array_equal(kept.depth_m, own.depth_m)
+    # The method keeps it by default; exposure=network is the network's own
+    net = create("jointid", checkpoint=tiny_ckpt, lite_blend=0, refine=0.0)
+    assert net.keep_exposure
+    own_net = create("jointid", checkpoint=tiny_ckpt, lite_blend=0, refine=0.0, exposure="network").restore(x)
+    np.testing.assert_array_equal(own_net.images, JointIDRestorer(tiny).restore(x).images)
+    with pytest.raises(ValueError, match="exposure: expected input or network"):
+        JointIDRestorer(tiny, exposure="camera")  # type: ignore[arg-type]
+
+
+def test_an_export_without_its_balance_recorded_runs_with_the_networks_exposure(tmp_path, tiny):
+    pytest.importorskip("onnxruntime")
+    import onnx
+
+    from murk.models.jointid.onnx_export import BALANCE_KEY, export_onnx
+
+    path = export_onnx(tiny, tmp_path / "tiny.onnx")
+    graph = onnx.load(str(path))
+    kept = [p for p in graph.metadata_props if p.key != BALANCE_KEY]
+    del graph.metadata_props[:]
+    graph.metadata_props.extend(kept)
+    old = tmp_path / "old.onnx"
+    onnx.save(graph, str(old))
+    restorer = create("jointid", checkpoint=old, lite_blend=0)
+    assert not restorer.keep_exposure
+    with pytest.raises(ValueError, match=r"exposure: input needs to know the balance .*old\.onnx.*murk export"):
+        create("jointid", checkpoint=old, lite_blend=0, exposure="input")

@@ -127,6 +127,7 @@ def test_the_opencv_upsampling_path_equals_the_network(lite_ckpt: Path, hw: tupl
     from murk.models.padding import pad_to_multiple
 
     net = load_lite(lite_ckpt)
+    net.keep_exposure = True  # the method's default (exposure=input): the maps keep the input's exposure
     imgs = _images(2, *hw)
     got = create("lite", checkpoint=str(lite_ckpt)).restore(imgs).images
     x = torch.from_numpy(imgs).permute(0, 3, 1, 2)

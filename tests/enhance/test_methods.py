@@ -35,7 +35,8 @@ def test_each_builtin_method_is_declared_once_and_served_by_the_registry(method:
 def test_jointid_is_a_preset_blending_the_shipped_lite_into_jointid_net() -> None:
     preset = declaration("jointid")
     assert isinstance(preset, Preset) and preset in methods.BUILTIN
-    assert (preset.spec, preset.passes, preset.first) == ("jointid_net|lite@lite_blend", ("device",), "jointid_net")
+    assert (preset.spec, preset.first) == ("jointid_net|lite@lite_blend", "jointid_net")
+    assert preset.passes == ("device", "exposure")
     assert options_of("jointid") == {**options_of("jointid_net"), "lite_blend": preset.options[0]}
     assert preset.options[0].default == DEFAULT_LITE_BLEND and "lite_blend" not in options_of("jointid_net")
     assert "jointid = jointid_net|lite@lite_blend: " in methods.methods_help()

@@ -294,7 +294,8 @@ def test_onnx_round_trip(tmp_path: Path) -> None:
     assert "BatchNormalization" not in ops  # exported folded
     runner = OnnxLite(path, threads=1)
     folded = reparameterize(net)
-    assert runner.work_area_px == net.config.work_area_px  # stored in the model's metadata
+    folded.keep_exposure = True  # an export keeps the input's exposure by default, as the lite method does
+    assert runner.work_area_px == net.config.work_area_px and runner.keep_exposure  # stored in the metadata
     # dynamic height and width: small frames of any size (their own working image, padded in the graph) and
     # large ones (a downsampled working image)
     for hw in ((64, 96), (48, 80), (96, 32), (37, 53), (150, 211), (480, 640)):
@@ -304,6 +305,16 @@ def test_onnx_round_trip(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="opset: expected >= 13"):
         export_lite_onnx(net, tmp_path / "x.onnx", opset=12)
     from murk.enhance.lite_restorer import LiteRestorer
+
+    own = OnnxLite(export_lite_onnx(net, tmp_path / "own.onnx", keep_exposure=False), threads=1)
+    folded.keep_exposure = False
+    x = torch.rand(1, 3, 150, 211, generator=torch.Generator().manual_seed(5))
+    with torch.no_grad():
+        assert not own.keep_exposure and (own(x) - restore_reference(folded, x)).abs().max().item() <= 1e-4
+        assert (own(x) - runner(x)).abs().max().item() > 1e-3  # the step changes this network's output
+    assert LiteRestorer(own).keep_exposure is False and LiteRestorer(runner, exposure="input").keep_exposure
+    with pytest.raises(ValueError, match=r"exposure: .*own\.onnx was exported with exposure network.*--exposure input"):
+        LiteRestorer(own, exposure="input")
 
     with pytest.raises(ValueError, match="temporal: needs the torch network"):
         LiteRestorer(runner, temporal=0.5)
@@ -321,3 +332,34 @@ def test_onnx_round_trip(tmp_path: Path) -> None:
         OnnxLite(older)
     with pytest.raises(InputFileError, match=r"the working image.*export it again"):
         OnnxLite(old)
+
+
+def test_keep_exposure_scales_the_whole_restoration_to_the_inputs_mean_luma() -> None:
+    import torch.nn.functional as F
+
+    from murk.models.lite.network import POOL, apply_maps, keep_exposure
+    from murk.restore_ops.exposure import MAX_EXPOSURE_GAIN, mean_luma_torch
+
+    net = reparameterize(_trained_like("base", seed=2))
+    assert not net.keep_exposure  # off in training
+    x = 0.1 + 0.6 * torch.rand(2, 3, 128, 160, generator=torch.Generator().manual_seed(1))
+    with torch.no_grad():
+        own = net(x)
+        maps = net.maps(x)
+        kept_maps = keep_exposure(maps, x)
+        net.keep_exposure = True
+        kept = net(x)
+    assert torch.equal(net.maps(x), kept_maps)
+    k = (kept_maps / maps).flatten(1)
+    assert torch.allclose(k, k[:, :1].expand_as(k), rtol=1e-5)  # one gain per frame, on every map
+    k = k[:, 0]
+    assert (k - 1).abs().min() > 0.01  # this network changes the exposure
+    torch.testing.assert_close(kept, own * k[:, None, None, None], rtol=1e-5, atol=1e-6)  # before the clamp
+    # The gain is the pooled input's mean luma over that of the restoration at the maps' resolution (clamped)
+    lo = F.avg_pool2d(x, POOL)
+    have = mean_luma_torch(apply_maps(maps, lo).clamp(0, 1))
+    torch.testing.assert_close(k * have, mean_luma_torch(lo), atol=1e-5, rtol=0)
+    # The gain is bounded: a black frame is not blown up
+    with torch.no_grad():
+        dark = keep_exposure(maps, torch.zeros_like(x))
+    assert torch.equal(dark, maps / MAX_EXPOSURE_GAIN)

@@ -54,7 +54,7 @@ def test_the_graph_takes_one_image_and_says_what_it_is(shipped_onnx: Path) -> No
     assert inp.name == "image" and dims == ["batch", 3, "height", "width"]
     assert inp.type.tensor_type.elem_type == onnx.TensorProto.FLOAT and out.name == "enhanced"
     meta = {p.key: p.value for p in model.metadata_props}
-    assert meta == {"murk.format": "murk.lite.image", "murk.work_area_px": "20480"}
+    assert meta == {"murk.format": "murk.lite.image", "murk.work_area_px": "20480", "murk.exposure": "input"}
     assert [n.op_type for n in model.graph.node][-1] == "If"  # the restorer's two paths, chosen by the frame's area
 
 
@@ -155,3 +155,21 @@ def test_export_command_writes_the_one_input_graph(tmp_path: Path) -> None:
     frame = _real_frames(97, 131, n=1)
     (got,) = _session(out).run(None, {"image": frame})  # one input, nothing else to make
     assert got.shape == frame.shape
+
+
+def test_export_command_records_the_exposure_asked_for(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from murk.cli.main import app
+
+    out = tmp_path / "own.onnx"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        args = ["export", "-c", str(shipped_lite_weights()), "-o", str(out), "--exposure", "network", "--no-verify"]
+        result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    assert {p.key: p.value for p in onnx.load(str(out)).metadata_props}["murk.exposure"] == "network"
+    frame = _real_frames(97, 131, n=1).transpose(0, 2, 3, 1)
+    got = create("lite", checkpoint=str(out)).restore(frame).images
+    want = create("lite", exposure="network").restore(frame).images
+    np.testing.assert_allclose(got, want, atol=1e-4)

@@ -8,6 +8,7 @@ from typing import Annotated
 import typer
 
 from murk.cli._common import QuietOpt, make_console
+from murk.enhance.choices import Exposure
 
 
 def export(
@@ -46,6 +47,14 @@ def export(
             "--size", help="udaformer/ursct: the graph's fixed frame size WxH (ursct: square, a multiple of 128)."
         ),
     ] = "256x256",
+    exposure: Annotated[
+        Exposure,
+        typer.Option(
+            "--exposure",
+            help="lite: input (the graph keeps the input's exposure, as 'murk enhance --method lite' does by "
+            "default) or network (the network's own, as lite?exposure=network).",
+        ),
+    ] = "input",
     quiet: QuietOpt = False,
 ) -> None:
     """Export a Joint-ID or lite checkpoint to ONNX: one input, the image, any size (dynamic batch, height, width).
@@ -71,7 +80,14 @@ def export(
         raise ValueError(f"--model: expected {', '.join(EXPORT_MODELS[:-1])} or {EXPORT_MODELS[-1]}, got {network!r}")
     w, h = parse_size(size, option="--size")
     done = export_checkpoint(
-        checkpoint, out, model=network, size_hw=(h, w), opset=opset, verify=verify, trust=trust_checkpoint
+        checkpoint,
+        out,
+        model=network,
+        size_hw=(h, w),
+        opset=opset,
+        verify=verify,
+        trust=trust_checkpoint,
+        exposure=exposure,
     )
     folded = "folded: " if done.kind == "lite" else ""
     fixed = (

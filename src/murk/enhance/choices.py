@@ -25,6 +25,9 @@ VideoBackendChoice = Literal["auto", "opencv", "av"]
 """Video writer of ``murk enhance``: auto picks av for live streams when installed."""
 BagStorage = Literal["mcap", "sqlite3"]
 """Storage of a ROS 2 bag written by ``murk enhance`` (default: the input's)."""
+Exposure = Literal["input", "network"]
+"""The exposure a network restoration keeps (``lite`` and ``jointid``'s ``exposure``): the mean luma of the
+network's (balanced) input, or the network's own (:mod:`murk.restore_ops.exposure`)."""
 
 HE_MODES: tuple[str, ...] = get_args(HEMode)
 POLICIES: tuple[str, ...] = get_args(Policy)

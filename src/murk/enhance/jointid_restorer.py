@@ -26,7 +26,8 @@ defaults to 0), ``refine_eps`` and ``refine_guard``; ``jointid`` adds ``lite_ble
 then has the restoration's colours and the input's structure: what Eq. (1)'s inverse can do, without the network's
 deblurring. ``refine_guard`` (a top-hat luma threshold, 0 = off) keeps the network's own output where it took a
 small bright particle out of the input, so that the transfer does not bring marine snow back. Figures and the
-trade-off: docs/enhance.md, "jointid?refine".
+trade-off: docs/enhance.md, "jointid?refine". ``exposure`` (``input`` by default with a torch network) then scales
+the restoration to the mean luma of the network's balanced input (docs/enhance.md, "exposure").
 
 ``jointid``'s ``lite_blend`` averages the shipped ``lite``'s restoration of the same frame into this restorer's
 output with that weight (``(1 - w) * jointid_net + w * lite``, after ``refine``; :class:`murk.enhance.restorer.Blend`):
@@ -41,12 +42,12 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable
-from typing import Any
+from typing import Any, get_args
 
 import torch
 from torch import Tensor, nn
 
-from murk.enhance.choices import DEFAULT_OVERLAP, DEFAULT_REFINE_GUARD, Precision
+from murk.enhance.choices import DEFAULT_OVERLAP, DEFAULT_REFINE_GUARD, Exposure, Precision
 from murk.enhance.declare import Checked
 from murk.enhance.methods import weights_file
 from murk.enhance.refine import RefineSettings, refine_restoration
@@ -54,6 +55,7 @@ from murk.enhance.restorer import NetworkRestorer, RestoredTensor, torch_device
 from murk.enhance.tiling import pad_to_multiple, tiled_apply
 from murk.models.jointid.network import INPUT_MEAN, INPUT_STD, SIZE_MULTIPLE
 from murk.restore_ops.balance import color_balance_torch
+from murk.restore_ops.exposure import keep_exposure_torch
 
 _DTYPES: dict[str, torch.dtype] = {"bf16": torch.bfloat16, "fp16": torch.float16}
 
@@ -108,6 +110,10 @@ class JointIDRestorer(NetworkRestorer):
         refine_eps: the transfer's regulariser.
         refine_guard: top-hat luma from which the network's particle removal is kept against the transfer
             (0: off).
+        exposure: ``input``: the restoration is scaled to the mean luma of the network's balanced input, after
+            refine (:func:`murk.restore_ops.exposure.keep_exposure_torch`); ``network`` (the default here: the
+            network's output alone): the network's own. The ``jointid_net`` method (:func:`create_jointid`) turns
+            it on, except for an ONNX export from before murk recorded its input's balance.
 
     Raises:
         TypeError: ``model`` is neither a JointID nor an ONNX runner.
@@ -131,6 +137,7 @@ class JointIDRestorer(NetworkRestorer):
         refine: float = 0.0,
         refine_eps: float = 1e-4,
         refine_guard: float = DEFAULT_REFINE_GUARD,
+        exposure: Exposure = "network",
     ) -> None:
         from murk.models.jointid.checkpoint import unwrap
         from murk.models.jointid.onnx_export import OnnxJointID
@@ -147,6 +154,16 @@ class JointIDRestorer(NetworkRestorer):
             raise ValueError(f"overlap: expected >= 0 pixels, got {overlap}")
         if batch is not None and (isinstance(batch, bool) or batch < 1):
             raise ValueError(f"batch: expected None or a positive integer, got {batch!r}")
+        if exposure not in get_args(Exposure):
+            raise ValueError(f"exposure: expected input or network, got {exposure!r}")
+        if exposure == "input" and isinstance(model, OnnxJointID) and not model.balance_recorded:
+            raise ValueError(
+                f"exposure: input needs to know the balance of the network's input, which {model.path} does not "
+                "record (an export from an earlier murk); export it again with 'murk export', or leave exposure out"
+            )
+        self.keep_exposure = exposure == "input"
+        """Whether the restoration keeps the exposure of the network's balanced input (the ``exposure`` option)."""
+        self._graph_balance_pct = model.graph_balance_pct if isinstance(model, OnnxJointID) else None
         self.refine_settings = RefineSettings(refine, refine_eps, refine_guard)
         """The ``refine`` step after the network (:mod:`murk.enhance.refine`)."""
         self.precision = precision
@@ -225,6 +242,10 @@ class JointIDRestorer(NetworkRestorer):
         """The enhanced batch and its depth (m): balance, normalise, pad, the network (whole or tiled), crop."""
         if self.input_balance_pct is not None:  # the input the network was trained on
             x = color_balance_torch(x, self.input_balance_pct, self.input_balance_pct)
+        balanced = x
+        if self.keep_exposure and self._graph_balance_pct is not None:
+            pct = self._graph_balance_pct  # an ONNX graph balances inside: the same balance, for the exposure step
+            balanced = color_balance_torch(x, pct, pct)
         if self.model is not None:  # an ONNX export normalises inside its graph
             x = self._normalize(x)
         # An ONNX export takes whole frames of any size and balances, normalises and pads them itself: padded
@@ -237,6 +258,8 @@ class JointIDRestorer(NetworkRestorer):
         depth = pad.crop(depth).contiguous()
         enhanced = pad.crop(enhanced).clamp(0.0, 1.0).contiguous()
         enhanced = refine_restoration(images, enhanced, self.refine_settings)
+        if self.keep_exposure:
+            enhanced = keep_exposure_torch(enhanced, balanced.to(enhanced.device, enhanced.dtype))
         return RestoredTensor(enhanced, depth)
 
     def __repr__(self) -> str:
@@ -274,12 +297,20 @@ def create_jointid(o: Checked) -> JointIDRestorer:
     if o.onnx is not None or str(path).lower().endswith(".onnx"):
         model: nn.Module | OnnxJointID = OnnxJointID(path, device=str(o.device))
         dev = torch.device("cpu")
+        exposure: Exposure = o.exposure or ("input" if model.balance_recorded else "network")
     else:
         dev = torch_device(o.device)
         model = load_checkpoint(path, trust=o.trust_checkpoint, device="cpu")
+        exposure = o.exposure or "input"
     settings = {k: o[k] for k in ("precision", "tile", "overlap", "batch", "compile", "cuda_graph")}
     restorer = JointIDRestorer(
-        model, device=dev, refine=o.refine, refine_eps=o.refine_eps, refine_guard=o.refine_guard, **settings
+        model,
+        device=dev,
+        refine=o.refine,
+        refine_eps=o.refine_eps,
+        refine_guard=o.refine_guard,
+        exposure=exposure,
+        **settings,
     )
     restorer.weights = str(path)
     return restorer

@@ -18,21 +18,24 @@ weights shipped with murk), ``onnx`` (an ``.onnx`` path, alternative to ``checkp
 (max frames per forward pass), ``threads`` (ONNX Runtime intra-op threads), ``temporal`` (weight in [0, 1) of
 the previous frames in an average of the low-resolution maps over a video's frames, :mod:`murk.enhance.temporal`;
 0 = each frame on its own; torch network only), ``refine``, ``refine_eps`` and ``refine_guard`` (as ``jointid``'s,
-but ``refine`` 0 by default).
+but ``refine`` 0 by default), ``exposure`` (``input``, the default: the maps are scaled so that the restoration keeps
+the mean luma of the balanced input, :func:`murk.models.lite.network.keep_exposure`; ``network``: the network's own;
+an ONNX export keeps what it was exported with).
 """
 
 from __future__ import annotations
 
 import contextlib
+import copy
 from collections.abc import Iterator
-from typing import Any
+from typing import Any, get_args
 
 import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
-from murk.enhance.choices import DEFAULT_REFINE_GUARD
+from murk.enhance.choices import DEFAULT_REFINE_GUARD, Exposure
 from murk.enhance.declare import Checked
 from murk.enhance.methods import weights_file
 from murk.enhance.refine import RefineSettings, refine_restoration
@@ -66,10 +69,16 @@ class LiteRestorer(NetworkRestorer):
         refine, refine_eps, refine_guard: the affine transfer of the restoration onto the input, with the particle
             guard, after the network (:mod:`murk.enhance.refine`; ``refine`` 0 = off, the default: it costs a
             640x480 frame about 1.4x, benchmarks/bench_refine.py).
+        exposure: ``input``: the restoration keeps the mean luma of the network's (balanced) input
+            (:func:`murk.models.lite.network.keep_exposure`, in the maps: every path gets it at no full-resolution
+            cost); ``network``: the network's own; None (the default here): as the model holds it (a LiteNet's
+            ``keep_exposure``, off unless set; what an ONNX export was made with). The ``lite`` method
+            (:func:`create_lite`) turns it on for torch weights.
 
     Raises:
         TypeError: ``model`` is neither a LiteNet nor an OnnxLite.
-        ValueError: a bad ``batch`` or ``temporal``, ``temporal`` with an ONNX runner, or CUDA not available.
+        ValueError: a bad ``batch``, ``temporal`` or ``exposure``, ``temporal`` with an ONNX runner, an
+            ``exposure`` other than an ONNX export's, or CUDA not available.
     """
 
     name = "lite"
@@ -84,9 +93,12 @@ class LiteRestorer(NetworkRestorer):
         refine: float = 0.0,
         refine_eps: float = 1e-4,
         refine_guard: float = DEFAULT_REFINE_GUARD,
+        exposure: Exposure | None = None,
     ) -> None:
         from murk.models.lite.onnx_export import OnnxLite
 
+        if exposure is not None and exposure not in get_args(Exposure):
+            raise ValueError(f"exposure: expected input, network or None, got {exposure!r}")
         if batch is not None and (isinstance(batch, bool) or batch < 1):
             raise ValueError(f"batch: expected None or a positive integer, got {batch!r}")
         self.batch = batch
@@ -110,10 +122,17 @@ class LiteRestorer(NetworkRestorer):
                     "temporal: needs the torch network (an ONNX export computes its maps inside); give the .pt "
                     "checkpoint, or leave temporal out"
                 )
+            baked = "input" if model.keep_exposure else "network"
+            if exposure is not None and exposure != baked:
+                raise ValueError(
+                    f"exposure: {model.path} was exported with exposure {baked} (its murk.exposure metadata); export "
+                    f"it again with 'murk export --exposure {exposure}', or leave exposure out"
+                )
             self.device = torch.device("cpu")
             self.model: nn.Module | None = None
             self._backend: Any = model
             self.work_area_px = model.work_area_px
+            self.keep_exposure = model.keep_exposure
             return
         if not isinstance(model, nn.Module):
             raise TypeError(f"model: expected a LiteNet or an OnnxLite, got {type(model).__name__}")
@@ -122,6 +141,14 @@ class LiteRestorer(NetworkRestorer):
         # Channels-last memory: a numpy frame (H, W, 3) already is, so nothing is transposed on the way in or out,
         # and the full-resolution steps (pooling, upsampling, gain * x + offset) run faster (about 15%, CPU).
         net = reparameterize(unwrap(model))
+        if exposure is not None:
+            if net is unwrap(model):  # already folded: the caller's module; the flag is set on a shallow copy
+                net = copy.copy(net)
+            net.keep_exposure = exposure == "input"
+        else:
+            net.keep_exposure = unwrap(model).keep_exposure  # reparameterize makes a new module
+        self.keep_exposure = net.keep_exposure
+        """Whether the restoration keeps the input's exposure (the ``exposure`` option)."""
         channels_last = net.float().to(dev).to(memory_format=torch.channels_last)  # type: ignore[call-overload]
         self.model = channels_last.eval()  # (valid: torch's stubs lack memory_format on Module.to)
         self._backend = self.model
@@ -305,6 +332,7 @@ def create_lite(o: Checked) -> LiteRestorer:
         refine=o.refine,
         refine_eps=o.refine_eps,
         refine_guard=o.refine_guard,
+        exposure=o.exposure if onnx_file else o.exposure or "input",
     )
     restorer.weights = str(path)
     return restorer

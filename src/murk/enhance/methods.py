@@ -114,6 +114,13 @@ REFINE_GUARD = opt(
     "top-hat luma in [0, 1) from which a removed particle is kept (0: off)",
 )
 
+EXPOSURE = opt(
+    "exposure",
+    "Exposure | None",
+    None,
+    "input: keep the balanced input's mean luma; network: the network's own (None: input; a lite .onnx: as exported)",
+)
+
 
 def _refine(default: float) -> Option:
     return opt("refine", "float", default, "affine transfer onto the input: window radius / long side (0: off)", low=0)
@@ -198,6 +205,7 @@ BUILTIN: tuple[Method | Preset, ...] = (
             _refine(DEFAULT_REFINE),
             REFINE_EPS,
             REFINE_GUARD,
+            EXPOSURE,
         ),
         help="Joint-ID alone: restoration (with refine) and metric depth (shipped weights)",
         needs=NETWORK,
@@ -208,7 +216,7 @@ BUILTIN: tuple[Method | Preset, ...] = (
         "jointid_net|lite@lite_blend",
         (opt("lite_blend", "float", DEFAULT_LITE_BLEND, "weight of lite's restoration averaged in", low=0, high=1),),
         help="Joint-ID: restoration and metric depth (shipped weights; lite blended in)",
-        passes=("device",),
+        passes=("device", "exposure"),
     ),
     Method(
         "lite",
@@ -225,6 +233,7 @@ BUILTIN: tuple[Method | Preset, ...] = (
             _refine(0.0),
             REFINE_EPS,
             REFINE_GUARD,
+            EXPOSURE,
         ),
         help="the small real-time restorer (shipped weights; murk's default)",
         needs=NETWORK,

@@ -63,6 +63,7 @@ def export_checkpoint(
     verify: bool = True,
     trust: bool = False,
     tolerance: float = VERIFY_TOLERANCE,
+    exposure: str = "input",
 ) -> ExportedModel:
     """Export ``checkpoint`` to the ONNX file ``out`` and (``verify``) compare ONNX Runtime with torch.
 
@@ -75,6 +76,9 @@ def export_checkpoint(
         verify: run the file with ONNX Runtime on random inputs and compare with torch.
         trust: allow arbitrary pickled objects in the checkpoint (trusted files only).
         tolerance: the largest difference accepted by the verification.
+        exposure: ``lite`` only: ``input`` (the graph keeps the input's exposure, the ``lite`` restorer's default)
+            or ``network`` (:func:`murk.models.lite.network.keep_exposure`). Joint-ID's restorer applies its
+            ``exposure`` option outside the graph.
 
     Raises:
         ValueError: ``out`` does not end in ``.onnx``, an unknown ``model``, a size the network cannot take, or
@@ -87,15 +91,18 @@ def export_checkpoint(
         raise ValueError(f"out: expected a file name ending in .onnx, got {str(out)!r}")
     if model not in EXPORT_MODELS:
         raise ValueError(f"model: expected {', '.join(EXPORT_MODELS)}, got {model!r}")
+    if exposure not in ("input", "network"):
+        raise ValueError(f"exposure: expected input or network, got {exposure!r}")
     checkpoint_file(checkpoint)  # a missing file is reported before torch and the networks are imported
     if model != "auto":
         done = _export_baseline(model, checkpoint, out, size_hw, opset, verify, trust)
     else:
         from murk.models.lite.checkpoint import is_lite_checkpoint
 
-        done = (_export_lite if is_lite_checkpoint(checkpoint, trust=trust) else _export_jointid)(
-            checkpoint, out, opset, verify, trust
-        )
+        if is_lite_checkpoint(checkpoint, trust=trust):
+            done = _export_lite(checkpoint, out, opset, verify, trust, keep_exposure=exposure == "input")
+        else:
+            done = _export_jointid(checkpoint, out, opset, verify, trust)
     for check in done.checks:
         worst = max(check.max_abs_diff.values())
         if worst > tolerance:
@@ -124,11 +131,13 @@ def _export_jointid(checkpoint: str | Path, out: Path, opset: int, verify: bool,
     return ExportedModel(out, "jointid", sum(p.numel() for p in net.parameters()), tuple(checks))
 
 
-def _export_lite(checkpoint: str | Path, out: Path, opset: int, verify: bool, trust: bool) -> ExportedModel:
+def _export_lite(
+    checkpoint: str | Path, out: Path, opset: int, verify: bool, trust: bool, *, keep_exposure: bool
+) -> ExportedModel:
     from murk.models.lite.onnx_export import export_lite_checkpoint
 
     # The lite export checks its own (tighter) tolerance while verifying.
-    done = export_lite_checkpoint(checkpoint, out, opset=opset, verify=verify, trust=trust)
+    done = export_lite_checkpoint(checkpoint, out, opset=opset, verify=verify, trust=trust, keep_exposure=keep_exposure)
     checks = tuple(ExportCheck(f"{h}x{w}", {"enhanced": d}) for (h, w), d in done.max_abs_diff.items())
     return ExportedModel(out, "lite", done.parameters, checks)
 

@@ -35,6 +35,9 @@ OUTPUT_NAMES = ("depth_m", "enhanced")
 DEFAULT_OPSET = 17
 FORMAT_KEY = "murk.format"
 FORMAT = "murk.jointid.image"
+BALANCE_KEY = "murk.input_balance_pct"
+"""The simplest colour balance the graph applies to its input (a number, or ``none``); absent in exports made
+before it was recorded. The restorer needs it for the ``exposure`` step outside the graph."""
 """The ``murk.format`` metadata of a one-input Joint-ID export."""
 
 
@@ -139,8 +142,10 @@ def export_onnx(
             do_constant_folding=True,
         )
         graph = onnx.load(str(tmp))
-        entry = graph.metadata_props.add()
-        entry.key, entry.value = FORMAT_KEY, FORMAT
+        balance = getattr(net, "input_balance_pct", None)
+        for key, value in ((FORMAT_KEY, FORMAT), (BALANCE_KEY, "none" if balance is None else repr(float(balance)))):
+            entry = graph.metadata_props.add()
+            entry.key, entry.value = key, value
         onnx.save(graph, str(tmp))
     return path
 
@@ -176,6 +181,14 @@ class OnnxJointID:
                 "a Joint-ID export from an earlier murk (a normalised input, sides multiples of 32); export it "
                 "again with 'murk export' (one input: the image in [0, 1], any size)",
             )
+        balance = self.session.get_modelmeta().custom_metadata_map.get(BALANCE_KEY)
+        try:
+            self.graph_balance_pct: float | None = None if balance in (None, "none") else float(balance)
+        except ValueError as exc:
+            raise InputFileError(path, f"not a murk Joint-ID export ({BALANCE_KEY!r} is {balance!r})") from exc
+        """The balance the graph applies to its input (its ``murk.input_balance_pct`` metadata; None: none)."""
+        self.balance_recorded = balance is not None
+        """False for exports made before the balance was recorded (the restorer's ``exposure`` then needs a .pt)."""
         self.path = path
 
     def run_numpy(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -230,6 +230,22 @@ def work_image(x: Tensor, work_area_px: int) -> Tensor:
     return x if size is None else F.interpolate(x, size=size, mode="area")
 
 
+def keep_exposure(maps: Tensor, work: Tensor) -> Tensor:
+    """``maps`` (B, 12, h / 4, w / 4) of :meth:`LiteNet.maps` scaled per frame so that the restoration keeps the
+    exposure of the working image ``work`` (B, 3, h, w), the network's input: the maps applied to ``work``
+    average-pooled to their resolution give a restoration whose mean luma the gain of
+    :func:`murk.restore_ops.exposure.exposure_gain_torch` brings to the pooled input's. Gain and offset are both
+    scaled, so the full-resolution restoration is scaled by the same factor (docs/enhance.md, "exposure")."""
+    from murk.restore_ops.exposure import exposure_gain_torch
+
+    x = F.avg_pool2d(work, POOL)
+    y = _luma(x)
+    gain = torch.addcmul(maps[:, 6:9], maps[:, 0:3], y)
+    offset = torch.addcmul(maps[:, 9:12], maps[:, 3:6], y)
+    k = exposure_gain_torch(x, torch.addcmul(offset, gain, x))
+    return maps * k[:, None, None, None]
+
+
 class LiteNet(nn.Module):
     """The ``lite`` restorer network (see the module docstring).
 
@@ -242,6 +258,11 @@ class LiteNet(nn.Module):
     input_balance_pct: float | None = None
     """Not part of the network: the simplest colour balance (:mod:`murk.restore_ops.balance`) its input takes in
     training and in the restorers, read from and written to checkpoints (``model.input_balance_pct``)."""
+
+    keep_exposure: bool = False
+    """Not part of the network: :meth:`maps` scales its maps so that the restoration keeps the mean luma of the
+    working image (:func:`keep_exposure`). Off in training; the ``lite`` restorer turns it on (its ``exposure``
+    option, default ``input``), and an ONNX export records it (``murk.exposure``)."""
 
     def __init__(self, config: LiteConfig | None = None, *, folded: bool = False) -> None:
         super().__init__()
@@ -315,10 +336,12 @@ class LiteNet(nn.Module):
     def maps(self, work: Tensor) -> Tensor:
         """The 12 low-resolution maps (B, 12, h/4, w/4) of the guided upsampling (:func:`guided_maps`) for the
         working image ``work`` (B, 3, h, w): upsampled bilinearly to the frame and applied by
-        :func:`apply_maps`, they give :meth:`forward`'s output."""
+        :func:`apply_maps`, they give :meth:`forward`'s output. Scaled by :func:`keep_exposure` when
+        :attr:`keep_exposure` is set."""
         cfg = self.config
         guide_lo = _luma(F.avg_pool2d(work, POOL)) if cfg.guide_radius else work[:, :1]
-        return guided_maps(self.coefficients(work), guide_lo, cfg.guide_radius, cfg.guide_eps)
+        maps = guided_maps(self.coefficients(work), guide_lo, cfg.guide_radius, cfg.guide_eps)
+        return keep_exposure(maps, work) if self.keep_exposure else maps
 
 
 def build_lite(variant: LiteVariant | str = "base", **overrides: Any) -> LiteNet:

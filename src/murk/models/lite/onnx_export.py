@@ -7,7 +7,9 @@ lite`` computes before any post-processing. The working image is made inside the
 (:mod:`murk.models.lite.graph`): an ``If`` on the frame's area (more than ``work_area_px`` pixels) picks the
 ``downsample`` branch (area-downsampling by a gather per axis) or the ``native`` one (reflect padding to
 multiples of 16 by a gather per axis, cropped back); both run the folded network and apply its maps at full
-resolution. Model metadata: ``murk.format`` = ``murk.lite.image`` and ``murk.work_area_px``.
+resolution. Model metadata: ``murk.format`` = ``murk.lite.image``, ``murk.work_area_px`` and ``murk.exposure``
+(``input`` when the maps keep the input's exposure, :func:`~murk.models.lite.network.keep_exposure`, the
+restorer's default; ``network`` otherwise, and for exports from before it existed).
 
 Each branch is traced with the TorchScript-based exporter (``dynamo=False``: no extra package needed) and the two
 are joined into one model with ``onnx``. Operators: Conv, LeakyRelu, AveragePool, ReduceMean, ReduceSum,
@@ -41,6 +43,8 @@ FORMAT_KEY = "murk.format"
 FORMAT = "murk.lite.image"
 """The ``murk.format`` metadata of a one-input lite export."""
 WORK_AREA_KEY = "murk.work_area_px"
+EXPOSURE_KEY = "murk.exposure"
+"""``input`` (the graph keeps the input's exposure) or ``network``; absent in earlier exports (``network``)."""
 DEFAULT_OPSET = 17
 MIN_OPSET = 13
 VERIFY_TOLERANCE = 1e-4
@@ -52,11 +56,12 @@ downsampled (one odd-sized)."""
 _AXES = {0: "batch", 2: "height", 3: "width"}
 
 
-def _inference_copy(model: nn.Module) -> LiteNet:
+def _inference_copy(model: nn.Module, keep_exposure: bool) -> LiteNet:
     """The folded network in fp32 on the CPU in eval mode (a new module; the caller's is not changed)."""
     net = unwrap(model)
     folded = copy.deepcopy(net) if net.folded else reparameterize(net)
     folded.input_balance_pct = net.input_balance_pct  # not a weight: carried by hand
+    folded.keep_exposure = keep_exposure
     return folded.float().cpu().eval()
 
 
@@ -140,7 +145,9 @@ def _join_on_area(native: Any, downsample: Any, work_area_px: int) -> Any:
     return model
 
 
-def export_lite_onnx(model: nn.Module, path: str | Path, *, opset: int = DEFAULT_OPSET) -> Path:
+def export_lite_onnx(
+    model: nn.Module, path: str | Path, *, opset: int = DEFAULT_OPSET, keep_exposure: bool = True
+) -> Path:
     """Export a ``lite`` network (training form or folded; it is folded first) as the one-input graph of the
     module docstring, atomically.
 
@@ -148,6 +155,8 @@ def export_lite_onnx(model: nn.Module, path: str | Path, *, opset: int = DEFAULT
         model: a LiteNet, optionally wrapped.
         path: the ``.onnx`` file to write.
         opset: ONNX opset (>= 13).
+        keep_exposure: the graph keeps the input's exposure (:func:`~murk.models.lite.network.keep_exposure`;
+            the ``lite`` restorer's default ``exposure=input``); False: the network's own (``exposure=network``).
 
     Raises:
         ValueError: opset < 13.
@@ -156,7 +165,7 @@ def export_lite_onnx(model: nn.Module, path: str | Path, *, opset: int = DEFAULT
 
     if opset < MIN_OPSET:
         raise ValueError(f"opset: expected >= {MIN_OPSET} (ReduceSum with axes as an input), got {opset}")
-    net = _inference_copy(model)
+    net = _inference_copy(model, keep_exposure)
     area = net.config.work_area_px
     native = _trace(net, "native", (9, 13), opset)  # 9x13: padded on every side; any frame of <= 256 px is native
     if area > 0:
@@ -164,7 +173,8 @@ def export_lite_onnx(model: nn.Module, path: str | Path, *, opset: int = DEFAULT
         graph = _join_on_area(native, _trace(net, "downsample", (side, side + 7), opset), area)
     else:
         graph = native
-    for key, value in ((FORMAT_KEY, FORMAT), (WORK_AREA_KEY, str(area))):
+    exposure = "input" if keep_exposure else "network"
+    for key, value in ((FORMAT_KEY, FORMAT), (WORK_AREA_KEY, str(area)), (EXPOSURE_KEY, exposure)):
         entry = graph.metadata_props.add()
         entry.key, entry.value = key, value
     onnx.checker.check_model(graph, full_check=True)
@@ -207,6 +217,11 @@ class OnnxLite:
             self.work_area_px = int(meta[WORK_AREA_KEY])
         except (KeyError, ValueError) as exc:
             raise InputFileError(path, f"not a murk lite export (no valid {WORK_AREA_KEY!r} metadata)") from exc
+        exposure = meta.get(EXPOSURE_KEY, "network")
+        if exposure not in ("input", "network"):
+            raise InputFileError(path, f"not a murk lite export ({EXPOSURE_KEY!r} is {exposure!r})")
+        self.keep_exposure = exposure == "input"
+        """Whether the graph keeps the input's exposure (its ``murk.exposure`` metadata)."""
         self.path = path
 
     def run_numpy(self, x: np.ndarray) -> np.ndarray:
@@ -238,10 +253,11 @@ def export_lite_checkpoint(
     verify: bool = True,
     trust: bool = False,
     tolerance: float = VERIFY_TOLERANCE,
+    keep_exposure: bool = True,
 ) -> LiteExport:
     """Load a ``lite`` checkpoint, fold it, export it to ONNX and (``verify``) compare ONNX Runtime with torch
     (:func:`~murk.models.lite.graph.restore_reference`: what the restorer computes) on random frames of
-    :data:`VERIFY_SIZES`.
+    :data:`VERIFY_SIZES`. ``keep_exposure``: as :func:`export_lite_onnx`'s.
 
     Raises:
         InputFileError: the checkpoint cannot be read.
@@ -255,7 +271,8 @@ def export_lite_checkpoint(
     if out.suffix.lower() != ".onnx":
         raise ValueError(f"out: expected a file name ending in .onnx, got {str(out)!r}")
     model = load_lite(checkpoint, trust=trust)
-    export_lite_onnx(model, out, opset=opset)
+    model.keep_exposure = keep_exposure  # what the reference computes below
+    export_lite_onnx(model, out, opset=opset, keep_exposure=keep_exposure)
     diffs: dict[tuple[int, int], float] = {}
     if verify:
         runner = OnnxLite(out)
