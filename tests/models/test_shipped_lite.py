@@ -17,7 +17,7 @@ def test_shipped_lite_file_is_small_safe_and_documented() -> None:
     obj = torch.load(path, weights_only=True)
     assert obj["meta"]["command"].startswith("murk train --config configs/train-lite-cpu.yaml")
     assert "configs/train-lite-mild-cpu.yaml" in obj["meta"]["command"]  # milder water (issue 27)
-    assert "configs/train-lite-water-cpu.yaml" in obj["meta"]["command"]  # the last stage (issue 46)
+    assert "configs/train-lite-water-halfdetail-cpu.yaml" in obj["meta"]["command"]  # the last stage (issue 46)
     assert obj["meta"]["steps"] == 13000 and obj["meta"]["input_balance_pct"] == 1.0
 
 
