@@ -160,3 +160,21 @@ def test_refine_is_an_option_after_the_network_for_torch_and_onnx(lite_ckpt: Pat
     np.testing.assert_allclose(via_onnx, refined, atol=5e-4)  # measured 6e-5: the network's 1e-5, through the transfer
     with pytest.raises(ValueError, match="refine_guard: expected a top-hat luma"):
         create("lite", checkpoint=str(lite_ckpt), refine_guard=1.5)
+
+
+def test_exposure_is_set_on_the_restorers_copy_and_reaches_every_member(lite_ckpt: Path) -> None:
+    from murk.enhance.lite_restorer import LiteRestorer
+    from murk.models.lite.checkpoint import load_lite
+
+    folded = load_lite(lite_ckpt, fold=True)
+    kept = LiteRestorer(folded, exposure="input")
+    assert kept.keep_exposure and kept.model is not None and kept.model.keep_exposure
+    assert not folded.keep_exposure  # the caller's network keeps its own setting
+    assert not LiteRestorer(folded).keep_exposure  # None: as the network holds it
+    # A preset passes it to the lite it blends in, and water to the Joint-ID it builds on
+    for spec, want in (("jointid", True), ("jointid?exposure=network", False), ("water?exposure=network", False)):
+        r = create(spec)
+        top = getattr(r, "base", r)
+        used = weights_used(top)
+        stages = [used.first, *(s for s, _ in used.blended)]
+        assert [s.keep_exposure for s in stages] == [want, want], spec

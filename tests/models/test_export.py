@@ -50,3 +50,11 @@ def test_bad_arguments_are_refused_before_anything_is_loaded(tmp_path: Path) -> 
         export_checkpoint(missing, tmp_path / "x.pt")
     with pytest.raises(ValueError, match="model: expected auto, udaformer, ursct"):
         export_checkpoint(missing, tmp_path / "x.onnx", model="unet")
+    with pytest.raises(ValueError, match="exposure: applies to lite exports only, not to udaformer"):
+        export_checkpoint(missing, tmp_path / "x.onnx", model="udaformer", exposure="network")
+
+
+def test_exposure_is_refused_for_a_jointid_checkpoint(tiny_checkpoint: Path, tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match=r"exposure: applies to lite exports only, and .* is a Joint-ID checkpoint"):
+        export_checkpoint(tiny_checkpoint, tmp_path / "x.onnx", exposure="network")
+    assert not (tmp_path / "x.onnx").exists()

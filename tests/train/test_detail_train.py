@@ -182,6 +182,10 @@ def test_samples_made_by_other_base_weights_are_made_again(tmp_path: Path) -> No
     # a method built on a base restorer (water on Joint-ID, which blends lite in): every file, once
     names = [name for name, _ in base_fingerprint(create("water+detail"))["base_weights"]]
     assert names == ["water.npz", "jointid-small.pt", "lite.pt", "detail.npz"]
+    # the exposure step changed what the same files give (2026-12-06): samples made without it are made again
+    assert base_fingerprint(create("lite"))["exposure"] == [True]
+    assert base_fingerprint(create("lite?exposure=network"))["exposure"] == [False]
+    assert base_fingerprint(create("water?exposure=network"))["exposure"] == [False, False]  # Joint-ID and its lite
 
 
 def test_murk_detail_train_learns_from_photographs_in_every_parts_water(tmp_path: Path) -> None:

@@ -48,13 +48,13 @@ def export(
         ),
     ] = "256x256",
     exposure: Annotated[
-        Exposure,
+        Exposure | None,
         typer.Option(
             "--exposure",
-            help="lite: input (the graph keeps the input's exposure, as 'murk enhance --method lite' does by "
-            "default) or network (the network's own, as lite?exposure=network).",
+            help="lite only: input (the default: the graph keeps the input's exposure, as 'murk enhance --method "
+            "lite' does) or network (the network's own, as lite?exposure=network).",
         ),
-    ] = "input",
+    ] = None,
     quiet: QuietOpt = False,
 ) -> None:
     """Export a Joint-ID or lite checkpoint to ONNX: one input, the image, any size (dynamic batch, height, width).

@@ -242,7 +242,7 @@ class JointIDRestorer(NetworkRestorer):
         """The enhanced batch and its depth (m): balance, normalise, pad, the network (whole or tiled), crop."""
         if self.input_balance_pct is not None:  # the input the network was trained on
             x = color_balance_torch(x, self.input_balance_pct, self.input_balance_pct)
-        balanced = x
+        balanced = x if self.keep_exposure else None  # the exposure step's reference (kept only when it runs)
         if self.keep_exposure and self._graph_balance_pct is not None:
             pct = self._graph_balance_pct  # an ONNX graph balances inside: the same balance, for the exposure step
             balanced = color_balance_torch(x, pct, pct)
@@ -258,7 +258,7 @@ class JointIDRestorer(NetworkRestorer):
         depth = pad.crop(depth).contiguous()
         enhanced = pad.crop(enhanced).clamp(0.0, 1.0).contiguous()
         enhanced = refine_restoration(images, enhanced, self.refine_settings)
-        if self.keep_exposure:
+        if balanced is not None:
             enhanced = keep_exposure_torch(enhanced, balanced.to(enhanced.device, enhanced.dtype))
         return RestoredTensor(enhanced, depth)
 
@@ -266,7 +266,8 @@ class JointIDRestorer(NetworkRestorer):
         backend = self._backend if self.model is None else type(self.model).__name__
         return (
             f"JointIDRestorer({backend}, device={self.device}, precision={self.precision}, tile={self.tile}, "
-            f"overlap={self.overlap}, batch={self.batch}, refine={self.refine_settings.radius})"
+            f"overlap={self.overlap}, batch={self.batch}, refine={self.refine_settings.radius}, "
+            f"keep_exposure={self.keep_exposure})"
         )
 
 

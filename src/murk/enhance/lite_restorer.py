@@ -124,9 +124,10 @@ class LiteRestorer(NetworkRestorer):
                 )
             baked = "input" if model.keep_exposure else "network"
             if exposure is not None and exposure != baked:
+                how = "its murk.exposure metadata" if model.exposure_recorded else "an earlier murk: no murk.exposure"
                 raise ValueError(
-                    f"exposure: {model.path} was exported with exposure {baked} (its murk.exposure metadata); export "
-                    f"it again with 'murk export --exposure {exposure}', or leave exposure out"
+                    f"exposure: {model.path} was exported with exposure {baked} ({how}); export it again with "
+                    f"'murk export --exposure {exposure}', or leave exposure out"
                 )
             self.device = torch.device("cpu")
             self.model: nn.Module | None = None
@@ -232,7 +233,8 @@ class LiteRestorer(NetworkRestorer):
     def __repr__(self) -> str:
         backend = self._backend if self.model is None else "LiteNet (folded)"
         return (
-            f"LiteRestorer({backend}, device={self.device}, batch={self.batch}, refine={self.refine_settings.radius})"
+            f"LiteRestorer({backend}, device={self.device}, batch={self.batch}, refine={self.refine_settings.radius}, "
+            f"keep_exposure={self.keep_exposure})"
         )
 
 

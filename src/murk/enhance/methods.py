@@ -118,7 +118,7 @@ EXPOSURE = opt(
     "exposure",
     "Exposure | None",
     None,
-    "input: keep the balanced input's mean luma; network: the network's own (None: input; a lite .onnx: as exported)",
+    "input: keep the balanced input's mean luma; network: the network's own (None: input; an .onnx: as it records)",
 )
 
 
@@ -257,6 +257,7 @@ BUILTIN: tuple[Method | Preset, ...] = (
             opt("t_min", "float", 0.1, "floor of the transmission exp(-a d) in the inversion", low=1e-3, high=1),
             opt("estimator", "str | Path | None", None, "water estimator weights (.npz); default: shipped"),
             DEVICE,
+            EXPOSURE,
         ),
         help="Eq. (1) inverted with the estimated water and Joint-ID's distance, in the network's colour",
         needs=("torch", "weights"),

@@ -78,5 +78,5 @@ def create_water(o: Checked) -> WaterRestorer:
     """
     from murk.enhance.restorer import create
 
-    base = create(o.base, device=o.device)
+    base = create(o.base, device=o.device, **({} if o.exposure is None else {"exposure": o.exposure}))
     return WaterRestorer(base, load_water_estimator(o.estimator), o.strength, o.t_min)

@@ -63,7 +63,7 @@ def export_checkpoint(
     verify: bool = True,
     trust: bool = False,
     tolerance: float = VERIFY_TOLERANCE,
-    exposure: str = "input",
+    exposure: str | None = None,
 ) -> ExportedModel:
     """Export ``checkpoint`` to the ONNX file ``out`` and (``verify``) compare ONNX Runtime with torch.
 
@@ -76,9 +76,9 @@ def export_checkpoint(
         verify: run the file with ONNX Runtime on random inputs and compare with torch.
         trust: allow arbitrary pickled objects in the checkpoint (trusted files only).
         tolerance: the largest difference accepted by the verification.
-        exposure: ``lite`` only: ``input`` (the graph keeps the input's exposure, the ``lite`` restorer's default)
-            or ``network`` (:func:`murk.models.lite.network.keep_exposure`). Joint-ID's restorer applies its
-            ``exposure`` option outside the graph.
+        exposure: ``lite`` only: ``input`` (the graph keeps the input's exposure, the ``lite`` restorer's default;
+            None means it) or ``network`` (:func:`murk.models.lite.network.keep_exposure`). Refused for the other
+            networks: Joint-ID's restorer applies its ``exposure`` option outside the graph.
 
     Raises:
         ValueError: ``out`` does not end in ``.onnx``, an unknown ``model``, a size the network cannot take, or
@@ -91,8 +91,10 @@ def export_checkpoint(
         raise ValueError(f"out: expected a file name ending in .onnx, got {str(out)!r}")
     if model not in EXPORT_MODELS:
         raise ValueError(f"model: expected {', '.join(EXPORT_MODELS)}, got {model!r}")
-    if exposure not in ("input", "network"):
+    if exposure not in (None, "input", "network"):
         raise ValueError(f"exposure: expected input or network, got {exposure!r}")
+    if exposure is not None and model != "auto":
+        raise ValueError(f"exposure: applies to lite exports only, not to {model}; leave --exposure out")
     checkpoint_file(checkpoint)  # a missing file is reported before torch and the networks are imported
     if model != "auto":
         done = _export_baseline(model, checkpoint, out, size_hw, opset, verify, trust)
@@ -100,7 +102,12 @@ def export_checkpoint(
         from murk.models.lite.checkpoint import is_lite_checkpoint
 
         if is_lite_checkpoint(checkpoint, trust=trust):
-            done = _export_lite(checkpoint, out, opset, verify, trust, keep_exposure=exposure == "input")
+            done = _export_lite(checkpoint, out, opset, verify, trust, keep_exposure=exposure != "network")
+        elif exposure is not None:
+            raise ValueError(
+                f"exposure: applies to lite exports only, and {checkpoint} is a Joint-ID checkpoint (its restorer "
+                "applies the exposure option outside the graph); leave --exposure out"
+            )
         else:
             done = _export_jointid(checkpoint, out, opset, verify, trust)
     for check in done.checks:

@@ -113,7 +113,8 @@ class ModelConfig:
                 raise ValueError(f"init: {self.init!r} applies to model.kind jointid only (lite has no pixel shuffle)")
             if self.trainable != "all":
                 raise ValueError(
-                    f"trainable: {self.trainable!r} applies to model.kind jointid only (lite has no depth)"
+                    f"trainable: {self.trainable!r} applies to model.kind jointid only (lite is one network with no "
+                    "separate heads)"
                 )
             if self.global_colour:
                 raise ValueError("global_colour: applies to model.kind jointid only")

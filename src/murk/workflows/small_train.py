@@ -49,19 +49,23 @@ def base_fingerprint(restorer: Any) -> dict[str, Any]:
     weights file it loaded (:func:`murk.enhance.restorer.weights_used`, and the same inside a method that builds on a
     ``base`` restorer: ``water``'s Joint-ID and its blended ``lite``), so that samples made with other weights are made
     again, not read back. Named by content and file name, not by folder: the same weights elsewhere give the same
-    key."""
+    key. ``exposure``: whether each network stage keeps its input's exposure (a default that changed on 2026-12-06
+    without a change of weights or version, :mod:`murk.restore_ops.exposure`), in the order visited."""
     import hashlib
 
     from murk import __version__
     from murk.enhance.restorer import Restorer, weights_used
 
     files: list[Path] = []
+    exposure: list[bool] = []
 
     def walk(r: Any) -> None:
         used = weights_used(r)
         for stage in (used.first, *(s for s, _ in used.blended), *used.later):
             if stage is not None and stage.weights and Path(stage.weights) not in files:
                 files.append(Path(stage.weights))
+            if stage is not None and hasattr(stage, "keep_exposure"):
+                exposure.append(bool(stage.keep_exposure))
             if isinstance(getattr(stage, "base", None), Restorer):
                 walk(stage.base)  # type: ignore[union-attr]
 
@@ -69,6 +73,7 @@ def base_fingerprint(restorer: Any) -> dict[str, Any]:
     return {
         "murk": __version__,
         "base_weights": [[f.name, hashlib.sha256(f.read_bytes()).hexdigest()[:16]] for f in files if f.is_file()],
+        "exposure": exposure,
     }
 
 

@@ -35,10 +35,10 @@ OUTPUT_NAMES = ("depth_m", "enhanced")
 DEFAULT_OPSET = 17
 FORMAT_KEY = "murk.format"
 FORMAT = "murk.jointid.image"
+"""The ``murk.format`` metadata of a one-input Joint-ID export."""
 BALANCE_KEY = "murk.input_balance_pct"
 """The simplest colour balance the graph applies to its input (a number, or ``none``); absent in exports made
 before it was recorded. The restorer needs it for the ``exposure`` step outside the graph."""
-"""The ``murk.format`` metadata of a one-input Joint-ID export."""
 
 
 def _cpu_fp32(model: nn.Module) -> nn.Module:

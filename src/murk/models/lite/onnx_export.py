@@ -218,6 +218,8 @@ class OnnxLite:
         except (KeyError, ValueError) as exc:
             raise InputFileError(path, f"not a murk lite export (no valid {WORK_AREA_KEY!r} metadata)") from exc
         exposure = meta.get(EXPOSURE_KEY, "network")
+        self.exposure_recorded = EXPOSURE_KEY in meta
+        """False for exports made before the setting was recorded (they run with the network's own exposure)."""
         if exposure not in ("input", "network"):
             raise InputFileError(path, f"not a murk lite export ({EXPOSURE_KEY!r} is {exposure!r})")
         self.keep_exposure = exposure == "input"
