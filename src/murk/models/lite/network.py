@@ -55,6 +55,7 @@ from murk._config import from_dict, to_dict
 from murk.errors import ShapeError
 from murk.models.lite.blocks import RepConv, conv_block, fold_rep_conv
 from murk.models.wrapped import unwrap_as
+from murk.restore_ops.exposure import LUMA_601, exposure_gain_torch
 
 LiteVariant = Literal["base", "tiny"]
 
@@ -130,8 +131,8 @@ def _up(x: Tensor, factor: int) -> Tensor:
     return F.interpolate(x, scale_factor=factor, mode="bilinear", align_corners=False)
 
 
-LUMA = (0.299, 0.587, 0.114)
-"""BT.601 luma weights of the guide."""
+LUMA = LUMA_601
+"""BT.601 luma weights of the guide (those the exposure step measures with)."""
 
 
 def _luma(x: Tensor) -> Tensor:
@@ -236,8 +237,6 @@ def keep_exposure(maps: Tensor, work: Tensor) -> Tensor:
     average-pooled to their resolution give a restoration whose mean luma the gain of
     :func:`murk.restore_ops.exposure.exposure_gain_torch` brings to the pooled input's. Gain and offset are both
     scaled, so the full-resolution restoration is scaled by the same factor (docs/enhance.md, "exposure")."""
-    from murk.restore_ops.exposure import exposure_gain_torch
-
     x = F.avg_pool2d(work, POOL)
     y = _luma(x)
     gain = torch.addcmul(maps[:, 6:9], maps[:, 0:3], y)
