@@ -427,3 +427,56 @@ def test_an_export_without_its_balance_recorded_runs_with_the_networks_exposure(
     assert not restorer.keep_exposure
     with pytest.raises(ValueError, match=r"exposure: input needs to know the balance .*old\.onnx.*murk export"):
         create("jointid", checkpoint=old, lite_blend=0, exposure="input")
+
+
+def test_depth_pass_size_keeps_the_aspect_in_multiples_of_32_and_only_shrinks():
+    from murk.enhance.jointid_restorer import depth_pass_size
+
+    assert depth_pass_size(480, 640, 76800) == (256, 320)
+    assert depth_pass_size(720, 1280, 76800) == (192, 384)
+    assert depth_pass_size(1080, 1920, 76800) == (192, 384)
+    assert depth_pass_size(240, 320, 76800) is None  # no larger than the area: its own pass
+    assert depth_pass_size(128, 160, 76800) is None  # smaller frames are never enlarged
+    assert depth_pass_size(480, 640, 0) is None  # off
+    assert depth_pass_size(30, 4000, 76800) == (32, 3200)  # a side never falls below 32
+
+
+def test_depth_area_gives_a_larger_frame_the_depth_of_a_pass_at_that_area(tiny, tiny_ckpt, underwater):
+    import torch.nn.functional as F
+
+    from murk.enhance.choices import DEFAULT_DEPTH_AREA_PX
+
+    x = np.stack([underwater, 0.6 * underwater]).astype(np.float32)  # 240x300: 72,000 pixels
+    full = JointIDRestorer(tiny).restore(x)
+    small = JointIDRestorer(tiny, depth_area=64 * 64).restore(x)
+    # The enhanced image is the full pass's, bit for bit; the depth is the pass on the frame shrunk to 64x64
+    np.testing.assert_array_equal(small.images, full.images)
+    shrunk = F.interpolate(torch.from_numpy(x).permute(0, 3, 1, 2), size=(64, 64), mode="area")
+    low = JointIDRestorer(tiny).restore(shrunk.permute(0, 2, 3, 1).numpy()).depth_m
+    assert low.shape == (2, 64, 64)
+    expected = F.interpolate(torch.from_numpy(low)[:, None], size=(240, 300), mode="bilinear", align_corners=False)
+    np.testing.assert_allclose(small.depth_m, expected[:, 0].numpy(), rtol=1e-6, atol=1e-6)
+    assert small.depth_m.shape == full.depth_m.shape
+    assert np.abs(small.depth_m - full.depth_m).max() > 1e-3  # another pass, another map
+    # A frame no larger than the area keeps its own pass's depth
+    same = JointIDRestorer(tiny, depth_area=240 * 300).restore(x)
+    np.testing.assert_array_equal(same.depth_m, full.depth_m)
+    # The methods default to it; 0 turns it off
+    assert create("jointid_net", checkpoint=tiny_ckpt).depth_area == DEFAULT_DEPTH_AREA_PX
+    off = create("jointid", checkpoint=tiny_ckpt, depth_area=0, lite_blend=0, refine=0.0, exposure="network")
+    np.testing.assert_array_equal(off.restore(x).depth_m, full.depth_m)
+    for bad, message in ((-1, "a number of pixels"), (True, "a number of pixels"), (100, "at least 1024 pixels")):
+        with pytest.raises(ValueError, match=f"depth_area: expected 0 .off. or {message}"):
+            JointIDRestorer(tiny, depth_area=bad)
+
+
+def test_depth_area_runs_the_onnx_export_as_the_torch_network(tmp_path, tiny, underwater):
+    pytest.importorskip("onnxruntime")
+    from murk.models.jointid.onnx_export import export_onnx
+
+    path = export_onnx(tiny, tmp_path / "tiny.onnx")
+    x = underwater[None].astype(np.float32)
+    ref = JointIDRestorer(tiny, exposure="input", depth_area=64 * 64).restore(x)
+    out = create("jointid_net", checkpoint=path, refine=0.0, depth_area=64 * 64).restore(x)
+    np.testing.assert_allclose(out.images, ref.images, rtol=0, atol=2e-5)
+    np.testing.assert_allclose(out.depth_m, ref.depth_m, rtol=0, atol=1e-4)

@@ -71,6 +71,17 @@ def test_water_keeps_the_estimate_and_refuses_a_base_without_depth(estimator_fil
         create("water", estimator=str(estimator_file), base="lite").restore(image[None])
 
 
+def test_water_passes_depth_area_to_its_base(estimator_file: Path) -> None:
+    from murk.enhance.choices import DEFAULT_DEPTH_AREA_PX
+
+    def net(r):  # the jointid_net inside water's base (jointid: jointid_net|lite@0.5)
+        return r.base.left if hasattr(r.base, "left") else r.base
+
+    assert net(create("water", estimator=str(estimator_file))).depth_area == DEFAULT_DEPTH_AREA_PX
+    assert net(create("water", estimator=str(estimator_file), depth_area=0)).depth_area == 0
+    assert net(create("water", estimator=str(estimator_file), base="jointid_net", depth_area=4096)).depth_area == 4096
+
+
 def test_murk_enhance_runs_water_and_checks_its_options(
     estimator_file: Path, image: np.ndarray, tmp_path: Path
 ) -> None:

@@ -5,10 +5,12 @@ blended in; :mod:`murk.enhance.methods`).
 Pipeline per batch: the simplest colour balance when the checkpoint's network was trained on a balanced input
 (``input_balance_pct``, :mod:`murk.restore_ops.balance`; the shipped weights since 2026-12-03) -> normalise
 (training recipe's mean/std) -> reflect-pad to multiples of 32 -> the network
-(whole frame, or overlapping tiles blended at the seams when ``tile`` is set) -> crop back. Frames are never
-resized. Backends: a torch :class:`~murk.models.jointid.JointID` (fp32, or bf16/fp16 autocast; channels-last
-memory; optional ``torch.compile`` and CUDA-graph replay) or an exported ONNX file run by ONNX Runtime (its graph
-takes the frame in [0, 1] and normalises it itself; the restorer pads and tiles as for torch).
+(whole frame, or overlapping tiles blended at the seams when ``tile`` is set) -> crop back. The enhanced image
+comes from the frame at its own size; the depth of a frame larger than ``depth_area`` comes from a second pass on
+the frame shrunk to about that area, upsampled. Backends: a torch :class:`~murk.models.jointid.JointID` (fp32,
+or bf16/fp16 autocast; channels-last memory; optional ``torch.compile`` and CUDA-graph replay) or an exported
+ONNX file run by ONNX Runtime (its graph takes the frame in [0, 1] and normalises it itself; the restorer pads and
+tiles as for torch).
 
 Registry options (``murk.enhance.create("jointid_net", **options)``, the same for ``jointid``; any other option is
 an error):
@@ -16,7 +18,9 @@ an error):
 path, alternative to ``checkpoint``), ``device`` ("cpu", "cuda", "cuda:N"), ``precision`` ("fp32", "bf16",
 "fp16"), ``tile`` (pixels or None), ``overlap`` (pixels, default 64), ``trust_checkpoint`` (bool),
 ``batch`` (max frames or tiles per forward pass), ``compile`` and ``cuda_graph`` (bool, default False),
-``refine`` (0 = no transfer: the network's output alone; the method's default is
+``depth_area`` (pixels above which the depth comes from a second pass at about that area, 0 = off; the method's
+default is :data:`murk.enhance.choices.DEFAULT_DEPTH_AREA_PX`, while a :class:`JointIDRestorer` built directly
+defaults to 0), ``refine`` (0 = no transfer: the network's output alone; the method's default is
 :data:`murk.enhance.choices.DEFAULT_REFINE`, while a :class:`JointIDRestorer` built directly around a network
 defaults to 0), ``refine_eps`` and ``refine_guard``; ``jointid`` adds ``lite_blend`` (the weight of its blend, default
 :data:`murk.enhance.choices.DEFAULT_LITE_BLEND`).
@@ -45,6 +49,7 @@ from collections.abc import Callable
 from typing import Any, get_args
 
 import torch
+import torch.nn.functional as F
 from torch import Tensor, nn
 
 from murk.enhance.choices import DEFAULT_OVERLAP, DEFAULT_REFINE_GUARD, Exposure, Precision
@@ -114,6 +119,12 @@ class JointIDRestorer(NetworkRestorer):
             refine (:func:`murk.restore_ops.exposure.keep_exposure_torch`); ``network`` (the default here: the
             network's output alone): the network's own. The ``jointid_net`` method (:func:`create_jointid`) turns
             it on, except for an ONNX export from before murk recorded its input's balance.
+        depth_area: a frame of more pixels than this gets its depth from a second pass of the network on the frame
+            shrunk (area resampling) to about this many pixels, each side a multiple of 32 and the aspect kept, and
+            the depth upsampled (bilinear) to the frame; the enhanced image is the full pass's. 0 (the default
+            here): the full pass's depth. The ``jointid_net`` method (:func:`create_jointid`) sets
+            :data:`murk.enhance.choices.DEFAULT_DEPTH_AREA_PX`: the network's metric scale follows the frame size,
+            and it was trained near 320x240 (docs/enhance.md, "jointid?depth_area").
 
     Raises:
         TypeError: ``model`` is neither a JointID nor an ONNX runner.
@@ -138,6 +149,7 @@ class JointIDRestorer(NetworkRestorer):
         refine_eps: float = 1e-4,
         refine_guard: float = DEFAULT_REFINE_GUARD,
         exposure: Exposure = "network",
+        depth_area: int = 0,
     ) -> None:
         from murk.models.jointid.checkpoint import unwrap
         from murk.models.jointid.onnx_export import OnnxJointID
@@ -154,6 +166,15 @@ class JointIDRestorer(NetworkRestorer):
             raise ValueError(f"overlap: expected >= 0 pixels, got {overlap}")
         if batch is not None and (isinstance(batch, bool) or batch < 1):
             raise ValueError(f"batch: expected None or a positive integer, got {batch!r}")
+        if isinstance(depth_area, bool) or not isinstance(depth_area, int) or depth_area < 0:
+            raise ValueError(f"depth_area: expected 0 (off) or a number of pixels, got {depth_area!r}")
+        if 0 < depth_area < SIZE_MULTIPLE * SIZE_MULTIPLE:
+            raise ValueError(
+                f"depth_area: expected 0 (off) or at least {SIZE_MULTIPLE * SIZE_MULTIPLE} pixels (one "
+                f"{SIZE_MULTIPLE}x{SIZE_MULTIPLE} block), got {depth_area}"
+            )
+        self.depth_area = depth_area
+        """Pixels above which the depth comes from a pass at about this area (0: the frame's own pass)."""
         if exposure not in get_args(Exposure):
             raise ValueError(f"exposure: expected input or network, got {exposure!r}")
         if exposure == "input" and isinstance(model, OnnxJointID) and not model.balance_recorded:
@@ -239,11 +260,25 @@ class JointIDRestorer(NetworkRestorer):
         return torch.cat([o[0] for o in outs]), torch.cat([o[1] for o in outs])
 
     def _restore_network(self, images: Tensor, x: Tensor) -> RestoredTensor:
-        """The enhanced batch and its depth (m): balance, normalise, pad, the network (whole or tiled), crop."""
+        """The enhanced batch and its depth (m): the network's pass (:meth:`_pass`), ``refine``, the exposure step;
+        the depth from a second pass at :attr:`depth_area` when the frame is larger (:func:`depth_pass_size`)."""
+        depth, enhanced, balanced = self._pass(x, keep_balanced=self.keep_exposure)
+        enhanced = refine_restoration(images, enhanced, self.refine_settings)
+        if balanced is not None:
+            enhanced = keep_exposure_torch(enhanced, balanced.to(enhanced.device, enhanced.dtype))
+        size = depth_pass_size(x.shape[2], x.shape[3], self.depth_area)
+        if size is not None:
+            small = F.interpolate(x, size=size, mode="area")
+            depth = F.interpolate(self._pass(small)[0], size=x.shape[2:], mode="bilinear", align_corners=False)
+        return RestoredTensor(enhanced, depth)
+
+    def _pass(self, x: Tensor, *, keep_balanced: bool = False) -> tuple[Tensor, Tensor, Tensor | None]:
+        """One pass of the network over a batch in [0, 1]: balance, normalise, pad, the network (whole or tiled),
+        crop -> (depth in m, enhanced, the balanced input when ``keep_balanced``: the exposure step's reference)."""
         if self.input_balance_pct is not None:  # the input the network was trained on
             x = color_balance_torch(x, self.input_balance_pct, self.input_balance_pct)
-        balanced = x if self.keep_exposure else None  # the exposure step's reference (kept only when it runs)
-        if self.keep_exposure and self._graph_balance_pct is not None:
+        balanced = x if keep_balanced else None  # the exposure step's reference (kept only when it runs)
+        if keep_balanced and self._graph_balance_pct is not None:
             pct = self._graph_balance_pct  # an ONNX graph balances inside: the same balance, for the exposure step
             balanced = color_balance_torch(x, pct, pct)
         if self.model is not None:  # an ONNX export normalises inside its graph
@@ -255,20 +290,29 @@ class JointIDRestorer(NetworkRestorer):
         if self.channels_last:
             x = x.contiguous(memory_format=torch.channels_last)
         depth, enhanced = self._forward_padded(x)
-        depth = pad.crop(depth).contiguous()
-        enhanced = pad.crop(enhanced).clamp(0.0, 1.0).contiguous()
-        enhanced = refine_restoration(images, enhanced, self.refine_settings)
-        if balanced is not None:
-            enhanced = keep_exposure_torch(enhanced, balanced.to(enhanced.device, enhanced.dtype))
-        return RestoredTensor(enhanced, depth)
+        return pad.crop(depth).contiguous(), pad.crop(enhanced).clamp(0.0, 1.0).contiguous(), balanced
 
     def __repr__(self) -> str:
         backend = self._backend if self.model is None else type(self.model).__name__
         return (
             f"JointIDRestorer({backend}, device={self.device}, precision={self.precision}, tile={self.tile}, "
             f"overlap={self.overlap}, batch={self.batch}, refine={self.refine_settings.radius}, "
-            f"keep_exposure={self.keep_exposure})"
+            f"keep_exposure={self.keep_exposure}, depth_area={self.depth_area})"
         )
+
+
+def depth_pass_size(height: int, width: int, area: int) -> tuple[int, int] | None:
+    """The size (h, w) of the depth pass for a ``height`` x ``width`` frame: about ``area`` pixels, each side a
+    multiple of 32 (at least 32) and the frame's aspect kept; None when ``area`` is 0 or the frame has no more
+    pixels than ``area`` (its own pass gives the depth)."""
+    if area <= 0 or height * width <= area:
+        return None
+    scale = (area / (height * width)) ** 0.5
+
+    def side(n: int) -> int:
+        return max(SIZE_MULTIPLE, round(n * scale / SIZE_MULTIPLE) * SIZE_MULTIPLE)
+
+    return side(height), side(width)
 
 
 def create_jointid(o: Checked) -> JointIDRestorer:
@@ -311,6 +355,7 @@ def create_jointid(o: Checked) -> JointIDRestorer:
         refine_eps=o.refine_eps,
         refine_guard=o.refine_guard,
         exposure=exposure,
+        depth_area=o.depth_area,
         **settings,
     )
     restorer.weights = str(path)

@@ -19,7 +19,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from murk.enhance.choices import DEFAULT_LITE_BLEND, DEFAULT_OVERLAP, DEFAULT_REFINE, DEFAULT_REFINE_GUARD
+from murk.enhance.choices import (
+    DEFAULT_DEPTH_AREA_PX,
+    DEFAULT_LITE_BLEND,
+    DEFAULT_OVERLAP,
+    DEFAULT_REFINE,
+    DEFAULT_REFINE_GUARD,
+)
 from murk.enhance.declare import NEEDS, Method, Need, Option, Preset, opt
 from murk.enhance.spec import names, parse_method
 
@@ -121,6 +127,14 @@ EXPOSURE = opt(
     "input: keep the balanced input's mean luma; network: the network's own (None: input; an .onnx: as it records)",
 )
 
+DEPTH_AREA = opt(
+    "depth_area",
+    "int",
+    DEFAULT_DEPTH_AREA_PX,
+    "depth of a larger frame from a pass at about this many pixels (0: the frame's own pass)",
+    low=0,
+)
+
 
 def _refine(default: float) -> Option:
     return opt("refine", "float", default, "affine transfer onto the input: window radius / long side (0: off)", low=0)
@@ -206,6 +220,7 @@ BUILTIN: tuple[Method | Preset, ...] = (
             REFINE_EPS,
             REFINE_GUARD,
             EXPOSURE,
+            DEPTH_AREA,
         ),
         help="Joint-ID alone: restoration (with refine) and metric depth (shipped weights)",
         needs=NETWORK,
@@ -258,6 +273,7 @@ BUILTIN: tuple[Method | Preset, ...] = (
             opt("estimator", "str | Path | None", None, "water estimator weights (.npz); default: shipped"),
             DEVICE,
             EXPOSURE,
+            DEPTH_AREA,
         ),
         help="Eq. (1) inverted with the estimated water and Joint-ID's distance, in the network's colour",
         needs=("torch", "weights"),

@@ -78,5 +78,6 @@ def create_water(o: Checked) -> WaterRestorer:
     """
     from murk.enhance.restorer import create
 
-    base = create(o.base, device=o.device, **({} if o.exposure is None else {"exposure": o.exposure}))
+    given = {"exposure": o.exposure} if o.exposure is not None else {}
+    base = create(o.base, device=o.device, shared={"depth_area": o.depth_area}, **given)  # to a base that has it
     return WaterRestorer(base, load_water_estimator(o.estimator), o.strength, o.t_min)
