@@ -429,16 +429,21 @@ def test_an_export_without_its_balance_recorded_runs_with_the_networks_exposure(
         create("jointid", checkpoint=old, lite_blend=0, exposure="input")
 
 
-def test_depth_pass_size_keeps_the_aspect_in_multiples_of_32_and_only_shrinks():
+def test_depth_pass_size_keeps_the_aspect_in_multiples_of_32_and_runs_only_at_half_the_pixels():
     from murk.enhance.jointid_restorer import depth_pass_size
 
     assert depth_pass_size(480, 640, 76800) == (256, 320)
+    assert depth_pass_size(360, 480, 76800) == (256, 320)  # 2.25x the area: still a pass
+    assert depth_pass_size(480, 360, 76800) == (320, 256)
     assert depth_pass_size(720, 1280, 76800) == (192, 384)
     assert depth_pass_size(1080, 1920, 76800) == (192, 384)
     assert depth_pass_size(240, 320, 76800) is None  # no larger than the area: its own pass
     assert depth_pass_size(128, 160, 76800) is None  # smaller frames are never enlarged
     assert depth_pass_size(480, 640, 0) is None  # off
-    assert depth_pass_size(30, 4000, 76800) == (32, 3200)  # a side never falls below 32
+    # A pass with more than half the frame's pixels would cost nearly another full pass: none (the review's cases)
+    for hw in ((256, 320), (288, 288), (241, 320), (300, 400), (30, 4000), (1, 100_000)):
+        assert depth_pass_size(*hw, 76800) is None, hw
+    assert depth_pass_size(3, 900, 1024) is None
 
 
 def test_depth_area_gives_a_larger_frame_the_depth_of_a_pass_at_that_area(tiny, tiny_ckpt, underwater):
@@ -465,9 +470,26 @@ def test_depth_area_gives_a_larger_frame_the_depth_of_a_pass_at_that_area(tiny, 
     assert create("jointid_net", checkpoint=tiny_ckpt).depth_area == DEFAULT_DEPTH_AREA_PX
     off = create("jointid", checkpoint=tiny_ckpt, depth_area=0, lite_blend=0, refine=0.0, exposure="network")
     np.testing.assert_array_equal(off.restore(x).depth_m, full.depth_m)
-    for bad, message in ((-1, "a number of pixels"), (True, "a number of pixels"), (100, "at least 1024 pixels")):
-        with pytest.raises(ValueError, match=f"depth_area: expected 0 .off. or {message}"):
-            JointIDRestorer(tiny, depth_area=bad)
+    for bad in (-1, True, 2.5):
+        with pytest.raises(ValueError, match=r"depth_area: expected 0 \(off\) or a number of pixels"):
+            JointIDRestorer(tiny, depth_area=bad)  # type: ignore[arg-type]
+    # The depth pass runs whole when the frame runs in tiles: each tile would see a part of the scene
+    tiled = JointIDRestorer(tiny, depth_area=64 * 64, tile=64, overlap=16).restore(x)
+    np.testing.assert_allclose(tiled.depth_m, small.depth_m, rtol=0, atol=1e-6)
+
+
+def test_depth_area_leaves_the_methods_images_alone(tmp_path, tiny):
+    """With the method's defaults (refine, the exposure step) and a network that balances its input, the images
+    of a frame that gets a depth pass are those without it, byte for byte: only the depth changes."""
+    balanced = copy.deepcopy(tiny)
+    balanced.input_balance_pct = 1.0
+    ckpt = save_checkpoint(balanced, tmp_path / "balanced.pt")
+    x = (0.15 + 0.6 * np.random.default_rng(5).random((1, 400, 500, 3))).astype(np.float32)  # 200,000 pixels
+    on = create("jointid_net", checkpoint=ckpt).restore(x)
+    off = create("jointid_net", checkpoint=ckpt, depth_area=0).restore(x)
+    np.testing.assert_array_equal(on.images, off.images)
+    assert on.depth_m.dtype == np.float32 and on.depth_m.shape == (1, 400, 500)
+    assert np.abs(on.depth_m - off.depth_m).max() > 1e-3
 
 
 def test_depth_area_runs_the_onnx_export_as_the_torch_network(tmp_path, tiny, underwater):

@@ -168,6 +168,7 @@ def test_murk_detail_train_eq1_share_and_crops_are_recorded(tmp_path: Path) -> N
 
 def test_samples_made_by_other_base_weights_are_made_again(tmp_path: Path) -> None:
     from murk.data import shipped_lite_weights
+    from murk.enhance.choices import DEFAULT_DEPTH_AREA_PX
     from murk.enhance.restorer import create
     from murk.workflows.small_train import base_fingerprint
 
@@ -186,6 +187,9 @@ def test_samples_made_by_other_base_weights_are_made_again(tmp_path: Path) -> No
     assert base_fingerprint(create("lite"))["exposure"] == [True]
     assert base_fingerprint(create("lite?exposure=network"))["exposure"] == [False]
     assert base_fingerprint(create("water?exposure=network"))["exposure"] == [False, False]  # Joint-ID and its lite
+    assert base_fingerprint(create("water"))["depth_area"] == [DEFAULT_DEPTH_AREA_PX]  # Joint-ID's depth pass
+    assert base_fingerprint(create("water?depth_area=0"))["depth_area"] == [0]
+    assert base_fingerprint(create("lite"))["depth_area"] == []
 
 
 def test_murk_detail_train_learns_from_photographs_in_every_parts_water(tmp_path: Path) -> None:

@@ -229,7 +229,7 @@ def test_final_recipe_studies_differ_only_in_stages() -> None:
             assert arm_config(base, arm, "X") == expected
 
 
-def test_jointid_arms_are_scored_as_trained_without_the_affine_transfer_or_lite() -> None:
+def test_jointid_arms_are_scored_as_trained_without_the_affine_transfer_lite_or_depth_pass() -> None:
     from murk.enhance.restorer import Blend, create
     from murk.report.methods import parse_method
     from murk.report.study import arm_spec
@@ -238,10 +238,11 @@ def test_jointid_arms_are_scored_as_trained_without_the_affine_transfer_or_lite(
     assert (spec.label, spec.checkpoint, dict(spec.options)) == (
         "full",
         "runs/a/latest.pt",
-        {"refine": 0, "lite_blend": 0},
+        {"refine": 0, "lite_blend": 0, "depth_area": 0},
     )
     chained = parse_method(arm_spec("jointid", "full+post=jointid+post:x.pt", "preset=paper", "lam=0.5"))
-    assert dict(chained.options) == {"preset": "paper", "lam": 0.5, "refine": 0, "lite_blend": 0}
+    assert dict(chained.options) == {"preset": "paper", "lam": 0.5, "refine": 0, "lite_blend": 0, "depth_area": 0}
     assert arm_spec("lite", "a=lite:x.pt") == "a=lite:x.pt"
     restorer = create(arm_spec("jointid", "jointid"))
     assert restorer.refine_settings.radius == 0.0 and not isinstance(restorer, Blend)  # the options reach it
+    assert restorer.depth_area == 0  # the depth of the frame's own pass, as trained

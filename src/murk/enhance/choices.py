@@ -40,8 +40,8 @@ DEFAULT_LITE_BLEND = 0.5
 """Default ``lite_blend`` of ``jointid``: the weight of the shipped ``lite``'s restoration in the output (the rest
 is Joint-ID's own; docs/enhance.md, "jointid?lite_blend")."""
 DEFAULT_DEPTH_AREA_PX = 76800
-"""Default ``depth_area`` of ``jointid``: a frame larger than this many pixels (320x240) gets its depth from a second
-pass of the network at about this area, upsampled (docs/enhance.md, "jointid?depth_area")."""
+"""Default ``depth_area`` of ``jointid``: a frame of more than twice this many pixels (320x240) gets its depth from a
+second pass of the network at about this area, upsampled (docs/enhance.md, "jointid?depth_area")."""
 DEFAULT_REFINE_GUARD = 0.04
 """Default ``refine_guard`` of ``jointid`` and ``lite``: the top-hat luma from which the input counts as a particle
 (about 10 of 255)."""

@@ -6,11 +6,11 @@ Pipeline per batch: the simplest colour balance when the checkpoint's network wa
 (``input_balance_pct``, :mod:`murk.restore_ops.balance`; the shipped weights since 2026-12-03) -> normalise
 (training recipe's mean/std) -> reflect-pad to multiples of 32 -> the network
 (whole frame, or overlapping tiles blended at the seams when ``tile`` is set) -> crop back. The enhanced image
-comes from the frame at its own size; the depth of a frame larger than ``depth_area`` comes from a second pass on
-the frame shrunk to about that area, upsampled. Backends: a torch :class:`~murk.models.jointid.JointID` (fp32,
-or bf16/fp16 autocast; channels-last memory; optional ``torch.compile`` and CUDA-graph replay) or an exported
-ONNX file run by ONNX Runtime (its graph takes the frame in [0, 1] and normalises it itself; the restorer pads and
-tiles as for torch).
+comes from the frame at its own size; the depth of a frame of more than twice ``depth_area`` pixels comes from a
+second pass on the frame shrunk to about that area, upsampled. Backends: a torch
+:class:`~murk.models.jointid.JointID` (fp32, or bf16/fp16 autocast; channels-last memory; optional
+``torch.compile`` and CUDA-graph replay) or an exported ONNX file run by ONNX Runtime (its graph takes the frame in
+[0, 1] and normalises it itself; the restorer pads and tiles as for torch).
 
 Registry options (``murk.enhance.create("jointid_net", **options)``, the same for ``jointid``; any other option is
 an error):
@@ -18,7 +18,8 @@ an error):
 path, alternative to ``checkpoint``), ``device`` ("cpu", "cuda", "cuda:N"), ``precision`` ("fp32", "bf16",
 "fp16"), ``tile`` (pixels or None), ``overlap`` (pixels, default 64), ``trust_checkpoint`` (bool),
 ``batch`` (max frames or tiles per forward pass), ``compile`` and ``cuda_graph`` (bool, default False),
-``depth_area`` (pixels above which the depth comes from a second pass at about that area, 0 = off; the method's
+``depth_area`` (the depth of a frame of over twice this many pixels comes from a second pass at about that area,
+0 = off; the method's
 default is :data:`murk.enhance.choices.DEFAULT_DEPTH_AREA_PX`, while a :class:`JointIDRestorer` built directly
 defaults to 0), ``refine`` (0 = no transfer: the network's output alone; the method's default is
 :data:`murk.enhance.choices.DEFAULT_REFINE`, while a :class:`JointIDRestorer` built directly around a network
@@ -59,6 +60,7 @@ from murk.enhance.refine import RefineSettings, refine_restoration
 from murk.enhance.restorer import NetworkRestorer, RestoredTensor, torch_device
 from murk.enhance.tiling import pad_to_multiple, tiled_apply
 from murk.models.jointid.network import INPUT_MEAN, INPUT_STD, SIZE_MULTIPLE
+from murk.models.padding import area_size
 from murk.restore_ops.balance import color_balance_torch
 from murk.restore_ops.exposure import keep_exposure_torch
 
@@ -119,12 +121,12 @@ class JointIDRestorer(NetworkRestorer):
             refine (:func:`murk.restore_ops.exposure.keep_exposure_torch`); ``network`` (the default here: the
             network's output alone): the network's own. The ``jointid_net`` method (:func:`create_jointid`) turns
             it on, except for an ONNX export from before murk recorded its input's balance.
-        depth_area: a frame of more pixels than this gets its depth from a second pass of the network on the frame
-            shrunk (area resampling) to about this many pixels, each side a multiple of 32 and the aspect kept, and
-            the depth upsampled (bilinear) to the frame; the enhanced image is the full pass's. 0 (the default
-            here): the full pass's depth. The ``jointid_net`` method (:func:`create_jointid`) sets
-            :data:`murk.enhance.choices.DEFAULT_DEPTH_AREA_PX`: the network's metric scale follows the frame size,
-            and it was trained near 320x240 (docs/enhance.md, "jointid?depth_area").
+        depth_area: a frame of more than twice these pixels gets its depth from a second pass of the network (whole,
+            never tiled) on the frame shrunk (area resampling) to about this many pixels, each side a multiple of 32
+            and the aspect kept, and the depth upsampled (bilinear) to the frame; the enhanced image is the full
+            pass's. 0 (the default here): the full pass's depth. The ``jointid_net`` method
+            (:func:`create_jointid`) sets :data:`murk.enhance.choices.DEFAULT_DEPTH_AREA_PX`: the network's metric
+            scale follows the frame size, and it was trained near 320x240 (docs/enhance.md, "jointid?depth_area").
 
     Raises:
         TypeError: ``model`` is neither a JointID nor an ONNX runner.
@@ -168,11 +170,6 @@ class JointIDRestorer(NetworkRestorer):
             raise ValueError(f"batch: expected None or a positive integer, got {batch!r}")
         if isinstance(depth_area, bool) or not isinstance(depth_area, int) or depth_area < 0:
             raise ValueError(f"depth_area: expected 0 (off) or a number of pixels, got {depth_area!r}")
-        if 0 < depth_area < SIZE_MULTIPLE * SIZE_MULTIPLE:
-            raise ValueError(
-                f"depth_area: expected 0 (off) or at least {SIZE_MULTIPLE * SIZE_MULTIPLE} pixels (one "
-                f"{SIZE_MULTIPLE}x{SIZE_MULTIPLE} block), got {depth_area}"
-            )
         self.depth_area = depth_area
         """Pixels above which the depth comes from a pass at about this area (0: the frame's own pass)."""
         if exposure not in get_args(Exposure):
@@ -250,9 +247,9 @@ class JointIDRestorer(NetworkRestorer):
         """Whether a batch of this size runs in tiles."""
         return self.tile is not None and (x.shape[2] > self.tile or x.shape[3] > self.tile)
 
-    def _forward_padded(self, x: Tensor) -> tuple[Tensor, Tensor]:
-        """Normalised, padded batch -> (depth_m, enhanced), whole or tiled, in chunks of ``batch``."""
-        if self.tile is not None and self._tiled(x):
+    def _forward_padded(self, x: Tensor, *, tiled: bool) -> tuple[Tensor, Tensor]:
+        """Normalised, padded batch -> (depth_m, enhanced), whole or ``tiled``, in chunks of ``batch``."""
+        if tiled and self.tile is not None:
             depth, enhanced = tiled_apply(self._backend, x, tile=self.tile, overlap=self.overlap, max_batch=self.batch)
             return depth, enhanced
         step = self.batch or x.shape[0]
@@ -261,20 +258,25 @@ class JointIDRestorer(NetworkRestorer):
 
     def _restore_network(self, images: Tensor, x: Tensor) -> RestoredTensor:
         """The enhanced batch and its depth (m): the network's pass (:meth:`_pass`), ``refine``, the exposure step;
-        the depth from a second pass at :attr:`depth_area` when the frame is larger (:func:`depth_pass_size`)."""
+        the depth from a second pass at about :attr:`depth_area` pixels for a frame of more than twice that
+        (:func:`depth_pass_size`)."""
         depth, enhanced, balanced = self._pass(x, keep_balanced=self.keep_exposure)
         enhanced = refine_restoration(images, enhanced, self.refine_settings)
         if balanced is not None:
             enhanced = keep_exposure_torch(enhanced, balanced.to(enhanced.device, enhanced.dtype))
         size = depth_pass_size(x.shape[2], x.shape[3], self.depth_area)
-        if size is not None:
+        if size is not None:  # whole, never in tiles: each tile would see a part of the scene at the wrong scale
             small = F.interpolate(x, size=size, mode="area")
-            depth = F.interpolate(self._pass(small)[0], size=x.shape[2:], mode="bilinear", align_corners=False)
+            depth_small = self._pass(small, whole=True)[0]
+            depth = F.interpolate(depth_small, size=x.shape[2:], mode="bilinear", align_corners=False)
         return RestoredTensor(enhanced, depth)
 
-    def _pass(self, x: Tensor, *, keep_balanced: bool = False) -> tuple[Tensor, Tensor, Tensor | None]:
-        """One pass of the network over a batch in [0, 1]: balance, normalise, pad, the network (whole or tiled),
-        crop -> (depth in m, enhanced, the balanced input when ``keep_balanced``: the exposure step's reference)."""
+    def _pass(
+        self, x: Tensor, *, keep_balanced: bool = False, whole: bool = False
+    ) -> tuple[Tensor, Tensor, Tensor | None]:
+        """One pass of the network over a batch in [0, 1]: balance, normalise, pad, the network (in tiles when
+        ``tile`` is set and the frame exceeds it, unless ``whole``), crop -> (depth in m, enhanced, the balanced
+        input when ``keep_balanced``: the exposure step's reference)."""
         if self.input_balance_pct is not None:  # the input the network was trained on
             x = color_balance_torch(x, self.input_balance_pct, self.input_balance_pct)
         balanced = x if keep_balanced else None  # the exposure step's reference (kept only when it runs)
@@ -285,11 +287,12 @@ class JointIDRestorer(NetworkRestorer):
             x = self._normalize(x)
         # An ONNX export takes whole frames of any size and balances, normalises and pads them itself: padded
         # here first, its balance would take its levels from the padding too. Tiles are padded here.
-        whole_onnx = self.model is None and not self._tiled(x)
+        tiled = not whole and self._tiled(x)
+        whole_onnx = self.model is None and not tiled
         x, pad = pad_to_multiple(x, 1 if whole_onnx else SIZE_MULTIPLE, "reflect")
         if self.channels_last:
             x = x.contiguous(memory_format=torch.channels_last)
-        depth, enhanced = self._forward_padded(x)
+        depth, enhanced = self._forward_padded(x, tiled=tiled)
         return pad.crop(depth).contiguous(), pad.crop(enhanced).clamp(0.0, 1.0).contiguous(), balanced
 
     def __repr__(self) -> str:
@@ -302,17 +305,15 @@ class JointIDRestorer(NetworkRestorer):
 
 
 def depth_pass_size(height: int, width: int, area: int) -> tuple[int, int] | None:
-    """The size (h, w) of the depth pass for a ``height`` x ``width`` frame: about ``area`` pixels, each side a
-    multiple of 32 (at least 32) and the frame's aspect kept; None when ``area`` is 0 or the frame has no more
-    pixels than ``area`` (its own pass gives the depth)."""
-    if area <= 0 or height * width <= area:
+    """The size (h, w) of the depth pass for a ``height`` x ``width`` frame: the frame shrunk to about ``area``
+    pixels, each side a multiple of 32 and the aspect kept (:func:`murk.models.padding.area_size`); None (the
+    frame's own pass gives the depth) when ``area`` is 0, or when that pass would have more than half the frame's
+    pixels (it would cost nearly another full pass for little change in scale; so frames up to about twice
+    ``area`` keep their own depth)."""
+    size = area_size(height, width, area, SIZE_MULTIPLE)
+    if size is None or 2 * size[0] * size[1] > height * width:
         return None
-    scale = (area / (height * width)) ** 0.5
-
-    def side(n: int) -> int:
-        return max(SIZE_MULTIPLE, round(n * scale / SIZE_MULTIPLE) * SIZE_MULTIPLE)
-
-    return side(height), side(width)
+    return size
 
 
 def create_jointid(o: Checked) -> JointIDRestorer:

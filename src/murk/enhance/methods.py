@@ -131,7 +131,7 @@ DEPTH_AREA = opt(
     "depth_area",
     "int",
     DEFAULT_DEPTH_AREA_PX,
-    "depth of a larger frame from a pass at about this many pixels (0: the frame's own pass)",
+    "depth of a frame of over twice this many pixels from a pass at about this area (0: the frame's own pass)",
     low=0,
 )
 

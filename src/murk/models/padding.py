@@ -115,3 +115,17 @@ def pad_to_multiple(
     x = _pad_axis(x, pad.top, pad.bottom, -2, mode)
     x = _pad_axis(x, pad.left, pad.right, -1, mode)
     return x, pad
+
+
+def area_size(height: int, width: int, area_px: int, multiple: int) -> tuple[int, int] | None:
+    """(h, w) of a ``height`` x ``width`` frame shrunk to about ``area_px`` pixels, or None to keep the frame.
+
+    None when ``area_px`` is 0 or the frame has at most that many pixels. Otherwise the frame scaled by
+    ``s = sqrt(area_px / (height * width))``, each side rounded to the nearest multiple of ``multiple`` (at least
+    one multiple), so the aspect is kept to within the rounding. ``lite``'s working image
+    (:func:`murk.models.lite.network.work_size`) and Joint-ID's depth pass (``depth_area``) are sized by it.
+    """
+    if area_px <= 0 or height * width <= area_px:
+        return None
+    s = (area_px / (height * width)) ** 0.5
+    return max(multiple, round(height * s / multiple) * multiple), max(multiple, round(width * s / multiple) * multiple)

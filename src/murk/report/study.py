@@ -97,10 +97,11 @@ def run_study(
     return result.finish()
 
 
-ARM_OPTIONS: dict[str, tuple[str, ...]] = {"jointid": ("refine=0", "lite_blend=0")}
+ARM_OPTIONS: dict[str, tuple[str, ...]] = {"jointid": ("refine=0", "lite_blend=0", "depth_area=0")}
 """Options every arm's restorer gets, per network kind. The arms are compared as trained: ``jointid``'s affine
 transfer onto the input (``refine``, on by default in ``murk enhance``) would drop the deblurring that the
-forward-scattering arm is about; nor is the shipped ``lite``'s restoration blended in (``lite_blend``)."""
+forward-scattering arm is about; nor is the shipped ``lite``'s restoration blended in (``lite_blend``), nor does
+the depth come from a second pass at another size (``depth_area``)."""
 
 
 def arm_spec(kind: str, body: str, *options: str) -> str:

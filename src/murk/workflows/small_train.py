@@ -50,7 +50,8 @@ def base_fingerprint(restorer: Any) -> dict[str, Any]:
     ``base`` restorer: ``water``'s Joint-ID and its blended ``lite``), so that samples made with other weights are made
     again, not read back. Named by content and file name, not by folder: the same weights elsewhere give the same
     key. ``exposure``: whether each network stage keeps its input's exposure (a default that changed on 2026-12-06
-    without a change of weights or version, :mod:`murk.restore_ops.exposure`), in the order visited."""
+    without a change of weights or version, :mod:`murk.restore_ops.exposure`), in the order visited; ``depth_area``:
+    the area of each Joint-ID stage's depth pass (another default of 2026-12-06, ``jointid?depth_area``)."""
     import hashlib
 
     from murk import __version__
@@ -58,6 +59,7 @@ def base_fingerprint(restorer: Any) -> dict[str, Any]:
 
     files: list[Path] = []
     exposure: list[bool] = []
+    depth_area: list[int] = []
 
     def walk(r: Any) -> None:
         used = weights_used(r)
@@ -66,6 +68,8 @@ def base_fingerprint(restorer: Any) -> dict[str, Any]:
                 files.append(Path(stage.weights))
             if stage is not None and hasattr(stage, "keep_exposure"):
                 exposure.append(bool(stage.keep_exposure))
+            if stage is not None and hasattr(stage, "depth_area"):
+                depth_area.append(int(stage.depth_area))
             if isinstance(getattr(stage, "base", None), Restorer):
                 walk(stage.base)  # type: ignore[union-attr]
 
@@ -74,6 +78,7 @@ def base_fingerprint(restorer: Any) -> dict[str, Any]:
         "murk": __version__,
         "base_weights": [[f.name, hashlib.sha256(f.read_bytes()).hexdigest()[:16]] for f in files if f.is_file()],
         "exposure": exposure,
+        "depth_area": depth_area,
     }
 
 

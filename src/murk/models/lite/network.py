@@ -54,6 +54,7 @@ from torch import Tensor, nn
 from murk._config import from_dict, to_dict
 from murk.errors import ShapeError
 from murk.models.lite.blocks import RepConv, conv_block, fold_rep_conv
+from murk.models.padding import area_size
 from murk.models.wrapped import unwrap_as
 from murk.restore_ops.exposure import LUMA_601, exposure_gain_torch
 
@@ -205,10 +206,7 @@ def work_size(height: int, width: int, work_area_px: int) -> tuple[int, int] | N
     :data:`SIZE_MULTIPLE` (at least one multiple). Examples with the default 20,480 px: 640x480 -> 160x128,
     1280x720 -> 192x112.
     """
-    if work_area_px <= 0 or height * width <= work_area_px:
-        return None
-    s = (work_area_px / (height * width)) ** 0.5
-    return tuple(max(SIZE_MULTIPLE, round(n * s / SIZE_MULTIPLE) * SIZE_MULTIPLE) for n in (height, width))  # type: ignore[return-value]
+    return area_size(height, width, work_area_px, SIZE_MULTIPLE)
 
 
 def work_size_tensor(height: Tensor, width: Tensor, work_area_px: int) -> tuple[Tensor, Tensor]:
