@@ -476,6 +476,14 @@ def test_depth_area_gives_a_larger_frame_the_depth_of_a_pass_at_that_area(tiny, 
     # The depth pass runs whole when the frame runs in tiles: each tile would see a part of the scene
     tiled = JointIDRestorer(tiny, depth_area=64 * 64, tile=64, overlap=16).restore(x)
     np.testing.assert_allclose(tiled.depth_m, small.depth_m, rtol=0, atol=1e-6)
+    # ... and it runs the network's depth alone (JointID.depth), not the whole forward
+    counted = copy.deepcopy(tiny)
+    calls: list[tuple[int, ...]] = []
+    whole_depth = counted.depth
+    counted.depth = lambda t: calls.append(tuple(t.shape)) or whole_depth(t)  # type: ignore[method-assign]
+    again = JointIDRestorer(counted, depth_area=64 * 64).restore(x)
+    assert calls == [(2, 3, 64, 64)]
+    np.testing.assert_array_equal(again.depth_m, small.depth_m)
 
 
 def test_depth_area_leaves_the_methods_images_alone(tmp_path, tiny):

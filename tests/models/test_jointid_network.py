@@ -115,6 +115,17 @@ def test_eval_forward_is_deterministic(base_model):
     assert torch.equal(a.depth_m, b.depth_m) and torch.equal(a.enhanced, b.enhanced)
 
 
+def test_depth_alone_is_the_forwards_depth_bit_for_bit(base_model):
+    """``JointID.depth`` skips what only the enhanced image needs (the ``depth_area`` pass of the restorer runs it)."""
+    tiny = build_jointid("tiny").eval()
+    for net, hw in ((base_model, (32, 64)), (tiny, (64, 96))):
+        x = normalize_input(torch.rand(2, 3, *hw, generator=torch.Generator().manual_seed(2)))
+        with torch.no_grad():
+            assert torch.equal(net.depth(x), net(x).depth_m)
+    with pytest.raises(ShapeError, match=r"multiples of 32"):
+        tiny.depth(torch.zeros(1, 3, 48, 64))
+
+
 def _pattern(key: str) -> str:
     return re.sub(r"(block\d|_layer)\.\d+\.", r"\1.N.", key)  # block/layer indices -> N
 

@@ -58,7 +58,7 @@ from murk.enhance.declare import Checked
 from murk.enhance.methods import weights_file
 from murk.enhance.refine import RefineSettings, refine_restoration
 from murk.enhance.restorer import NetworkRestorer, RestoredTensor, torch_device
-from murk.enhance.tiling import pad_to_multiple, tiled_apply
+from murk.enhance.tiling import Padding, pad_to_multiple, tiled_apply
 from murk.models.jointid.network import INPUT_MEAN, INPUT_STD, SIZE_MULTIPLE
 from murk.models.padding import area_size
 from murk.restore_ops.balance import color_balance_torch
@@ -209,6 +209,7 @@ class JointIDRestorer(NetworkRestorer):
             self.model: nn.Module | None = None
             self.channels_last = False
             self._backend: Backend = model
+            self._depth_backend: Callable[[Tensor], Tensor] | None = None  # the graph runs whole
             return
         if not isinstance(model, nn.Module):
             raise TypeError(f"model: expected a JointID or an OnnxJointID, got {type(model).__name__}")
@@ -228,7 +229,14 @@ class JointIDRestorer(NetworkRestorer):
                 out = fn(x)
             return out[0].float(), out[1].float()
 
+        def run_depth(x: Tensor) -> Tensor:
+            with self._autocast():
+                return net.depth(x).float()
+
         self._backend = _CudaGraphRunner(run) if cuda_graph else run
+        # The depth pass of ``depth_area`` runs the depth alone (a fifth less work), except where a compiled graph or
+        # a captured CUDA graph of the whole forward is what runs
+        self._depth_backend = None if compile or cuda_graph else run_depth
 
     def _autocast(self) -> contextlib.AbstractContextManager[Any]:
         if self.precision == "fp32":
@@ -266,17 +274,36 @@ class JointIDRestorer(NetworkRestorer):
             enhanced = keep_exposure_torch(enhanced, balanced.to(enhanced.device, enhanced.dtype))
         size = depth_pass_size(x.shape[2], x.shape[3], self.depth_area)
         if size is not None:  # whole, never in tiles: each tile would see a part of the scene at the wrong scale
-            small = F.interpolate(x, size=size, mode="area")
-            depth_small = self._pass(small, whole=True)[0]
+            depth_small = self._depth_pass(F.interpolate(x, size=size, mode="area"))
             depth = F.interpolate(depth_small, size=x.shape[2:], mode="bilinear", align_corners=False)
         return RestoredTensor(enhanced, depth)
 
     def _pass(
         self, x: Tensor, *, keep_balanced: bool = False, whole: bool = False
     ) -> tuple[Tensor, Tensor, Tensor | None]:
-        """One pass of the network over a batch in [0, 1]: balance, normalise, pad, the network (in tiles when
-        ``tile`` is set and the frame exceeds it, unless ``whole``), crop -> (depth in m, enhanced, the balanced
-        input when ``keep_balanced``: the exposure step's reference)."""
+        """One pass of the network over a batch in [0, 1] (:meth:`_prepared`, the network, crop) -> (depth in m,
+        enhanced, the balanced input when ``keep_balanced``: the exposure step's reference)."""
+        x, pad, tiled, balanced = self._prepared(x, keep_balanced=keep_balanced, whole=whole)
+        depth, enhanced = self._forward_padded(x, tiled=tiled)
+        return pad.crop(depth).contiguous(), pad.crop(enhanced).clamp(0.0, 1.0).contiguous(), balanced
+
+    def _depth_pass(self, x: Tensor) -> Tensor:
+        """The depth (m) of a batch in [0, 1] from one whole (never tiled) pass: the network's depth alone
+        (:meth:`murk.models.jointid.JointID.depth`, bit for bit its forward's) where it can run it, else the whole
+        forward (an ONNX graph, a compiled or CUDA-graph backend)."""
+        if self._depth_backend is None:
+            return self._pass(x, whole=True)[0]
+        x, pad, _, _ = self._prepared(x, whole=True)
+        step = self.batch or x.shape[0]
+        depth = torch.cat([self._depth_backend(x[i : i + step]) for i in range(0, x.shape[0], step)])
+        return pad.crop(depth).contiguous()
+
+    def _prepared(
+        self, x: Tensor, *, keep_balanced: bool = False, whole: bool = False
+    ) -> tuple[Tensor, Padding, bool, Tensor | None]:
+        """A batch in [0, 1] made ready for the network: balanced, normalised, padded (and channels-last) -> (the
+        batch, its padding, whether it runs in tiles: ``tile`` is set, the frame exceeds it and not ``whole``, the
+        balanced input when ``keep_balanced``)."""
         if self.input_balance_pct is not None:  # the input the network was trained on
             x = color_balance_torch(x, self.input_balance_pct, self.input_balance_pct)
         balanced = x if keep_balanced else None  # the exposure step's reference (kept only when it runs)
@@ -292,8 +319,7 @@ class JointIDRestorer(NetworkRestorer):
         x, pad = pad_to_multiple(x, 1 if whole_onnx else SIZE_MULTIPLE, "reflect")
         if self.channels_last:
             x = x.contiguous(memory_format=torch.channels_last)
-        depth, enhanced = self._forward_padded(x, tiled=tiled)
-        return pad.crop(depth).contiguous(), pad.crop(enhanced).clamp(0.0, 1.0).contiguous(), balanced
+        return x, pad, tiled, balanced
 
     def __repr__(self) -> str:
         backend = self._backend if self.model is None else type(self.model).__name__
