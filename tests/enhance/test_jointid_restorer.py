@@ -483,7 +483,12 @@ def test_depth_area_gives_a_larger_frame_the_depth_of_a_pass_at_that_area(tiny, 
     counted.depth = lambda t: calls.append(tuple(t.shape)) or whole_depth(t)  # type: ignore[method-assign]
     again = JointIDRestorer(counted, depth_area=64 * 64).restore(x)
     assert calls == [(2, 3, 64, 64)]
-    np.testing.assert_array_equal(again.depth_m, small.depth_m)
+    whole = JointIDRestorer(tiny, depth_area=64 * 64)
+    whole._depth_backend = None  # the whole forward as the pass: what ONNX, compile and cuda_graph run
+    np.testing.assert_array_equal(again.depth_m, whole.restore(x).depth_m)
+    calls.clear()
+    JointIDRestorer(counted, depth_area=64 * 64, batch=1).restore(x)
+    assert calls == [(1, 3, 64, 64)] * 2
 
 
 def test_depth_area_leaves_the_methods_images_alone(tmp_path, tiny):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import re
@@ -24,6 +25,7 @@ from murk.models.jointid import (
     normalize_input_np,
 )
 from murk.models.jointid.golden import golden_values
+from murk.models.jointid.network import VARIANTS
 
 
 @pytest.fixture(scope="module")
@@ -118,7 +120,9 @@ def test_eval_forward_is_deterministic(base_model):
 def test_depth_alone_is_the_forwards_depth_bit_for_bit(base_model):
     """``JointID.depth`` skips what only the enhanced image needs (the ``depth_area`` pass of the restorer runs it)."""
     tiny = build_jointid("tiny").eval()
-    for net, hw in ((base_model, (32, 64)), (tiny, (64, 96))):
+    small = build_jointid("small").eval()  # the shipped variant: residual output, shuffle smoothing
+    coloured = JointID(dataclasses.replace(VARIANTS["tiny"], global_colour=True)).eval()
+    for net, hw in ((base_model, (32, 64)), (tiny, (64, 96)), (small, (64, 96)), (coloured, (64, 64))):
         x = normalize_input(torch.rand(2, 3, *hw, generator=torch.Generator().manual_seed(2)))
         with torch.no_grad():
             assert torch.equal(net.depth(x), net(x).depth_m)

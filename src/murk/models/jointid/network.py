@@ -187,7 +187,8 @@ class JointID(nn.Module):
 
     def depth(self, x: Tensor) -> Tensor:
         """The depth (metres) of :meth:`forward` alone, bit for bit: the enhancement branch's decoder runs only as far
-        as the depth branch's joint blocks read it (no skips, head or colour head), about a fifth less work.
+        as the depth branch's joint blocks read it (no skips, head or colour head), a sixth to a fifth less time.
+        It calls the submodules directly, not through ``forward``: forward hooks on the network do not fire.
 
         Raises:
             ShapeError: as :meth:`forward`.
@@ -211,8 +212,9 @@ class JointID(nn.Module):
             ze = torch.sigmoid(ebr.decoder.mix(s, xe, fe[s]))
             jd = getattr(self, f"decoder_de_joint_block_{i + 1}")(zd, ze)
             skips_d.append(dbr.decoder.skip(s, jd))
-            if enhanced or s > 0:
-                je = getattr(self, f"decoder_eh_joint_block_{i + 1}")(ze, zd)
+            if not enhanced and s == 0:
+                break  # the finest enhancement joint block feeds only the enhanced image's skip
+            je = getattr(self, f"decoder_eh_joint_block_{i + 1}")(ze, zd)
             if enhanced:
                 skips_e.append(ebr.decoder.skip(s, je))
             if s > 0:
