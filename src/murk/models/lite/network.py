@@ -236,10 +236,7 @@ def keep_exposure(maps: Tensor, work: Tensor) -> Tensor:
     :func:`murk.restore_ops.exposure.exposure_gain_torch` brings to the pooled input's. Gain and offset are both
     scaled, so the full-resolution restoration is scaled by the same factor (docs/enhance.md, "exposure")."""
     x = F.avg_pool2d(work, POOL)
-    y = _luma(x)
-    gain = torch.addcmul(maps[:, 6:9], maps[:, 0:3], y)
-    offset = torch.addcmul(maps[:, 9:12], maps[:, 3:6], y)
-    k = exposure_gain_torch(x, torch.addcmul(offset, gain, x))
+    k = exposure_gain_torch(x, apply_maps(maps, x))
     return maps * k[:, None, None, None]
 
 
