@@ -15,20 +15,18 @@ and its ratio to the first area's: the cost of the depth pass measured side by s
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from murk._config import load_yaml, merge
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_model import heldout_scenes
+
 from murk.enhance.restorer import create
 from murk.metrics import depth_errors
-from murk.report.heldout import make_heldout
-from murk.train.config import TrainConfig
-
-ROOT = Path(__file__).resolve().parent.parent
-HELDOUT_SEED = 20261201
 
 
 def main() -> None:
@@ -46,12 +44,10 @@ def main() -> None:
     if len(counts) != len(sizes):
         ap.error("--scenes: give one count per size")
     areas = [int(v) for v in args.areas.split(",")]
-    cfg = load_yaml(TrainConfig, ROOT / "configs" / "train-small-cpu.yaml")
-    synthesis = merge(cfg.data.synthesis, {"stages": ["basic", "forward_scatter", "marine_snow"]})
     restorers = {a: create(f"{args.method}?depth_area={a}") for a in areas}
     print(f"{'size':>10} {'depth_area':>10} {'AbsRel':>7} {'scaled':>7} {'ratio':>6} {'s/frame':>8} {'x':>6}")
     for (w, h), n in zip(sizes, counts, strict=True):
-        data = make_heldout(n, seed=HELDOUT_SEED, size_hw=(h, w), synthesis=synthesis, balance_pct=0.5)
+        data = heldout_scenes(n, 0.5, size_hw=(h, w))
         rows = {}
         for a, r in restorers.items():
             errs, ratios = [], []

@@ -50,12 +50,13 @@ HELDOUT_SEED = 20261201
 """Seed of the held-out scenes (training uses seed 0: scenes derive_seed(0, i))."""
 
 
-def heldout_scenes(scenes: int, balance_pct: float | None) -> HeldoutSet:
-    """The held-out set: ``scenes`` procedural scenes at 320x240 (seed :data:`HELDOUT_SEED`) degraded by the three
-    stages of the training recipe; ``balance_pct``: photographic (colour-balanced) clean targets."""
+def heldout_scenes(scenes: int, balance_pct: float | None, size_hw: tuple[int, int] = (240, 320)) -> HeldoutSet:
+    """The held-out set: ``scenes`` procedural scenes at ``size_hw`` (320x240 by default; seed
+    :data:`HELDOUT_SEED`) degraded by the three stages of the training recipe; ``balance_pct``: photographic
+    (colour-balanced) clean targets."""
     train_cfg = load_yaml(TrainConfig, ROOT / "configs" / "train-small-cpu.yaml")
     synthesis = merge(train_cfg.data.synthesis, {"stages": ["basic", "forward_scatter", "marine_snow"]})
-    return make_heldout(scenes, seed=HELDOUT_SEED, size_hw=(240, 320), synthesis=synthesis, balance_pct=balance_pct)
+    return make_heldout(scenes, seed=HELDOUT_SEED, size_hw=size_hw, synthesis=synthesis, balance_pct=balance_pct)
 
 
 def real_measures(restorer: object) -> dict[str, float]:
