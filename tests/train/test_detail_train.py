@@ -216,3 +216,21 @@ def test_murk_detail_train_learns_from_photographs_in_every_parts_water(tmp_path
     gone = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "gone"), "--photos", str(tmp_path / "none")])
     assert gone.exit_code != 0 and "none" in gone.output, gone.output
     assert not (tmp_path / "bad" / "detail.npz").exists() and not (tmp_path / "gone" / "detail.npz").exists()
+
+
+def test_murk_detail_train_specks_are_painted_on_the_scenes_and_key_the_samples(tmp_path: Path) -> None:
+    args = ["detail", "train", "--config", str(CONFIG), "--scenes", "10", "--steps", "1", "--channels", "4",
+            "--out", str(tmp_path / "run")]  # fmt: skip
+    assert CliRunner().invoke(app, args).exit_code == 0
+    with np.load(tmp_path / "run" / "samples.npz") as z:
+        plain_clean, plain_key = z["clean"], str(z["key"])
+    (tmp_path / "run" / "detail.npz").unlink()
+    res = CliRunner().invoke(app, [*args, "--specks", "3000"])
+    assert res.exit_code == 0, res.output
+    _, meta = load_detail(tmp_path / "run" / "detail.npz")
+    assert meta["specks_per_mpx"] == 3000.0
+    with np.load(tmp_path / "run" / "samples.npz") as z:  # the old samples are not taken for these
+        assert "specks_per_mpx" in str(z["key"]) and "specks_per_mpx" not in plain_key
+        assert not np.array_equal(z["clean"], plain_clean) and z["clean"].shape == plain_clean.shape
+    bad = CliRunner().invoke(app, [*args[:-1], str(tmp_path / "bad"), "--specks", "-1"])
+    assert bad.exit_code == 2 and "specks" in bad.output

@@ -48,6 +48,14 @@ def train(
         Path | None,
         typer.Option("--photos", help="Folder of clean photographs, each also degraded in every part's water."),
     ] = None,
+    specks: Annotated[
+        float,
+        typer.Option(
+            "--specks",
+            help="Small sharp details (dots, strokes, small ellipses) per megapixel painted on every clean scene, "
+            "so that the network sees small bright things that must stay (0: none).",
+        ),
+    ] = 0.0,
     seed: Annotated[int, typer.Option("--seed", help="Seed of the scenes and the training.")] = 7,
     quiet: QuietOpt = False,
 ) -> None:
@@ -64,6 +72,7 @@ def train(
             stages=None if stages is None else stages.split(","),
             eq1_share=eq1_share,
             photos=photos,
+            specks_per_mpx=specks,
             base=base,
             scenes=scenes,
             settings=settings,

@@ -37,13 +37,23 @@ class HeldoutSet:
 
 
 def make_heldout(
-    n: int, *, seed: int, size_hw: tuple[int, int], synthesis: Any, balance_pct: float | None = None
+    n: int,
+    *,
+    seed: int,
+    size_hw: tuple[int, int],
+    synthesis: Any,
+    balance_pct: float | None = None,
+    specks_per_mpx: float = 0.0,
 ) -> HeldoutSet:
     """Render and degrade ``n`` held-out scenes (deterministic in ``seed``). ``balance_pct``: each clean scene
     first goes through the simplest colour balance (:mod:`murk.restore_ops.balance`), as the training scenes of
     ``data.scene_balance_pct`` do (the "photographic" held-out set: targets that span the range in every channel,
-    as photographs and the references of real pairs do); None: the procedural scenes as rendered."""
+    as photographs and the references of real pairs do); None: the procedural scenes as rendered.
+    ``specks_per_mpx`` > 0: small sharp details (:mod:`murk.scenes.specks`, seeded ``derive_seed(seed, "specks",
+    i)``) are painted on each clean scene before the balance and the water; 0 (the default) adds none and draws
+    nothing."""
     from murk.scenes import render_scene, sample_scene
+    from murk.scenes.specks import apply_specks, sample_specks
     from murk.train.augment import centre_crop
     from murk.train.data import OnlineDegrader
     from murk.train.scenes_source import render_size
@@ -55,6 +65,8 @@ def make_heldout(
     for i in range(n):
         scene = sample_scene(derive_seed(seed, "heldout", i))
         rgb, dist = centre_crop(list(render_scene(scene, render_size((h, w)))), (h, w), source=f"scene {i}")
+        if specks_per_mpx > 0:
+            rgb = apply_specks(rgb, sample_specks(derive_seed(seed, "specks", i), (h, w), specks_per_mpx))
         if balance_pct is not None:
             rgb = color_balance(rgb, balance_pct, balance_pct)
         cleans.append(rgb)

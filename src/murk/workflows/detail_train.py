@@ -80,10 +80,16 @@ def sample_parts(syntheses: Sequence[Any], scenes: int, eq1_share: float) -> lis
 
 
 def make_detail_samples(
-    parts: Sequence[tuple[Any, int]], *, seed: int, restorer: Any, progress: Callable[[int], None] | None = None
+    parts: Sequence[tuple[Any, int]],
+    *,
+    seed: int,
+    restorer: Any,
+    specks_per_mpx: float = 0.0,
+    progress: Callable[[int], None] | None = None,
 ) -> DetailSamples:
     """The samples of ``parts`` (:func:`sample_parts`) as the module says, restored by ``restorer`` (the base
-    method's), ``progress`` told the count after each chunk."""
+    method's), with ``specks_per_mpx`` specks on each clean scene (:func:`murk.report.heldout.make_heldout`),
+    ``progress`` told the count after each chunk."""
     from murk.report.heldout import make_heldout
     from murk.rng import derive_seed
 
@@ -93,7 +99,12 @@ def make_detail_samples(
         for k in range(-(-share // CHUNK)):
             n = min(CHUNK, share - k * CHUNK)
             data = make_heldout(
-                n, seed=derive_seed(seed, "detail", c, k), size_hw=SCENE_HW, synthesis=synthesis, balance_pct=0.5
+                n,
+                seed=derive_seed(seed, "detail", c, k),
+                size_hw=SCENE_HW,
+                synthesis=synthesis,
+                balance_pct=0.5,
+                specks_per_mpx=specks_per_mpx,
             )
             restored += [np.clip(restorer.restore(data.degraded[i : i + 8]).images, 0.0, 1.0) for i in range(0, n, 8)]
             clean.append(data.clean)
@@ -166,6 +177,7 @@ def train_detail(
     stages: Sequence[str] | None = None,
     eq1_share: float = 0.0,
     photos: Path | None = None,
+    specks_per_mpx: float = 0.0,
     base: str = "lite",
     scenes: int = 1000,
     settings: DetailTrainSettings | None = None,
@@ -174,16 +186,19 @@ def train_detail(
 ) -> TrainResult:
     """Make (or read back) the samples of the water of ``configs`` (their ``data.synthesis``, with ``stages`` instead
     of theirs when given; ``eq1_share`` of them by Eq. (1) alone; with ``photos``, the photographs in every part's
-    water too), learn, write ``OUT/detail.npz`` and ``OUT/log.jsonl``; ``progress`` hears each step of it. Refuses
-    (ValueError) fewer than 10 scenes, no config, a bad config or stage, an ``eq1_share`` outside [0, 1], a
-    ``detail.npz`` already in ``out``, a bad base method and a photograph that cannot be read; an ``out`` that cannot
-    be made raises OSError."""
+    water too; with ``specks_per_mpx``, small sharp details on every procedural scene, :mod:`murk.scenes.specks`),
+    learn, write ``OUT/detail.npz`` and ``OUT/log.jsonl``; ``progress`` hears each step of it. Refuses (ValueError)
+    fewer than 10 scenes, a negative ``specks_per_mpx``, no config, a bad config or stage, an ``eq1_share`` outside
+    [0, 1], a ``detail.npz`` already in ``out``, a bad base method and a photograph that cannot be read; an ``out``
+    that cannot be made raises OSError."""
     from murk._config import load_yaml, merge
     from murk.enhance.restorer import create
     from murk.train.config import TrainConfig
 
     if scenes < 10 or not configs:
         raise ValueError(f"scenes: expected at least 10 and at least one config, got {scenes} and {len(configs)}")
+    if not math.isfinite(specks_per_mpx) or specks_per_mpx < 0:
+        raise ValueError(f"specks: expected a count >= 0 per megapixel, got {specks_per_mpx!r}")
     syntheses = [load_yaml(TrainConfig, c).data.synthesis for c in configs]
     if stages is not None:
         syntheses = [merge(s, {"stages": list(stages)}, where="stages") for s in syntheses]
@@ -196,11 +211,18 @@ def train_detail(
     made_by = {"base": base, **base_fingerprint(restorer)}
     photo_set = None if photos is None else load_photos(photos, seed=seed)
     photo_files = [[f.name, f.stat().st_size] for f in ([] if photo_set is None else photo_set[2])]
-    key = json.dumps({"seed": seed, **made_by, "parts": [[repr(s), n] for s, n in parts], "photos": photo_files})
+    key = json.dumps(
+        {"seed": seed, **made_by, "parts": [[repr(s), n] for s, n in parts], "photos": photo_files}
+        | ({"specks_per_mpx": specks_per_mpx} if specks_per_mpx else {})
+    )
 
     def make() -> dict[str, np.ndarray]:
         made = make_detail_samples(
-            parts, seed=seed, restorer=restorer, progress=lambda n: say(f"samples: {n} of {scenes}")
+            parts,
+            seed=seed,
+            restorer=restorer,
+            specks_per_mpx=specks_per_mpx,
+            progress=lambda n: say(f"samples: {n} of {scenes}"),
         )
         if photo_set is None:
             return {"restored": made.restored, "clean": made.clean}
@@ -225,6 +247,7 @@ def train_detail(
         "parts": [{"stages": list(s.stages), "scenes": n} for s, n in parts],
         "scenes": scenes,
         "photos": None if photos is None else {"folder": str(photos), "files": photo_files},
+        "specks_per_mpx": specks_per_mpx,
         "seed": seed,
         **made_by,
         "settings": asdict(settings),
