@@ -52,8 +52,8 @@ def train(
         float,
         typer.Option(
             "--specks",
-            help="Small sharp details (dots, strokes, small ellipses) per megapixel painted on every clean scene, "
-            "so that the network sees small bright things that must stay (0: none).",
+            help="Small sharp details (dots, strokes, small ellipses) per megapixel painted on every procedural clean "
+            "scene, so that the network sees small bright things that must stay (0: none).",
         ),
     ] = 0.0,
     seed: Annotated[int, typer.Option("--seed", help="Seed of the scenes and the training.")] = 7,

@@ -49,7 +49,7 @@ def make_heldout(
     first goes through the simplest colour balance (:mod:`murk.restore_ops.balance`), as the training scenes of
     ``data.scene_balance_pct`` do (the "photographic" held-out set: targets that span the range in every channel,
     as photographs and the references of real pairs do); None: the procedural scenes as rendered.
-    ``specks_per_mpx`` > 0: small sharp details (:mod:`murk.scenes.specks`, seeded ``derive_seed(seed, "specks",
+    ``specks_per_mpx`` not 0: small sharp details (:mod:`murk.scenes.specks`, seeded ``derive_seed(seed, "specks",
     i)``) are painted on each clean scene before the balance and the water; 0 (the default) adds none and draws
     nothing."""
     from murk.scenes import render_scene, sample_scene
@@ -65,7 +65,7 @@ def make_heldout(
     for i in range(n):
         scene = sample_scene(derive_seed(seed, "heldout", i))
         rgb, dist = centre_crop(list(render_scene(scene, render_size((h, w)))), (h, w), source=f"scene {i}")
-        if specks_per_mpx > 0:
+        if specks_per_mpx != 0:  # a negative or NaN count is refused by sample_specks
             rgb = apply_specks(rgb, sample_specks(derive_seed(seed, "specks", i), (h, w), specks_per_mpx))
         if balance_pct is not None:
             rgb = color_balance(rgb, balance_pct, balance_pct)

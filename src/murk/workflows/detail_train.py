@@ -213,7 +213,7 @@ def train_detail(
     photo_files = [[f.name, f.stat().st_size] for f in ([] if photo_set is None else photo_set[2])]
     key = json.dumps(
         {"seed": seed, **made_by, "parts": [[repr(s), n] for s, n in parts], "photos": photo_files}
-        | ({"specks_per_mpx": specks_per_mpx} if specks_per_mpx else {})
+        | ({"specks_per_mpx": float(specks_per_mpx)} if specks_per_mpx else {})
     )
 
     def make() -> dict[str, np.ndarray]:
@@ -247,7 +247,7 @@ def train_detail(
         "parts": [{"stages": list(s.stages), "scenes": n} for s, n in parts],
         "scenes": scenes,
         "photos": None if photos is None else {"folder": str(photos), "files": photo_files},
-        "specks_per_mpx": specks_per_mpx,
+        "specks_per_mpx": float(specks_per_mpx),
         "seed": seed,
         **made_by,
         "settings": asdict(settings),
