@@ -3,7 +3,7 @@
 Run: PYTHONPATH=src python benchmarks/bench_arms.py NAME=SPEC [NAME=SPEC ...] --ref NAME[,NAME...]
      [--real-pairs DIR] [--snow-pairs DIR] [--heldout-scenes 64] [--heldout-photos DIR]
      [--config configs/train-lite-mild-scratch-cpu.yaml] [--stages basic,forward_scatter,marine_snow] [--threads 2]
-     [--out DIR]
+     [--artefacts] [--out DIR]
 
 SPEC is a method spec as ``murk compare --method`` takes it (``lite``, ``jointid``, ``water?strength=0.5``,
 ``lite:runs/x/latest.pt``), or a ``.pt`` file (a ``lite`` checkpoint, a training run's ``latest.pt``). Every measure
@@ -22,6 +22,10 @@ the same functions:
 - ``--heldout-photos DIR``: clean photographs the arms never trained on, each at 320x240 with the layout prior's
   distance (murk.io.distance_prior), balanced at 0.5 % and degraded the same way; the same measures (no depth: the
   prior is no truth).
+- ``--artefacts``: the shipped real images (:func:`murk.data.sample_underwater_images`), output against input
+  (:func:`murk.metrics.restoration_measures`): periodic artefact ratio (issue 46's limit: 1.3x on every image),
+  mean and worst image (periodic or isolated, as ``bench_model``'s ``worst_artefact_ratio``), and the contrast ratio;
+  the periodic ratio paired against each ``--ref`` arm.
 """
 
 from __future__ import annotations
@@ -35,10 +39,13 @@ import numpy as np
 import torch
 
 from murk._config import load_yaml, merge
+from murk.data import sample_underwater_images
+from murk.io import read_rgb
 from murk.io.images import list_images
 from murk.io.pairs import DepthOptions, discover, load_pair
 from murk.report.compare import run_compare
 from murk.report.heldout import HeldoutSet, make_heldout, score_heldout
+from murk.metrics import restoration_measures
 from murk.report.methods import build_restorer, parse_method
 from murk.report.study import (
     SNOW_CONTRAST_KEYS,
@@ -126,6 +133,23 @@ def heldout(arms: dict[str, Any], name: str, data: HeldoutSet, refs: list[str]) 
         print(f"  {k} - {ref}: affine-fit {fit}; PSNR {paired(per_scene[k]['psnr'], per_scene[ref]['psnr'])}")
 
 
+def artefacts(arms: dict[str, Any], refs: list[str]) -> None:
+    images = [read_rgb(p) for p in sample_underwater_images()]
+    rows: dict[str, list[dict[str, float]]] = {}
+    for k, restorer in arms.items():
+        outs = [np.clip(restorer.restore(img[None]).images[0], 0.0, 1.0) for img in images]
+        rows[k] = [restoration_measures(img, out) for img, out in zip(images, outs, strict=True)]
+    print(f"\nartefacts on the {len(images)} shipped real images (output / input):")
+    for k, r in rows.items():
+        periodic = [m["artefact_periodic_ratio"] for m in r]
+        worst = max(max(m["artefact_periodic_ratio"], m["artefact_isolated_ratio"]) for m in r)
+        contrast = float(np.mean([m["contrast_ratio"] for m in r]))
+        print(f"  {k}: periodic {np.mean(periodic):.3f}x, worst image {worst:.2f}x, contrast {contrast:.2f}x")
+    for k, ref in against(list(arms), refs):
+        per = [[m["artefact_periodic_ratio"] for m in rows[n]] for n in (k, ref)]
+        print(f"  {k} - {ref}: periodic {paired(per[0], per[1])}")
+
+
 def heldout_photos(folder: Path, synthesis: Any) -> HeldoutSet:
     sources, problems = discover(folder, "layout")
     for p in problems:
@@ -156,6 +180,7 @@ def main() -> None:
     ap.add_argument("--config", type=Path, default=Path("configs/train-lite-mild-scratch-cpu.yaml"))
     ap.add_argument("--stages", default="basic,forward_scatter,marine_snow", help="the held-out water's stages")
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--artefacts", action="store_true", help="periodic artefacts on the shipped real images")
     ap.add_argument("--out", type=Path, help="where murk compare's reports go (default: a temporary folder)")
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
@@ -172,6 +197,8 @@ def main() -> None:
         if args.snow_pairs:
             snow_pairs(texts, names, args.snow_pairs, refs, out)
     arms = {n: build_restorer(parse_method(t)) for n, t in zip(names, texts, strict=True)}
+    if args.artefacts:
+        artefacts(arms, refs)
     synthesis = merge(load_yaml(TrainConfig, args.config).data.synthesis, {"stages": args.stages.split(",")})
     if args.heldout_scenes:
         data = make_heldout(

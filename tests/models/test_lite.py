@@ -51,7 +51,7 @@ def _trained_like(variant: str = "base", seed: int = 0) -> LiteNet:
     return net.eval()
 
 
-@pytest.mark.parametrize("variant", ["base", "tiny"])
+@pytest.mark.parametrize("variant", ["base", "wide", "tiny"])
 @pytest.mark.parametrize("hw", [(64, 96), (48, 80), (16, 16)])
 def test_folded_equals_training_form_in_eval_mode(variant: str, hw: tuple[int, int]) -> None:
     net = _trained_like(variant)
@@ -67,10 +67,11 @@ def test_folded_equals_training_form_in_eval_mode(variant: str, hw: tuple[int, i
     assert (ref - x).abs().max() > 1e-2  # not the identity: the comparison means something
     # The convolutional network (what folding changes) within 1e-5, with either upsampling. The guided
     # upsampling's a = cov / (var + eps) amplifies float differences of the coefficients by up to
-    # 1 / (2 sqrt(eps)) = 16x, hence the looser bound on its output.
+    # 1 / (2 sqrt(eps)) = 16x, hence the looser bound on its output (16 x 1e-5; `wide`, with four times the
+    # channels, reaches 7.5e-5 here).
     assert (coeffs - coeffs_ref).abs().max().item() <= 1e-5
     assert (bilinear - bilinear_ref).abs().max().item() <= 1e-5
-    assert (out - ref).abs().max().item() <= 5e-5
+    assert (out - ref).abs().max().item() <= 1.6e-4
 
 
 def test_one_block_folds_exactly_with_and_without_identity() -> None:
@@ -146,7 +147,7 @@ def test_errors() -> None:
         net(torch.rand(1, 3, 30, 32))
     with pytest.raises(ShapeError, match=r"\(B, 3, H, W\)"):
         net(torch.rand(1, 4, 32, 32))
-    with pytest.raises(ValueError, match="variant: expected one of base, tiny"):
+    with pytest.raises(ValueError, match="variant: expected one of base, wide, tiny"):
         build_lite("small")
     with pytest.raises(ValueError, match="widths"):
         LiteConfig(widths=(8, 0, 16))

@@ -88,8 +88,11 @@ def test_lite_training_learns_and_resumes_exactly(tmp_path: Path) -> None:
 
 def test_model_config_checks_the_lite_options() -> None:
     assert ModelConfig(kind="lite").variant == "base"
-    with pytest.raises(ValueError, match=r"variant: expected base or tiny for model\.kind lite"):
+    assert ModelConfig(kind="lite", variant="wide").variant == "wide"
+    with pytest.raises(ValueError, match=r"variant: expected base, wide or tiny for model\.kind lite"):
         ModelConfig(kind="lite", variant="small")
+    with pytest.raises(ValueError, match=r"variant: wide applies to model\.kind lite only"):
+        ModelConfig(kind="jointid", variant="wide")
     with pytest.raises(ValueError, match=r"init: 'icnr' applies to model\.kind jointid only"):
         ModelConfig(kind="lite", init="icnr")
 

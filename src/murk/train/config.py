@@ -74,8 +74,8 @@ class ModelConfig:
     kind: Literal["jointid", "lite"] = "jointid"
     """``jointid`` (enhancement + depth, :mod:`murk.models.jointid`) or ``lite`` (the small real-time
     restorer, :mod:`murk.models.lite`; enhancement only: the depth loss is skipped)."""
-    variant: Literal["base", "small", "tiny"] = "base"
-    """jointid: base, small or tiny; lite: base (shipped) or tiny."""
+    variant: Literal["base", "small", "wide", "tiny"] = "base"
+    """jointid: base, small or tiny; lite: base (shipped), wide or tiny."""
     init_checkpoint: str | None = None
     """Start from these weights (murk or official format) instead of the random initialisation."""
     init: Literal["original", "icnr"] = "original"
@@ -107,8 +107,8 @@ class ModelConfig:
 
     def __post_init__(self) -> None:
         if self.kind == "lite":
-            if self.variant not in ("base", "tiny"):
-                raise ValueError(f"variant: expected base or tiny for model.kind lite, got {self.variant!r}")
+            if self.variant not in ("base", "wide", "tiny"):
+                raise ValueError(f"variant: expected base, wide or tiny for model.kind lite, got {self.variant!r}")
             if self.init != "original":
                 raise ValueError(f"init: {self.init!r} applies to model.kind jointid only (lite has no pixel shuffle)")
             if self.trainable != "all":
@@ -118,6 +118,8 @@ class ModelConfig:
                 )
             if self.global_colour:
                 raise ValueError("global_colour: applies to model.kind jointid only")
+        elif self.variant == "wide":
+            raise ValueError("variant: wide applies to model.kind lite only (jointid: base, small or tiny)")
         if self.input_balance_pct is not None:
             check_range("input_balance_pct", self.input_balance_pct, 0.0, 49.0)
         if self.trainable != "all" and not self.init_checkpoint:
