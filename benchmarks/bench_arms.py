@@ -43,9 +43,9 @@ from murk.data import sample_underwater_images
 from murk.io import read_rgb
 from murk.io.images import list_images
 from murk.io.pairs import DepthOptions, discover, load_pair
+from murk.metrics import restoration_measures
 from murk.report.compare import run_compare
 from murk.report.heldout import HeldoutSet, make_heldout, score_heldout
-from murk.metrics import restoration_measures
 from murk.report.methods import build_restorer, parse_method
 from murk.report.study import (
     SNOW_CONTRAST_KEYS,
