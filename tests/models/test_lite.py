@@ -67,11 +67,12 @@ def test_folded_equals_training_form_in_eval_mode(variant: str, hw: tuple[int, i
     assert (ref - x).abs().max() > 1e-2  # not the identity: the comparison means something
     # The convolutional network (what folding changes) within 1e-5, with either upsampling. The guided
     # upsampling's a = cov / (var + eps) amplifies float differences of the coefficients by up to
-    # 1 / (2 sqrt(eps)) = 16x, hence the looser bound on its output (16 x 1e-5; `wide`, with four times the
-    # channels, reaches 7.5e-5 here).
-    assert (coeffs - coeffs_ref).abs().max().item() <= 1e-5
-    assert (bilinear - bilinear_ref).abs().max().item() <= 1e-5
-    assert (out - ref).abs().max().item() <= 1.6e-4
+    # 1 / (2 sqrt(eps)) = 16x, hence the looser bound on its output. `wide` (twice the channels, longer sums)
+    # gets 2e-5 on the coefficients and 16x that on the output: it reaches 8.6e-6 and 7.5e-5 here.
+    coeff_bound, out_bound = (2e-5, 3.2e-4) if variant == "wide" else (1e-5, 5e-5)
+    assert (coeffs - coeffs_ref).abs().max().item() <= coeff_bound
+    assert (bilinear - bilinear_ref).abs().max().item() <= coeff_bound
+    assert (out - ref).abs().max().item() <= out_bound
 
 
 def test_one_block_folds_exactly_with_and_without_identity() -> None:
@@ -96,6 +97,7 @@ def test_parameter_budget() -> None:
     folded = reparameterize(net.eval())
     assert parameter_count(folded) <= MAX_INFERENCE_PARAMETERS
     assert parameter_count(folded) == 90_566  # pinned: the shipped architecture (docs/models.md)
+    assert parameter_count(reparameterize(build_lite("wide").eval())) == 489_542  # docs/train.md: "490 K"
     assert parameter_count(net) > parameter_count(folded)  # the training form carries the extra branches
 
 

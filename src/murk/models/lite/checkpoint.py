@@ -41,7 +41,7 @@ class LiteCheckpointInfo:
 
     @property
     def variant(self) -> str | None:
-        """``"base"``, ``"tiny"`` or None for a custom configuration."""
+        """``"base"``, ``"wide"``, ``"tiny"`` or None for a custom configuration."""
         return variant_name(self.config)
 
 

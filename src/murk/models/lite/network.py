@@ -118,7 +118,7 @@ class LiteConfig:
 
 VARIANTS: dict[str, LiteConfig] = {
     "base": LiteConfig(),
-    # Four times the channels and more blocks (about 490 K parameters folded): the network runs on the ~128x160
+    # Twice the channels and more blocks (about 490 K parameters folded, 5.4x base's): the network runs on the ~128x160
     # working image, so at 640x480 it costs a few milliseconds more than ``base`` (issue 46's capacity lever).
     "wide": LiteConfig(widths=(32, 64, 96), blocks=(2, 2, 3)),
     # For tests and quick experiments.
