@@ -87,6 +87,8 @@ def test_recorded_run_configs_equal_the_shipped_configs() -> None:
         "configs/train-lite-water-cpu.yaml": "docs/models/lite-water-config.yaml",
         "configs/train-small-water-head-cpu.yaml": "docs/models/jointid-small-water-head-config.yaml",
         "configs/train-lite-water-halfdetail-cpu.yaml": "docs/models/lite-water-halfdetail-config.yaml",
+        "configs/train-lite-wide-long-cpu.yaml": "docs/models/lite-wide-long-config.yaml",
+        "configs/train-lite-wide-long-halfdetail-cpu.yaml": "docs/models/lite-wide-long-halfdetail-config.yaml",
     }
     # Stage 6 ran from the files of that day (the head from the then-shipped stage-5 file, the distillation from the
     # head's first run); the shipped configs name where a reproduction finds them (docs/models.md, "Stage 6").
