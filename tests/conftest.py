@@ -25,6 +25,18 @@ def pytest_configure(config: pytest.Config) -> None:
         torch.set_num_threads(1)
 
 
+@pytest.fixture(autouse=True)
+def _reset_pixel_limit() -> Iterator[None]:
+    """``murk --max-pixels N`` sets a process-wide limit (:func:`murk._limits.set_max_pixels`); a CLI test that
+    invokes it in-process left it set for the next test on the same worker (a 35-pixel limit from a snow-bank test
+    failed three training-data tests, 2026-12-07, depending on the order). Every test starts and ends without it."""
+    from murk._limits import set_max_pixels
+
+    set_max_pixels(None)
+    yield
+    set_max_pixels(None)
+
+
 @pytest.fixture(scope="session")
 def tests_data() -> Path:
     return TESTS_DATA
