@@ -13,13 +13,12 @@ from murk.metrics import restoration_measures
 
 def test_shipped_lite_file_is_small_safe_and_documented() -> None:
     path = shipped_lite_weights()
-    # the `wide` variant since 2026-12-07: 490 K float32 parameters, about 2.2 MB (the `base` line was 0.45 MB)
-    assert path.is_file() and path.stat().st_size <= 3 * 2**20
+    assert path.is_file() and path.stat().st_size <= 1 * 2**20
     obj = torch.load(path, weights_only=True)
-    assert obj["variant"] == "wide"
-    assert obj["meta"]["command"].startswith("murk train --config configs/train-lite-wide-long-cpu.yaml")
-    assert "configs/train-lite-wide-long-halfdetail-cpu.yaml" in obj["meta"]["command"]  # the last stage (issue 46)
-    assert obj["meta"]["steps"] == 9500 and obj["meta"]["input_balance_pct"] == 1.0
+    assert obj["meta"]["command"].startswith("murk train --config configs/train-lite-cpu.yaml")
+    assert "configs/train-lite-mild-cpu.yaml" in obj["meta"]["command"]  # milder water (issue 27)
+    assert "configs/train-lite-water-halfdetail-cpu.yaml" in obj["meta"]["command"]  # the last stage (issue 46)
+    assert obj["meta"]["steps"] == 13000 and obj["meta"]["input_balance_pct"] == 1.0
 
 
 def test_shipped_lite_restores_heldout_scenes_and_keeps_real_images_sane() -> None:

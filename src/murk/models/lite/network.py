@@ -1,4 +1,4 @@
-"""``lite``: a small convolutional restorer for real-time CPU inference (90 K or 490 K parameters folded).
+"""``lite``: a small convolutional restorer for real-time CPU inference (about 90 K parameters folded).
 
 The network predicts, at 1/4 of the input resolution, a per-pixel and per-channel gain and offset, upsamples
 them bilinearly to full resolution and applies them to the input: ``enhanced = gain * x + offset``. That is
@@ -345,8 +345,7 @@ def build_lite(variant: LiteVariant | str = "base", **overrides: Any) -> LiteNet
     """A randomly initialised ``lite`` network in its training form.
 
     Args:
-        variant: ``"base"`` (about 90 K parameters folded; shipped until 2026-12-07), ``"wide"`` (about 490 K;
-            shipped since) or ``"tiny"`` (tests).
+        variant: ``"base"`` (shipped, about 90 K parameters folded), ``"wide"`` (about 490 K) or ``"tiny"`` (tests).
         **overrides: :class:`LiteConfig` fields to change.
 
     Raises:
