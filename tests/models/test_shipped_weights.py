@@ -87,6 +87,10 @@ def test_recorded_run_configs_equal_the_shipped_configs() -> None:
         "configs/train-lite-water-cpu.yaml": "docs/models/lite-water-config.yaml",
         "configs/train-small-water-head-cpu.yaml": "docs/models/jointid-small-water-head-config.yaml",
         "configs/train-lite-water-halfdetail-cpu.yaml": "docs/models/lite-water-halfdetail-config.yaml",
+        "configs/train-lite-long-s1-cpu.yaml": "docs/models/lite-long-s1-config.yaml",
+        "configs/train-lite-long-halfdetail-cpu.yaml": "docs/models/lite-long-halfdetail-config.yaml",
+        # the other stage 2 of 2026-12-07, measured and not shipped (docs/models.md)
+        "configs/train-lite-long-waterdetail-cpu.yaml": "docs/models/lite-long-waterdetail-config.yaml",
         # the `wide` run of 2026-12-07, recorded with its card though not shipped (docs/models.md)
         "configs/train-lite-wide-long-cpu.yaml": "docs/models/lite-wide-long-config.yaml",
         "configs/train-lite-wide-long-halfdetail-cpu.yaml": "docs/models/lite-wide-long-halfdetail-config.yaml",
