@@ -21,6 +21,8 @@ def test_shipped_lite_file_is_small_safe_and_documented() -> None:
     assert "configs/train-lite-long-s1-cpu.yaml" in obj["meta"]["command"]  # trained longer (issue 46, 2026-12-07)
     assert "configs/train-lite-long-halfdetail-cpu.yaml" in obj["meta"]["command"]  # the last stage
     assert obj["meta"]["steps"] == 17000 and obj["meta"]["input_balance_pct"] == 1.0
+    # the run's last validation (docs/models/lite-long-halfdetail-log.jsonl, step 1,500), recorded in the meta
+    assert abs(obj["meta"]["val_psnr"] - 20.3583) < 1e-3
 
 
 def test_shipped_lite_keeps_the_parameter_budget() -> None:
