@@ -94,6 +94,9 @@ def test_recorded_run_configs_equal_the_shipped_configs() -> None:
         # the `wide` run of 2026-12-07, recorded with its card though not shipped (docs/models.md)
         "configs/train-lite-wide-long-cpu.yaml": "docs/models/lite-wide-long-config.yaml",
         "configs/train-lite-wide-long-halfdetail-cpu.yaml": "docs/models/lite-wide-long-halfdetail-config.yaml",
+        # its control with `base`, measured and not shipped (docs/train.md, "Width or length: the control")
+        "configs/train-lite-base-long-cpu.yaml": "docs/models/lite-base-long-config.yaml",
+        "configs/train-lite-base-long-halfdetail-cpu.yaml": "docs/models/lite-base-long-halfdetail-config.yaml",
     }
     # Stage 6 ran from the files of that day (the head from the then-shipped stage-5 file, the distillation from the
     # head's first run); the shipped configs name where a reproduction finds them (docs/models.md, "Stage 6").
