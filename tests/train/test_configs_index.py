@@ -30,8 +30,9 @@ def test_the_index_names_every_config_and_only_configs_that_exist() -> None:
     assert not named - files, f"configs/README.md names files that do not exist: {sorted(named - files)}"
 
 
-def test_the_check_finds_a_missing_and_a_stale_name() -> None:
-    """The index check above would fail both ways (guards the pattern against matching nothing)."""
+def test_the_index_pattern_reads_backticked_names_only() -> None:
+    """The pattern the index check reads names with: backticked config names count, a bare mention does not (so the
+    check above cannot pass by matching nothing, or by a name merely mentioned in prose)."""
     text = "| `train-a-cpu.yaml` | x |\n| `study-b.yaml` | y |\nplain train-c.yaml is not a listing"
     assert named_in_index(text) == {"train-a-cpu.yaml", "study-b.yaml"}
 
