@@ -3,7 +3,7 @@
 Run: PYTHONPATH=src python benchmarks/bench_arms.py NAME=SPEC [NAME=SPEC ...] --ref NAME[,NAME...]
      [--real-pairs DIR] [--snow-pairs DIR] [--heldout-scenes 64] [--heldout-photos DIR]
      [--config configs/train-lite-mild-scratch-cpu.yaml] [--stages basic,forward_scatter,marine_snow] [--threads 2]
-     [--artefacts] [--out DIR]
+     [--artefacts] [--out DIR] [--probe benchmarks/probes/FILE.py ...]
 
 SPEC is a method spec as ``murk compare --method`` takes it (``lite``, ``jointid``, ``water?strength=0.5``,
 ``lite:runs/x/latest.pt``), or a ``.pt`` file (a ``lite`` checkpoint, a training run's ``latest.pt``). Every measure
@@ -26,11 +26,17 @@ the same functions:
   (:func:`murk.metrics.restoration_measures`): periodic artefact ratio (issue 46's limit: 1.3x on every image),
   mean and worst image (periodic or isolated, as ``bench_model``'s ``worst_artefact_ratio``), and the contrast ratio;
   the periodic ratio paired against each ``--ref`` arm.
+- ``--probe FILE``: a Python file that registers methods of its own (``murk.enhance.restorer.register``), run before
+  the arms are read, so that a SPEC may name them (``a16=detail_area?area=16``, ``lite+detail_area``). The probes of
+  issue 46 that were measured and not kept live in ``benchmarks/probes/`` (their README lists them with the
+  command each was measured with).
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
+import sys
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -169,6 +175,23 @@ def heldout_photos(folder: Path, synthesis: Any) -> HeldoutSet:
     return HeldoutSet(degraded, clean, np.full(dist.shape, np.nan, np.float32), HELDOUT_SEED)
 
 
+def load_probe(path: Path) -> None:
+    """Run the Python file ``path`` as a module (named after its stem) so that the methods it registers exist.
+
+    Raises:
+        FileNotFoundError: ``path`` is not a file.
+    """
+    if not path.is_file():
+        raise FileNotFoundError(f"--probe {path}: no such file")
+    name = f"murk_probe_{path.stem}"
+    spec = importlib.util.spec_from_file_location(name, path)
+    if spec is None or spec.loader is None:
+        raise ImportError(f"--probe {path}: not a Python file")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("arms", nargs="+", help="NAME=SPEC")
@@ -182,7 +205,13 @@ def main() -> None:
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--artefacts", action="store_true", help="periodic artefacts on the shipped real images")
     ap.add_argument("--out", type=Path, help="where murk compare's reports go (default: a temporary folder)")
+    ap.add_argument("--probe", type=Path, action="append", default=[], help="a Python file that registers methods")
     args = ap.parse_args()
+    for probe in args.probe:
+        try:
+            load_probe(probe)
+        except (OSError, ImportError) as e:
+            ap.error(str(e))
     torch.set_num_threads(args.threads)
     pairs = [a.split("=", 1) for a in args.arms]
     names, texts = [n for n, _ in pairs], [method_text(n, s) for n, s in pairs]
