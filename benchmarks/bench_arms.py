@@ -211,7 +211,7 @@ def main() -> None:
         try:
             load_probe(probe)
         except (OSError, ImportError) as e:
-            ap.error(str(e))
+            ap.error(str(e) if str(e).startswith("--probe ") else f"--probe {probe}: {e}")
     torch.set_num_threads(args.threads)
     pairs = [a.split("=", 1) for a in args.arms]
     names, texts = [n for n, _ in pairs], [method_text(n, s) for n, s in pairs]

@@ -2,9 +2,10 @@
 input's colour cast.
 
 ``colorbalance + s (lite - colorbalance)`` with ``s = below`` when the input's cast (the chroma of its mean CIELAB
-colour, 1 % / 1 % unbalanced) is under ``cast``, else 1 (``lite``). The write-up's threshold, drawn by eye on the
-development pairs it is scored on: ``cast_gate?cast=17,below=0.5`` (+0.16 dB on the mean over sets, more than half
-of it from one image). ``below=1`` is ``lite``.
+colour, measured on the raw input before any balance) is under ``cast``, else 1 (``lite``). The write-up's
+threshold, drawn by eye on the development pairs it is scored on: ``cast_gate?cast=17,below=0.5`` (+0.16 dB on the
+mean over sets, more than half of it from one image). ``below=1`` is ``lite``; ``below=0`` under a cast no image
+reaches is ``colorbalance``.
 
 Run: PYTHONPATH=src python benchmarks/bench_arms.py --probe benchmarks/probes/cast_gate.py lite=lite
      "g=cast_gate?cast=17,below=0.5" --ref lite --real-pairs <pairs> --heldout-scenes 0

@@ -4,7 +4,8 @@
 those were smaller than marine snow, dropping the residual's small connected parts would keep the snow removal and
 lose the cost. Stage to chain after a restorer: ``lite+detail_area?area=16``. The residual's luma is thresholded at
 ``threshold``; its 8-connected parts of fewer than ``area`` pixels are zeroed (the kept mask dilated by one pixel and
-blurred with sigma 1 px so that the edges stay soft). ``area=0`` is ``detail`` itself.
+blurred with sigma 1 px so that the edges stay soft). ``area=0`` is ``detail`` itself. "Luma" here is the mean over
+the three channels.
 
 Run: PYTHONPATH=src python benchmarks/bench_arms.py --probe benchmarks/probes/detail_area.py lite=lite
      ld=lite+detail a4=lite+detail_area?area=4 a16=lite+detail_area?area=16 --ref lite --real-pairs <pairs>

@@ -4,9 +4,10 @@ A fresh copy of the shipped ``lite`` is fine-tuned on the image it is about to r
 ``steps`` steps at ``lr``), from nothing but that image, then restores it. ``target``:
 - ``rehaze`` (the write-up's arm ``a``): the shipped output ``J0`` hazed again by Eq. (1) with the water the
   ``water`` estimator reads from the image and ``jointid_net``'s distance, ``J0 t + B (1 - t)``, is the training
-  input and ``J0`` the target; the result is ``J0 + mix (J - J0)``;
+  input and ``J0`` the target;
 - ``synth`` (``s``): ``J0`` and the same distance through four draws of the study's synthesis
   (configs/train-lite-mild-scratch-cpu.yaml: Eqs. 1-8, real snow) are the inputs, ``J0`` the target;
+  for both, the adapted network's output ``J`` gives the result ``J0 + mix (J - J0)``;
 - ``cycle`` (``c``): the output ``J`` hazed again with the estimated water must match the image after the best
   per-channel gain and offset, beside an L1 anchor to ``J0`` weighted ``mix``; the result is ``J``.
 The ``rehaze`` and ``synth`` targets flip their inputs every other step.

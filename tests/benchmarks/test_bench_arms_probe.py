@@ -1,5 +1,7 @@
 """benchmarks/bench_arms.py ``--probe``: a file's own methods become arms; the probes of benchmarks/probes/ load,
-declare their options, are listed in their README, and reduce to the method they change at their neutral setting."""
+declare their options and are listed in their README; the gate, ``desnow`` on the input and ``detail`` without its
+small parts reduce to the methods they change at their neutral settings; the two ``detail`` filters drop what they
+say; the two analysis scripts import and measure. (The test-time adaptation is only loaded: it trains per image.)"""
 
 from __future__ import annotations
 
@@ -21,6 +23,7 @@ ROOT = Path(__file__).resolve().parents[2]
 PROBES = ROOT / "benchmarks" / "probes"
 REGISTERED = {
     "detail_area.py": ("detail_area", {"area", "threshold"}),
+    "detail_contrast.py": ("detail_contrast", {"base", "contrast", "threshold"}),
     "desnow_input.py": ("desnow_input", {"base", "source", "threshold", "crowd", "size"}),
     "cast_gate.py": ("cast_gate", {"cast", "below"}),
     "tta.py": ("tta", {"target", "steps", "lr", "mix"}),
@@ -67,22 +70,79 @@ def test_a_probe_at_its_neutral_setting_scores_as_the_method_it_changes(tmp_path
     (pairs / "snowy").mkdir()
     rng = np.random.default_rng(3)
     for i, path in enumerate(sample_underwater_images()[:2]):
-        clean = cv2.resize(cv2.imread(str(path)), (96, 72), interpolation=cv2.INTER_AREA)
+        clean = cv2.resize(cv2.imread(str(path)), (192, 144), interpolation=cv2.INTER_AREA)
         snowy = clean.copy()
-        for y, x in rng.integers(4, 68, size=(12, 2)):
-            cv2.circle(snowy, (int(x), int(y)), 2, (235, 240, 240), -1)
+        for y, x in rng.integers(4, 140, size=(30, 2)):
+            cv2.circle(snowy, (int(x), int(y)), 1, (235, 240, 240), -1)
         cv2.imwrite(str(pairs / "clean" / f"{i}.png"), clean)
         cv2.imwrite(str(pairs / "snowy" / f"{i}.png"), snowy)
     proc = _run(
         "--probe", str(PROBES / "detail_area.py"), "--probe", str(PROBES / "cast_gate.py"),
+        "--probe", str(PROBES / "desnow_input.py"),
         "d=detail", "a0=detail_area?area=0", "a9=detail_area?area=9", "l=lite", "g1=cast_gate?below=1",
+        "cb=colorbalance", "g0=cast_gate?cast=1000,below=0", "ld=lite+desnow", "di=desnow_input?source=output",
         "--ref", "d,l", "--snow-pairs", str(pairs), "--heldout-scenes", "0", "--threads", "1",
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     line = next(s for s in proc.stdout.splitlines() if s.startswith("snow residue, mean:"))
     residue = {k: float(v) for k, v in (part.split() for part in line.split(":", 1)[1].split(";"))}
     assert residue["a0"] == residue["d"] and residue["g1"] == residue["l"]
-    assert residue["a9"] != residue["d"]  # the filter does act
+    assert residue["g0"] == residue["cb"] and residue["di"] == residue["ld"]
+    assert residue["a9"] != residue["d"] and residue["cb"] != residue["l"] and residue["ld"] != residue["l"]
+
+
+def _module(file: str) -> ModuleType:
+    spec = importlib.util.spec_from_file_location(f"probe_under_test_{Path(file).stem}", PROBES / file)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_detail_area_drops_the_small_parts_and_keeps_the_large() -> None:
+    try:
+        module = _module("detail_area.py")
+    finally:
+        unregister("detail_area")
+    probe = module.DetailArea.__new__(module.DetailArea)
+    probe.area, probe.threshold = 9, 0.02
+    x = np.zeros((32, 32, 3), np.float32)
+    y = x.copy()
+    y[4, 4] = 0.5  # a 1-pixel part of the residual
+    y[20:25, 20:25] = 0.5  # a 25-pixel part
+    out = probe._kept(x, y)
+    assert out[4, 4].max() == 0.0
+    assert np.allclose(out[22, 22], 0.5, atol=0.02)
+
+
+def test_detail_contrast_keeps_the_parts_that_are_bright_specks_on_the_input() -> None:
+    try:
+        module = _module("detail_contrast.py")
+    finally:
+        unregister("detail_contrast")
+    probe = module.DetailContrast.__new__(module.DetailContrast)
+    probe.contrast, probe.threshold = 10.0, 0.02
+    image = np.full((40, 40, 3), 0.3, np.float32)
+    image[6:11, 6:11] = 0.8  # a bright speck on the input at the first part only
+    restored = np.full((40, 40, 3), 0.5, np.float32)
+    detailed = restored.copy()
+    detailed[6:11, 6:11] = 0.2
+    detailed[26:31, 26:31] = 0.2
+    out = probe._kept(image, restored, detailed)
+    assert np.allclose(out[8, 8], 0.2, atol=0.02)  # kept: the input shows it
+    assert np.allclose(out[28, 28], 0.5)  # dropped: the input is flat there
+
+
+def test_the_analysis_probes_import_and_measure() -> None:
+    white = np.ones((4, 4, 3), np.float32)
+    assert np.allclose(_module("reference_colour.py").mean_lab(white), [100.0, 0.0, 0.0], atol=0.01)
+    rng = np.random.default_rng(0)
+    restored = rng.random((48, 64, 3), dtype=np.float32)
+    detailed = restored.copy()
+    detailed[10:13, 10:13] -= 0.2
+    values = _module("snow_frame_features.py").features(restored, detailed)
+    assert len(values) == 8 and all(np.isfinite(values))
+    assert values[1] == pytest.approx(1000 * 9 / (48 * 64))  # the 3x3 darkened by 0.2, per thousand pixels
 
 
 def test_a_missing_probe_file_is_named() -> None:
