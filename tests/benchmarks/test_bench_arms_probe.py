@@ -11,6 +11,7 @@ import subprocess
 import sys
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import cv2
 import numpy as np
@@ -30,12 +31,28 @@ REGISTERED = {
 }
 
 
-def _bench_arms() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("bench_arms_under_test", ROOT / "benchmarks" / "bench_arms.py")
+def _load(path: Path) -> ModuleType:
+    spec = importlib.util.spec_from_file_location(f"under_test_{path.stem}", path)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+def _bench_arms() -> ModuleType:
+    return _load(ROOT / "benchmarks" / "bench_arms.py")
+
+
+def _unbuilt(file: str, method: str, cls: str, **settings: float) -> Any:
+    """The probe class ``cls`` of ``file`` with ``settings`` and no network loaded (its filters are numpy only)."""
+    try:
+        module = _load(PROBES / file)
+    finally:
+        unregister(method)
+    probe = getattr(module, cls).__new__(getattr(module, cls))
+    for name, value in settings.items():
+        setattr(probe, name, value)
+    return probe
 
 
 def _run(*args: str) -> subprocess.CompletedProcess[str]:
@@ -91,21 +108,8 @@ def test_a_probe_at_its_neutral_setting_scores_as_the_method_it_changes(tmp_path
     assert residue["a9"] != residue["d"] and residue["cb"] != residue["l"] and residue["ld"] != residue["l"]
 
 
-def _module(file: str) -> ModuleType:
-    spec = importlib.util.spec_from_file_location(f"probe_under_test_{Path(file).stem}", PROBES / file)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def test_detail_area_drops_the_small_parts_and_keeps_the_large() -> None:
-    try:
-        module = _module("detail_area.py")
-    finally:
-        unregister("detail_area")
-    probe = module.DetailArea.__new__(module.DetailArea)
-    probe.area, probe.threshold = 9, 0.02
+    probe = _unbuilt("detail_area.py", "detail_area", "DetailArea", area=9, threshold=0.02)
     x = np.zeros((32, 32, 3), np.float32)
     y = x.copy()
     y[4, 4] = 0.5  # a 1-pixel part of the residual
@@ -116,12 +120,7 @@ def test_detail_area_drops_the_small_parts_and_keeps_the_large() -> None:
 
 
 def test_detail_contrast_keeps_the_parts_that_are_bright_specks_on_the_input() -> None:
-    try:
-        module = _module("detail_contrast.py")
-    finally:
-        unregister("detail_contrast")
-    probe = module.DetailContrast.__new__(module.DetailContrast)
-    probe.contrast, probe.threshold = 10.0, 0.02
+    probe = _unbuilt("detail_contrast.py", "detail_contrast", "DetailContrast", contrast=10.0, threshold=0.02)
     image = np.full((40, 40, 3), 0.3, np.float32)
     image[6:11, 6:11] = 0.8  # a bright speck on the input at the first part only
     restored = np.full((40, 40, 3), 0.5, np.float32)
@@ -135,12 +134,12 @@ def test_detail_contrast_keeps_the_parts_that_are_bright_specks_on_the_input() -
 
 def test_the_analysis_probes_import_and_measure() -> None:
     white = np.ones((4, 4, 3), np.float32)
-    assert np.allclose(_module("reference_colour.py").mean_lab(white), [100.0, 0.0, 0.0], atol=0.01)
+    assert np.allclose(_load(PROBES / "reference_colour.py").mean_lab(white), [100.0, 0.0, 0.0], atol=0.01)
     rng = np.random.default_rng(0)
     restored = rng.random((48, 64, 3), dtype=np.float32)
     detailed = restored.copy()
     detailed[10:13, 10:13] -= 0.2
-    values = _module("snow_frame_features.py").features(restored, detailed)
+    values = _load(PROBES / "snow_frame_features.py").features(restored, detailed)
     assert len(values) == 8 and all(np.isfinite(values))
     assert values[1] == pytest.approx(1000 * 9 / (48 * 64))  # the 3x3 darkened by 0.2, per thousand pixels
 
