@@ -180,6 +180,7 @@ def load_probe(path: Path) -> None:
 
     Raises:
         FileNotFoundError: ``path`` is not a file.
+        ImportError: it cannot be loaded as a module, or importing it failed (the message names the file).
     """
     if not path.is_file():
         raise FileNotFoundError(f"--probe {path}: no such file")
@@ -189,7 +190,10 @@ def load_probe(path: Path) -> None:
         raise ImportError(f"--probe {path}: not a Python file")
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
-    spec.loader.exec_module(module)
+    try:
+        spec.loader.exec_module(module)
+    except (ImportError, OSError) as e:
+        raise ImportError(f"--probe {path}: {e}") from e
 
 
 def main() -> None:
@@ -211,7 +215,7 @@ def main() -> None:
         try:
             load_probe(probe)
         except (OSError, ImportError) as e:
-            ap.error(str(e) if str(e).startswith("--probe ") else f"--probe {probe}: {e}")
+            ap.error(str(e))
     torch.set_num_threads(args.threads)
     pairs = [a.split("=", 1) for a in args.arms]
     names, texts = [n for n, _ in pairs], [method_text(n, s) for n, s in pairs]

@@ -26,14 +26,7 @@ import torch
 from murk.enhance.restorer import create
 from murk.io import read_rgb
 from murk.io.images import list_images
-
-
-def downscaled(image: np.ndarray, max_side: int) -> np.ndarray:
-    h, w = image.shape[:2]
-    s = max_side / max(h, w)
-    if s >= 1:
-        return image.astype(np.float32)
-    return cv2.resize(image, (round(w * s), round(h * s)), interpolation=cv2.INTER_AREA).astype(np.float32)
+from murk.report.compare import downscale_to
 
 
 def features(restored: np.ndarray, detailed: np.ndarray) -> list[float]:
@@ -64,7 +57,7 @@ def main() -> None:
     for folder in args.folders:
         rows = []
         for path in list_images(folder):
-            x = downscaled(read_rgb(path), args.max_side)
+            x = downscale_to(read_rgb(path), args.max_side).astype(np.float32)
             y = lite.restore(x[None]).images[0]
             rows.append(features(y, detail.restore(y[None]).images[0]))
             print(

@@ -144,7 +144,12 @@ def test_the_analysis_probes_import_and_measure() -> None:
     assert values[1] == pytest.approx(1000 * 9 / (48 * 64))  # the 3x3 darkened by 0.2, per thousand pixels
 
 
-def test_a_missing_probe_file_is_named() -> None:
+def test_a_missing_probe_file_and_one_that_fails_to_import_are_named(tmp_path: Path) -> None:
     proc = _run("--probe", "benchmarks/probes/nothing_here.py", "l=lite", "--ref", "l", "--heldout-scenes", "0")
     assert proc.returncode == 2
     assert "--probe benchmarks/probes/nothing_here.py: no such file" in proc.stderr
+    broken = tmp_path / "broken_probe.py"
+    broken.write_text("import murk_has_no_such_module\n")
+    proc = _run("--probe", str(broken), "l=lite", "--ref", "l", "--heldout-scenes", "0")
+    assert proc.returncode == 2
+    assert f"--probe {broken}: No module named 'murk_has_no_such_module'" in proc.stderr
