@@ -28,6 +28,7 @@ REGISTERED = {
     "desnow_input.py": ("desnow_input", {"base", "source", "threshold", "crowd", "size"}),
     "cast_gate.py": ("cast_gate", {"cast", "below"}),
     "tta.py": ("tta", {"target", "steps", "lr", "mix"}),
+    "flip_average.py": ("flip_average", {"base", "views"}),
 }
 
 
@@ -106,6 +107,24 @@ def test_a_probe_at_its_neutral_setting_scores_as_the_method_it_changes(tmp_path
     assert residue["a0"] == residue["d"] and residue["g1"] == residue["l"]
     assert residue["g0"] == residue["cb"] and residue["di"] == residue["ld"]
     assert residue["a9"] != residue["d"] and residue["cb"] != residue["l"] and residue["ld"] != residue["l"]
+
+
+def test_flip_average_is_its_base_without_views_and_mirror_symmetric_with_them() -> None:
+    try:
+        module = _load(PROBES / "flip_average.py")
+        lite = module.create("lite")
+        plain, h = module.FlipAverage("lite", "none"), module.FlipAverage("lite", "h")
+    finally:
+        unregister("flip_average")
+    images = np.stack([cv2.resize(cv2.imread(str(p))[..., ::-1], (96, 64)) for p in sample_underwater_images()[:2]])
+    images = images.astype(np.float32) / 255.0
+    mirrored = np.ascontiguousarray(images[:, :, ::-1])
+    np.testing.assert_array_equal(plain.restore(images).images, lite.restore(images).images)
+    out, out_mirrored = h.restore(images).images, h.restore(mirrored).images
+    expected = (lite.restore(images).images + lite.restore(mirrored).images[:, :, ::-1]) / 2
+    np.testing.assert_allclose(out, expected, atol=1e-6)
+    np.testing.assert_allclose(out_mirrored[:, :, ::-1], out, atol=1e-6)  # averaged over the mirror: symmetric
+    assert np.abs(out - lite.restore(images).images).max() > 1e-3  # lite alone is not
 
 
 def test_detail_area_drops_the_small_parts_and_keeps_the_large() -> None:

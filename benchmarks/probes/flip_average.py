@@ -1,0 +1,44 @@
+"""Probe (issue 46, 2026-12-07, night; measured, not kept): a restorer averaged over mirrored copies of its input
+(test-time augmentation; not the test-time adaptation of ``tta.py``).
+
+``flip_average?base=lite,views=h``: the mean of ``base(x)`` and ``mirror(base(mirror(x)))`` (left-right);
+``views=v`` the same up-down, ``views=hv`` all four mirrors; ``views=none`` is ``base`` itself. Depth, where the
+base has it, is the unmirrored pass's. Left-right is a symmetry of underwater scenes; up-down is not (the far water
+is at the top), so the up-down views dilute what ``lite`` has learnt of distance.
+
+Run: PYTHONPATH=src python benchmarks/bench_arms.py --probe benchmarks/probes/flip_average.py lite=lite
+     "lh=flip_average?base=lite,views=h" "lv=flip_average?base=lite,views=v" --ref lite --real-pairs <pairs>
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from murk.enhance.restorer import Restored, Restorer, create, register
+
+_VIEWS = {"none": [()], "h": [(), (2,)], "v": [(), (1,)], "hv": [(), (2,), (1,), (1, 2)]}  # axes of (B, H, W, 3)
+
+
+class FlipAverage(Restorer):
+    name = "flip_average"
+
+    def __init__(self, base: str, views: str) -> None:
+        if views not in _VIEWS:
+            raise ValueError(f"views: expected one of {sorted(_VIEWS)}, got {views!r}")
+        self.base, self.flips = create(base), _VIEWS[views]
+
+    def restore(self, images: np.ndarray) -> Restored:
+        images = np.asarray(images, np.float32)
+        first = self.base.restore(images)
+        total = first.images.astype(np.float64)
+        for axes in self.flips[1:]:
+            out = self.base.restore(np.ascontiguousarray(np.flip(images, axes))).images
+            total += np.flip(out, axes)
+        avg = (total / len(self.flips)).astype(np.float32)
+        return Restored(np.clip(avg, 0.0, 1.0), first.depth_m, first.facts)
+
+
+@register("flip_average")
+def make_flip_average(*, base: str = "lite", views: str = "h") -> FlipAverage:
+    """``base`` averaged over ``views`` mirrored copies of its input."""
+    return FlipAverage(base, views)
