@@ -4,9 +4,11 @@
 ``flip_average?base=lite,views=h``: the mean of ``base(x)`` and ``mirror(base(mirror(x)))`` (left-right);
 ``views=v`` the same up-down, ``views=hv`` all four mirrors; ``views=none`` is ``base`` itself. Depth, where the
 base has it, is the unmirrored pass's. Left-right is a symmetry of underwater scenes; up-down is not (the far water
-is at the top), so the up-down views dilute what ``lite`` has learnt of distance.
+is often at the top), so the up-down views may dilute what the networks have learnt of distance (a hypothesis, not
+measured apart).
 
-Run: PYTHONPATH=src python benchmarks/bench_arms.py --probe benchmarks/probes/flip_average.py lite=lite
+Run: the two commands of docs/train.md, "Mirrored copies averaged", e.g.
+     PYTHONPATH=src python benchmarks/bench_arms.py --probe benchmarks/probes/flip_average.py lite=lite
      "lh=flip_average?base=lite,views=h" "lv=flip_average?base=lite,views=v" --ref lite --real-pairs <pairs>
 """
 
@@ -24,7 +26,7 @@ class FlipAverage(Restorer):
 
     def __init__(self, base: str, views: str) -> None:
         if views not in _VIEWS:
-            raise ValueError(f"views: expected one of {sorted(_VIEWS)}, got {views!r}")
+            raise ValueError(f"views: expected one of {', '.join(_VIEWS)}, got {views!r}")
         self.base, self.flips = create(base), _VIEWS[views]
 
     def restore(self, images: np.ndarray) -> Restored:
@@ -34,8 +36,7 @@ class FlipAverage(Restorer):
         for axes in self.flips[1:]:
             out = self.base.restore(np.ascontiguousarray(np.flip(images, axes))).images
             total += np.flip(out, axes)
-        avg = (total / len(self.flips)).astype(np.float32)
-        return Restored(np.clip(avg, 0.0, 1.0), first.depth_m, first.facts)
+        return Restored((total / len(self.flips)).astype(np.float32), first.depth_m, first.facts)
 
 
 @register("flip_average")

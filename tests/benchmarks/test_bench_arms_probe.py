@@ -1,7 +1,8 @@
 """benchmarks/bench_arms.py ``--probe``: a file's own methods become arms; the probes of benchmarks/probes/ load,
 declare their options and are listed in their README; the gate, ``desnow`` on the input and ``detail`` without its
 small parts reduce to the methods they change at their neutral settings; the two ``detail`` filters drop what they
-say; the two analysis scripts import and measure. (The test-time adaptation is only loaded: it trains per image.)"""
+say; mirrored copies average as they say; the two analysis scripts import and measure. (The test-time adaptation
+is only loaded: it trains per image.)"""
 
 from __future__ import annotations
 
@@ -109,22 +110,29 @@ def test_a_probe_at_its_neutral_setting_scores_as_the_method_it_changes(tmp_path
     assert residue["a9"] != residue["d"] and residue["cb"] != residue["l"] and residue["ld"] != residue["l"]
 
 
-def test_flip_average_is_its_base_without_views_and_mirror_symmetric_with_them() -> None:
+def test_flip_average_averages_the_mirrored_passes_and_keeps_the_first_pass_depth() -> None:
     try:
         module = _load(PROBES / "flip_average.py")
-        lite = module.create("lite")
-        plain, h = module.FlipAverage("lite", "none"), module.FlipAverage("lite", "h")
+        lite, jointid = module.create("lite"), module.create("jointid")
+        probes = {v: module.FlipAverage("lite", v) for v in ("none", "h", "v", "hv")}
+        jv = module.FlipAverage("jointid", "v")
     finally:
         unregister("flip_average")
     images = np.stack([cv2.resize(cv2.imread(str(p))[..., ::-1], (96, 64)) for p in sample_underwater_images()[:2]])
     images = images.astype(np.float32) / 255.0
-    mirrored = np.ascontiguousarray(images[:, :, ::-1])
-    np.testing.assert_array_equal(plain.restore(images).images, lite.restore(images).images)
-    out, out_mirrored = h.restore(images).images, h.restore(mirrored).images
-    expected = (lite.restore(images).images + lite.restore(mirrored).images[:, :, ::-1]) / 2
-    np.testing.assert_allclose(out, expected, atol=1e-6)
-    np.testing.assert_allclose(out_mirrored[:, :, ::-1], out, atol=1e-6)  # averaged over the mirror: symmetric
-    assert np.abs(out - lite.restore(images).images).max() > 1e-3  # lite alone is not
+    h, v = (lambda x: x[:, :, ::-1]), (lambda x: x[:, ::-1])  # mirrors of a batch (B, H, W, 3)
+    by_lite = {f: f(lite.restore(np.ascontiguousarray(f(images))).images) for f in (h, v)}
+    alone = lite.restore(images).images
+    both = v(h(lite.restore(np.ascontiguousarray(v(h(images)))).images))
+    expected = {"none": alone, "h": (alone + by_lite[h]) / 2, "v": (alone + by_lite[v]) / 2}
+    expected["hv"] = (alone + by_lite[h] + by_lite[v] + both) / 4
+    for views, want in expected.items():
+        np.testing.assert_allclose(probes[views].restore(images).images, want, atol=1e-6, err_msg=views)
+    assert min(np.abs(want - alone).max() for want in list(expected.values())[1:]) > 1e-3  # lite is not symmetric
+    restored, own = jv.restore(images), jointid.restore(images)
+    assert restored.depth_m is not None and own.depth_m is not None
+    np.testing.assert_array_equal(restored.depth_m, own.depth_m)  # the unmirrored pass's depth
+    assert np.abs(restored.depth_m - own.depth_m[:, ::-1]).max() > 1e-3  # which the mirrored one is not
 
 
 def test_detail_area_drops_the_small_parts_and_keeps_the_large() -> None:
