@@ -2,10 +2,11 @@
 (test-time augmentation; not the test-time adaptation of ``tta.py``).
 
 ``flip_average?base=lite,views=h``: the mean of ``base(x)`` and ``mirror(base(mirror(x)))`` (left-right);
-``views=v`` the same up-down, ``views=hv`` all four mirrors; ``views=none`` is ``base`` itself. Depth, where the
-base has it, is the unmirrored pass's. Left-right is a symmetry of underwater scenes; up-down is not (the far water
-is often at the top), so the up-down views may dilute what the networks have learnt of distance (a hypothesis, not
-measured apart).
+``views=v`` the same up-down, ``views=hv`` all four mirrors; ``views=none`` is ``base`` itself; ``views=vonly`` is
+the up-down pass alone, ``mirror(base(mirror(x)))``: the base on upside-down frames, to see how much it reads from
+the layout (the far water at the top). Depth, where the base has it, is the first pass's, mirrored back. Left-right
+is a symmetry of underwater scenes; up-down is not (the far water is often at the top), so the up-down views may
+dilute what the networks have learnt of distance (a hypothesis, not measured apart).
 
 Run: the two commands of docs/train.md, "Mirrored copies averaged", e.g.
      PYTHONPATH=src python benchmarks/bench_arms.py --probe benchmarks/probes/flip_average.py lite=lite
@@ -18,28 +19,31 @@ import numpy as np
 
 from murk.enhance.restorer import Restored, Restorer, create, register
 
-_VIEWS = {"none": [()], "h": [(), (2,)], "v": [(), (1,)], "hv": [(), (2,), (1,), (1, 2)]}  # axes of (B, H, W, 3)
+_VIEWS = {"none": [()], "h": [(), (2,)], "v": [(), (1,)], "hv": [(), (2,), (1,), (1, 2)], "vonly": [(1,)]}
+"""The axes of a batch (B, H, W, 3) each pass mirrors (``()``: the input as it is)."""
 
 
 class FlipAverage(Restorer):
     name = "flip_average"
 
-    def __init__(self, base: str, views: str) -> None:
+    def __init__(self, base: str, views: str, checkpoint: str = "") -> None:
         if views not in _VIEWS:
             raise ValueError(f"views: expected one of {', '.join(_VIEWS)}, got {views!r}")
-        self.base, self.flips = create(base), _VIEWS[views]
+        self.base, self.flips = create(base, checkpoint=checkpoint) if checkpoint else create(base), _VIEWS[views]
 
     def restore(self, images: np.ndarray) -> Restored:
         images = np.asarray(images, np.float32)
-        first = self.base.restore(images)
-        total = first.images.astype(np.float64)
+        first = self.base.restore(np.ascontiguousarray(np.flip(images, self.flips[0])))
+        total = np.flip(first.images, self.flips[0]).astype(np.float64)
         for axes in self.flips[1:]:
             out = self.base.restore(np.ascontiguousarray(np.flip(images, axes))).images
             total += np.flip(out, axes)
-        return Restored((total / len(self.flips)).astype(np.float32), first.depth_m, first.facts)
+        depth = None if first.depth_m is None else np.ascontiguousarray(np.flip(first.depth_m, self.flips[0]))
+        return Restored((total / len(self.flips)).astype(np.float32), depth, first.facts)
 
 
 @register("flip_average")
-def make_flip_average(*, base: str = "lite", views: str = "h") -> FlipAverage:
-    """``base`` averaged over ``views`` mirrored copies of its input."""
-    return FlipAverage(base, views)
+def make_flip_average(*, base: str = "lite", views: str = "h", checkpoint: str = "") -> FlipAverage:
+    """``base`` (with ``checkpoint``, a checkpoint of it, when given) averaged over ``views`` mirrored copies of its
+    input."""
+    return FlipAverage(base, views, checkpoint)

@@ -29,7 +29,7 @@ REGISTERED = {
     "desnow_input.py": ("desnow_input", {"base", "source", "threshold", "crowd", "size"}),
     "cast_gate.py": ("cast_gate", {"cast", "below"}),
     "tta.py": ("tta", {"target", "steps", "lr", "mix"}),
-    "flip_average.py": ("flip_average", {"base", "views"}),
+    "flip_average.py": ("flip_average", {"base", "views", "checkpoint"}),
 }
 
 
@@ -114,8 +114,8 @@ def test_flip_average_averages_the_mirrored_passes_and_keeps_the_first_pass_dept
     try:
         module = _load(PROBES / "flip_average.py")
         lite, jointid = module.create("lite"), module.create("jointid")
-        probes = {v: module.FlipAverage("lite", v) for v in ("none", "h", "v", "hv")}
-        jv = module.FlipAverage("jointid", "v")
+        probes = {v: module.FlipAverage("lite", v) for v in ("none", "h", "v", "hv", "vonly")}
+        jv, jvonly = module.FlipAverage("jointid", "v"), module.FlipAverage("jointid", "vonly")
     finally:
         unregister("flip_average")
     images = np.stack([cv2.resize(cv2.imread(str(p))[..., ::-1], (96, 64)) for p in sample_underwater_images()[:2]])
@@ -125,7 +125,7 @@ def test_flip_average_averages_the_mirrored_passes_and_keeps_the_first_pass_dept
     alone = lite.restore(images).images
     both = v(h(lite.restore(np.ascontiguousarray(v(h(images)))).images))
     expected = {"none": alone, "h": (alone + by_lite[h]) / 2, "v": (alone + by_lite[v]) / 2}
-    expected["hv"] = (alone + by_lite[h] + by_lite[v] + both) / 4
+    expected["hv"], expected["vonly"] = (alone + by_lite[h] + by_lite[v] + both) / 4, by_lite[v]
     for views, want in expected.items():
         np.testing.assert_allclose(probes[views].restore(images).images, want, atol=1e-6, err_msg=views)
     assert min(np.abs(want - alone).max() for want in list(expected.values())[1:]) > 1e-3  # lite is not symmetric
@@ -133,6 +133,9 @@ def test_flip_average_averages_the_mirrored_passes_and_keeps_the_first_pass_dept
     assert restored.depth_m is not None and own.depth_m is not None
     np.testing.assert_array_equal(restored.depth_m, own.depth_m)  # the unmirrored pass's depth
     assert np.abs(restored.depth_m - own.depth_m[:, ::-1]).max() > 1e-3  # which the mirrored one is not
+    upside_down = jointid.restore(np.ascontiguousarray(v(images))).depth_m
+    assert upside_down is not None  # vonly: the upside-down pass's depth, mirrored back
+    np.testing.assert_array_equal(jvonly.restore(images).depth_m, upside_down[:, ::-1])
 
 
 def test_detail_area_drops_the_small_parts_and_keeps_the_large() -> None:

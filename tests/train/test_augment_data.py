@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -180,3 +181,25 @@ def test_scene_scale_is_validated() -> None:
         DataConfig(scene_scale=(0.5, 2.0))
     with pytest.raises(ValueError, match="scene_scale"):
         DataConfig(scene_scale=(2.0, 1.5))
+
+
+def test_vflip_flips_input_target_and_depth_up_down_and_draws_last() -> None:
+    x, y, d = _batch()
+    cfg = AugmentConfig(color_p=0.0)
+    params = replace(_params(2), vflip=torch.tensor([True, False]))
+    a, b, c = apply_augment(x, y, d, params, cfg)
+    torch.testing.assert_close(a[0], x[0].flip(-2), atol=1e-5, rtol=0)
+    torch.testing.assert_close(b[0], y[0].flip(-2), atol=1e-5, rtol=0)
+    torch.testing.assert_close(c[0], d[0].flip(-2))
+    torch.testing.assert_close(a[1], x[1], atol=1e-5, rtol=0)
+    drawn = {p: sample_augment(64, AugmentConfig(vflip_p=p), torch.Generator().manual_seed(5)) for p in (0.0, 1.0)}
+    assert not drawn[0.0].vflip.any() and drawn[1.0].vflip.all()
+    for name in ("angle_deg", "flip", "color", "brightness", "gain"):  # the other draws do not depend on it
+        torch.testing.assert_close(getattr(drawn[0.0], name), getattr(drawn[1.0], name))
+    g = torch.Generator().manual_seed(5)  # and are those of the draw order before it existed
+    old = [torch.rand(64, generator=g, dtype=torch.float64) for _ in range(4)]
+    gain = 0.9 + 0.2 * torch.rand(64, 3, generator=g, dtype=torch.float64)
+    torch.testing.assert_close(drawn[0.0].angle_deg, -3.5 + 7.0 * old[0])
+    torch.testing.assert_close(drawn[0.0].gain, gain)
+    with pytest.raises(ValueError, match="vflip_p"):
+        AugmentConfig(vflip_p=1.5)

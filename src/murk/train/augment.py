@@ -1,7 +1,8 @@
 """Joint-ID's training augmentations, batched on the training device.
 
 Per sample (the original recipe): rotation by U(-3.5, 3.5) degrees (bicubic for images, nearest for depth,
-corners become 0), horizontal flip with p = 0.5 (input, target and depth together), and on the INPUT only,
+corners become 0), horizontal flip with p = 0.5 (input, target and depth together; murk adds an up-down flip,
+``augment.vflip_p``, 0 by default), and on the INPUT only,
 with p = 0.7, brightness x U(0.5, 1.1) then per-channel x U(0.9, 1.1), clipped to [0, 1]. Depth above
 600 m is marked invalid (0). The centre crop to the training size happens when samples are loaded
 (:func:`centre_crop`).
@@ -32,6 +33,8 @@ class AugmentParams:
     color: Tensor
     brightness: Tensor
     gain: Tensor
+    vflip: Tensor | None = None
+    """Per-sample up-down flip; None: none."""
 
 
 def sample_augment(batch: int, config: AugmentConfig, generator: torch.Generator) -> AugmentParams:
@@ -46,6 +49,7 @@ def sample_augment(batch: int, config: AugmentConfig, generator: torch.Generator
         color=torch.rand(batch, generator=generator, dtype=torch.float64) < config.color_p,
         brightness=u(*config.brightness, batch),
         gain=u(*config.channel_gain, batch, 3),
+        vflip=torch.rand(batch, generator=generator, dtype=torch.float64) < config.vflip_p,
     )
 
 
@@ -86,10 +90,13 @@ def augment_map(values: Tensor, params: AugmentParams, config: AugmentConfig) ->
 
 
 def _geometric(x: Tensor, params: AugmentParams, mode: str) -> Tensor:
-    """Rotation (interpolated with ``mode``), then the horizontal flip, of a batch (B, C, H, W)."""
+    """Rotation (interpolated with ``mode``), then the horizontal and the up-down flip, of a batch (B, C, H, W)."""
     x = _rotate(x, params.angle_deg, mode)
     flip = params.flip.to(x.device).view(-1, 1, 1, 1)
-    return torch.where(flip, x.flip(-1), x)
+    x = torch.where(flip, x.flip(-1), x)
+    if params.vflip is None:
+        return x
+    return torch.where(params.vflip.to(x.device).view(-1, 1, 1, 1), x.flip(-2), x)
 
 
 def centre_crop(arrays: list[np.ndarray], size_hw: tuple[int, int], *, source: str = "sample") -> list[np.ndarray]:

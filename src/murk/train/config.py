@@ -23,6 +23,14 @@ class AugmentConfig:
     channel_gain: tuple[float, float] = (0.9, 1.1)
     max_depth_m: float = 600.0
     enabled: bool = True
+    vflip_p: float = 0.0
+    """Up-down flip (input, target and depth together) with this probability; 0 in the original recipe. Drawn after
+    every other parameter, so a run with 0 draws what it drew before. With a method teacher (``loss.teacher:
+    method:...``) the teacher restores the flipped frame."""
+
+    def __post_init__(self) -> None:
+        for name in ("flip_p", "color_p", "vflip_p"):
+            check_range(name, getattr(self, name), 0.0, 1.0)
 
 
 @dataclass(frozen=True)
