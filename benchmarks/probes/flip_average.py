@@ -4,9 +4,11 @@
 ``flip_average?base=lite,views=h``: the mean of ``base(x)`` and ``mirror(base(mirror(x)))`` (left-right);
 ``views=v`` the same up-down, ``views=hv`` all four mirrors; ``views=none`` is ``base`` itself; ``views=vonly`` is
 the up-down pass alone, ``mirror(base(mirror(x)))``: the base on upside-down frames, to see how much it reads from
-the layout (the far water at the top). Depth, where the base has it, is the first pass's, mirrored back. Left-right
-is a symmetry of underwater scenes; up-down is not (the far water is often at the top), so the up-down views may
-dilute what the networks have learnt of distance (a hypothesis, not measured apart).
+the layout (the far water at the top). Depth, where the base has it, is the first pass's, mirrored back.
+``checkpoint=PATH`` loads other weights into a base whose network takes a checkpoint (``lite``; not the ``jointid``
+preset or ``water``). Left-right is a symmetry of underwater scenes; up-down is not (the far water is often at the
+top): docs/train.md, "How much of the synthetic gain is the frame's layout", measures how much the networks lean on
+that.
 
 Run: the two commands of docs/train.md, "Mirrored copies averaged", e.g.
      PYTHONPATH=src python benchmarks/bench_arms.py --probe benchmarks/probes/flip_average.py lite=lite
@@ -29,7 +31,8 @@ class FlipAverage(Restorer):
     def __init__(self, base: str, views: str, checkpoint: str = "") -> None:
         if views not in _VIEWS:
             raise ValueError(f"views: expected one of {', '.join(_VIEWS)}, got {views!r}")
-        self.base, self.flips = create(base, checkpoint=checkpoint) if checkpoint else create(base), _VIEWS[views]
+        self.base = create(base, checkpoint=checkpoint) if checkpoint else create(base)
+        self.flips = _VIEWS[views]
 
     def restore(self, images: np.ndarray) -> Restored:
         images = np.asarray(images, np.float32)

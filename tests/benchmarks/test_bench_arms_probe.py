@@ -20,6 +20,7 @@ import pytest
 
 from murk.data import sample_underwater_images
 from murk.enhance.restorer import options_of, unregister
+from murk.errors import InputFileError
 
 ROOT = Path(__file__).resolve().parents[2]
 PROBES = ROOT / "benchmarks" / "probes"
@@ -136,6 +137,19 @@ def test_flip_average_averages_the_mirrored_passes_and_keeps_the_first_pass_dept
     upside_down = jointid.restore(np.ascontiguousarray(v(images))).depth_m
     assert upside_down is not None  # vonly: the upside-down pass's depth, mirrored back
     np.testing.assert_array_equal(jvonly.restore(images).depth_m, upside_down[:, ::-1])
+
+
+def test_flip_average_loads_its_checkpoint_into_the_base(tmp_path: Path) -> None:
+    copy, missing = tmp_path / "copy.pt", tmp_path / "missing.pt"
+    try:
+        module = _load(PROBES / "flip_average.py")
+        copy.write_bytes(Path(module.create("lite").weights or "").read_bytes())
+        loaded = module.FlipAverage("lite", "none", checkpoint=str(copy)).base
+        with pytest.raises(InputFileError, match=r"missing\.pt"):
+            module.FlipAverage("lite", "none", checkpoint=str(missing))
+    finally:
+        unregister("flip_average")
+    assert loaded.weights == str(copy)
 
 
 def test_detail_area_drops_the_small_parts_and_keeps_the_large() -> None:

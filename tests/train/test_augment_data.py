@@ -13,7 +13,14 @@ from murk.io import DepthOptions, discover
 from murk.synth.config import SynthConfig
 from murk.synth.render import render
 from murk.synth.runner import run_synthesis
-from murk.train.augment import AugmentConfig, AugmentParams, apply_augment, centre_crop, sample_augment
+from murk.train.augment import (
+    AugmentConfig,
+    AugmentParams,
+    apply_augment,
+    augment_map,
+    centre_crop,
+    sample_augment,
+)
 from murk.train.data import (
     CleanRGBDDataset,
     OnlineDegrader,
@@ -194,12 +201,12 @@ def test_vflip_flips_input_target_and_depth_up_down_and_draws_last() -> None:
     torch.testing.assert_close(a[1], x[1], atol=1e-5, rtol=0)
     drawn = {p: sample_augment(64, AugmentConfig(vflip_p=p), torch.Generator().manual_seed(5)) for p in (0.0, 1.0)}
     assert not drawn[0.0].vflip.any() and drawn[1.0].vflip.all()
-    for name in ("angle_deg", "flip", "color", "brightness", "gain"):  # the other draws do not depend on it
-        torch.testing.assert_close(getattr(drawn[0.0], name), getattr(drawn[1.0], name))
-    g = torch.Generator().manual_seed(5)  # and are those of the draw order before it existed
+    torch.testing.assert_close(augment_map(d, params, cfg)[0], d[0].flip(-2))  # the snow alpha follows the images
+    g = torch.Generator().manual_seed(5)  # the other draws are those of the draw order before it existed
     old = [torch.rand(64, generator=g, dtype=torch.float64) for _ in range(4)]
     gain = 0.9 + 0.2 * torch.rand(64, 3, generator=g, dtype=torch.float64)
     torch.testing.assert_close(drawn[0.0].angle_deg, -3.5 + 7.0 * old[0])
     torch.testing.assert_close(drawn[0.0].gain, gain)
-    with pytest.raises(ValueError, match="vflip_p"):
-        AugmentConfig(vflip_p=1.5)
+    for name in ("flip_p", "color_p", "vflip_p"):
+        with pytest.raises(ValueError, match=name):
+            AugmentConfig(**{name: 1.5})

@@ -94,7 +94,7 @@ def _geometric(x: Tensor, params: AugmentParams, mode: str) -> Tensor:
     x = _rotate(x, params.angle_deg, mode)
     flip = params.flip.to(x.device).view(-1, 1, 1, 1)
     x = torch.where(flip, x.flip(-1), x)
-    if params.vflip is None:
+    if params.vflip is None or not bool(params.vflip.any()):
         return x
     return torch.where(params.vflip.to(x.device).view(-1, 1, 1, 1), x.flip(-2), x)
 

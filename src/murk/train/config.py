@@ -25,8 +25,8 @@ class AugmentConfig:
     enabled: bool = True
     vflip_p: float = 0.0
     """Up-down flip (input, target and depth together) with this probability; 0 in the original recipe. Drawn after
-    every other parameter, so a run with 0 draws what it drew before. With a method teacher (``loss.teacher:
-    method:...``) the teacher restores the flipped frame."""
+    every other parameter, so a run with 0 draws what it drew before. A distillation teacher (``loss.teacher``, a
+    network or a method) restores the flipped frame."""
 
     def __post_init__(self) -> None:
         for name in ("flip_p", "color_p", "vflip_p"):
