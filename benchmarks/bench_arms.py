@@ -3,7 +3,7 @@
 Run: PYTHONPATH=src python benchmarks/bench_arms.py NAME=SPEC [NAME=SPEC ...] --ref NAME[,NAME...]
      [--real-pairs DIR] [--snow-pairs DIR] [--heldout-scenes 64] [--heldout-photos DIR]
      [--config configs/train-lite-mild-scratch-cpu.yaml] [--stages basic,forward_scatter,marine_snow] [--threads 2]
-     [--artefacts] [--out DIR] [--probe benchmarks/probes/FILE.py ...]
+     [--upside-down] [--artefacts] [--out DIR] [--probe benchmarks/probes/FILE.py ...]
 
 SPEC is a method spec as ``murk compare --method`` takes it (``lite``, ``jointid``, ``water?strength=0.5``,
 ``lite:runs/x/latest.pt``), or a ``.pt`` file (a ``lite`` checkpoint, a training run's ``latest.pt``). Every measure
@@ -22,6 +22,10 @@ the same functions:
 - ``--heldout-photos DIR``: clean photographs the arms never trained on, each at 320x240 with the layout prior's
   distance (murk.io.distance_prior), balanced at 0.5 % and degraded the same way; the same measures (no depth: the
   prior is no truth).
+- ``--upside-down``: the held-out scenes (and photographs) scored a second time turned upside down (input, truth
+  and distance alike): murk's scenes put the far water at the top of the frame, in training and in the held-out set,
+  so the difference measures how much of an arm's gain is that layout rather than the water (docs/train.md, "How much
+  of the synthetic gain is the frame's layout").
 - ``--artefacts``: the shipped real images (:func:`murk.data.sample_underwater_images`), output against input
   (:func:`murk.metrics.restoration_measures`): periodic artefact ratio (issue 46's limit: 1.3x on every image),
   mean and worst image (periodic or isolated, as ``bench_model``'s ``worst_artefact_ratio``), and the contrast ratio;
@@ -35,6 +39,7 @@ the same functions:
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib.util
 import sys
 import tempfile
@@ -139,6 +144,15 @@ def heldout(arms: dict[str, Any], name: str, data: HeldoutSet, refs: list[str]) 
         print(f"  {k} - {ref}: affine-fit {fit}; PSNR {paired(per_scene[k]['psnr'], per_scene[ref]['psnr'])}")
 
 
+def upside_down(data: HeldoutSet) -> HeldoutSet:
+    """``data`` with every frame turned upside down: degraded input, clean truth and distance alike."""
+
+    def flip(batch: np.ndarray) -> np.ndarray:  # (N, H, W, ...)
+        return np.ascontiguousarray(batch[:, ::-1])
+
+    return dataclasses.replace(data, degraded=flip(data.degraded), clean=flip(data.clean), dist_m=flip(data.dist_m))
+
+
 def artefacts(arms: dict[str, Any], refs: list[str]) -> None:
     images = [read_rgb(p) for p in sample_underwater_images()]
     rows: dict[str, list[dict[str, float]]] = {}
@@ -207,6 +221,7 @@ def main() -> None:
     ap.add_argument("--config", type=Path, default=Path("configs/train-lite-mild-scratch-cpu.yaml"))
     ap.add_argument("--stages", default="basic,forward_scatter,marine_snow", help="the held-out water's stages")
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--upside-down", action="store_true", help="also score the held-out frames turned upside down")
     ap.add_argument("--artefacts", action="store_true", help="periodic artefacts on the shipped real images")
     ap.add_argument("--out", type=Path, help="where murk compare's reports go (default: a temporary folder)")
     ap.add_argument("--probe", type=Path, action="append", default=[], help="a Python file that registers methods")
@@ -238,9 +253,13 @@ def main() -> None:
             args.heldout_scenes, seed=HELDOUT_SEED, size_hw=(240, 320), synthesis=synthesis, balance_pct=0.5
         )
         heldout(arms, f"held-out scenes ({args.heldout_scenes})", data, refs)
+        if args.upside_down:
+            heldout(arms, f"held-out scenes ({args.heldout_scenes}), upside down", upside_down(data), refs)
     if args.heldout_photos:
         photos = heldout_photos(args.heldout_photos, synthesis)
         heldout(arms, f"held-out photographs ({len(photos.clean)})", photos, refs)
+        if args.upside_down:
+            heldout(arms, f"held-out photographs ({len(photos.clean)}), upside down", upside_down(photos), refs)
 
 
 if __name__ == "__main__":
