@@ -6,10 +6,6 @@ is only loaded: it trains per image.)"""
 
 from __future__ import annotations
 
-import importlib.util
-import os
-import subprocess
-import sys
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -22,7 +18,9 @@ from murk.data import sample_underwater_images
 from murk.enhance.restorer import options_of, unregister
 from murk.errors import InputFileError
 
-ROOT = Path(__file__).resolve().parents[2]
+from .bench_arms_run import BENCH_ARMS, ROOT, run_bench_arms
+from .bench_arms_run import load_file as _load
+
 PROBES = ROOT / "benchmarks" / "probes"
 REGISTERED = {
     "detail_area.py": ("detail_area", {"area", "threshold"}),
@@ -34,16 +32,8 @@ REGISTERED = {
 }
 
 
-def _load(path: Path) -> ModuleType:
-    spec = importlib.util.spec_from_file_location(f"under_test_{path.stem}", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def _bench_arms() -> ModuleType:
-    return _load(ROOT / "benchmarks" / "bench_arms.py")
+    return _load(BENCH_ARMS)
 
 
 def _unbuilt(file: str, method: str, cls: str, **settings: float) -> Any:
@@ -56,12 +46,6 @@ def _unbuilt(file: str, method: str, cls: str, **settings: float) -> Any:
     for name, value in settings.items():
         setattr(probe, name, value)
     return probe
-
-
-def _run(*args: str) -> subprocess.CompletedProcess[str]:
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"), OMP_NUM_THREADS="1")
-    cmd = [sys.executable, str(ROOT / "benchmarks" / "bench_arms.py"), *args]
-    return subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=600, check=False)
 
 
 @pytest.mark.parametrize("file", sorted(REGISTERED))
@@ -96,7 +80,7 @@ def test_a_probe_at_its_neutral_setting_scores_as_the_method_it_changes(tmp_path
             cv2.circle(snowy, (int(x), int(y)), 1, (235, 240, 240), -1)
         cv2.imwrite(str(pairs / "clean" / f"{i}.png"), clean)
         cv2.imwrite(str(pairs / "snowy" / f"{i}.png"), snowy)
-    proc = _run(
+    proc = run_bench_arms(
         "--probe", str(PROBES / "detail_area.py"), "--probe", str(PROBES / "cast_gate.py"),
         "--probe", str(PROBES / "desnow_input.py"),
         "d=detail", "a0=detail_area?area=0", "a9=detail_area?area=9", "l=lite", "g1=cast_gate?below=1",
@@ -189,11 +173,12 @@ def test_the_analysis_probes_import_and_measure() -> None:
 
 
 def test_a_missing_probe_file_and_one_that_fails_to_import_are_named(tmp_path: Path) -> None:
-    proc = _run("--probe", "benchmarks/probes/nothing_here.py", "l=lite", "--ref", "l", "--heldout-scenes", "0")
+    missing = "benchmarks/probes/nothing_here.py"
+    proc = run_bench_arms("--probe", missing, "l=lite", "--ref", "l", "--heldout-scenes", "0")
     assert proc.returncode == 2
     assert "--probe benchmarks/probes/nothing_here.py: no such file" in proc.stderr
     broken = tmp_path / "broken_probe.py"
     broken.write_text("import murk_has_no_such_module\n")
-    proc = _run("--probe", str(broken), "l=lite", "--ref", "l", "--heldout-scenes", "0")
+    proc = run_bench_arms("--probe", str(broken), "l=lite", "--ref", "l", "--heldout-scenes", "0")
     assert proc.returncode == 2
     assert f"--probe {broken}: No module named 'murk_has_no_such_module'" in proc.stderr

@@ -3,24 +3,15 @@ truth and distance alike); a method that looks at no position (``greyworld``) sc
 
 from __future__ import annotations
 
-import importlib.util
-import os
-import subprocess
-import sys
-from pathlib import Path
-
 import numpy as np
 
 from murk.report.heldout import HeldoutSet
 
-ROOT = Path(__file__).resolve().parents[2]
+from .bench_arms_run import BENCH_ARMS, load_file, run_bench_arms
 
 
 def test_upside_down_turns_input_truth_and_distance_over() -> None:
-    spec = importlib.util.spec_from_file_location("bench_arms_under_test", ROOT / "benchmarks" / "bench_arms.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = load_file(BENCH_ARMS)
     rng = np.random.default_rng(0)
     data = HeldoutSet(rng.random((2, 4, 5, 3)), rng.random((2, 4, 5, 3)), rng.random((2, 4, 5)), seed=7)
     turned = module.upside_down(data)
@@ -31,10 +22,8 @@ def test_upside_down_turns_input_truth_and_distance_over() -> None:
 
 
 def test_held_out_scenes_upside_down_change_lite_and_not_greyworld() -> None:
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"), OMP_NUM_THREADS="1")
-    cmd = [sys.executable, str(ROOT / "benchmarks" / "bench_arms.py"), "g=greyworld", "l=lite", "--ref", "g"]
-    cmd += ["--heldout-scenes", "2", "--upside-down", "--threads", "1"]
-    proc = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=600, check=False)
+    arms = ("g=greyworld", "l=lite", "--ref", "g")
+    proc = run_bench_arms(*arms, "--heldout-scenes", "2", "--upside-down", "--threads", "1")
     assert proc.returncode == 0, proc.stderr
     sections = proc.stdout.split("\nheld-out scenes (2)")
     assert len(sections) == 3 and sections[2].startswith(", upside down:"), proc.stdout
