@@ -1,0 +1,67 @@
+"""benchmarks/bench_water_distance.py: the true distance is the one Eq. (1) degraded the scene with, the oracle finds
+the water of a pure Eq. (1) image, and the table is printed end to end."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+
+from murk._config import load_yaml, merge
+from murk.physics.medium import apply_medium
+from murk.report.heldout import make_heldout
+from murk.restore_ops.water import invert_eq1
+from murk.train.config import TrainConfig
+from tests.benchmarks.bench_arms_run import ROOT, load_file
+
+BENCH = ROOT / "benchmarks" / "bench_water_distance.py"
+
+
+def test_the_true_distance_and_water_rebuild_the_degraded_input() -> None:
+    bench = load_file(BENCH)
+    for config in ("train-lite-mild-scratch-cpu.yaml", "train-small-cpu.yaml"):
+        synthesis = merge(load_yaml(TrainConfig, ROOT / "configs" / config).data.synthesis, {"stages": ["basic"]})
+        data = make_heldout(3, seed=5, size_hw=(48, 64), synthesis=synthesis, balance_pct=0.5)
+        assert np.isnan(data.dist_m).any()  # open water in view: its distance comes from the far plane
+        dists, media = bench.true_distances(data, synthesis)
+        for clean, degraded, d, m in zip(data.clean, data.degraded, dists, media, strict=True):
+            lit = clean if m.illuminant_rgb is None else clean * np.asarray(m.illuminant_rgb, np.float32)
+            image, _ = apply_medium(lit, d, np.asarray(m.beta_per_m), np.asarray(m.b_inf))
+            np.testing.assert_allclose(np.clip(image, 0.0, 1.0), degraded, atol=1e-5)
+
+
+def test_the_oracle_finds_the_water_of_a_pure_eq1_image() -> None:
+    bench = load_file(BENCH)
+    rng = np.random.default_rng(3)
+    clean = rng.uniform(0.1, 0.9, (40, 50, 3)).astype(np.float32)
+    dist = np.tile(np.linspace(0.5, 6.0, 50, dtype=np.float32), (40, 1))
+    att = bench.ATTENUATION_GRID_PER_M[[8, 14, 20]]  # t stays above the floor (0.1) out to 6 m
+    veil = bench.VEIL_GRID[[5, 10, 15]]
+    image, _ = apply_medium(clean, dist, att, veil)
+    image = np.clip(image, 0.0, 1.0).astype(np.float32)
+    found_veil, found_att = bench.oracle_water(image, dist, clean)
+    np.testing.assert_allclose(found_att, att, rtol=1e-6)
+    np.testing.assert_allclose(found_veil, veil, atol=1e-6)
+    restored = invert_eq1(image, dist, found_veil, found_att, bench.T_MIN)
+    assert np.abs(restored - clean).max() < 1e-3
+
+
+def test_median_scaled_takes_the_true_median() -> None:
+    bench = load_file(BENCH)
+    pred = np.array([[1.0, 2.0, 4.0]], np.float32)
+    true = np.array([[3.0, 6.0, np.nan]], np.float32)
+    np.testing.assert_allclose(bench.median_scaled(pred, true), pred * 3.0)
+
+
+def test_the_table_is_printed() -> None:
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"), OMP_NUM_THREADS="1")
+    cmd = [sys.executable, str(BENCH), "--heldout-scenes", "2", "--strengths", "0.5", "--threads", "1"]
+    proc = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=600, check=False)
+    assert proc.returncode == 0, proc.stderr
+    rows = [line.split(" | ")[0].lstrip("| ") for line in proc.stdout.splitlines() if line.startswith("| ")][1:]
+    assert rows[0] == "jointid (the base)"
+    assert "true distance, synthesis water, strength 0.5" in rows
+    assert "median-scaled distance, oracle water, strength 0.5" in rows
+    assert len(rows) == 1 + 3 * 2 + 1  # the base, three distances with two waters each, the synthesis water
