@@ -17,7 +17,10 @@ taken) with one part swapped at a time:
   attenuation and veil ``B_inf`` (``synthesis``; not an exact inverse: the light on the scene, forward scatter, snow
   and the camera stage come after or beside Eq. (1)); or an oracle (``oracle``) chosen per scene and channel on a grid
   (attenuation 0.01-10 /m in 41 log steps, veil 0-1.2 in 25 steps) for the least error against the TRUE clean scene
-  after the affine fit (the fit made at half resolution, scored at full). The last two are taken at full strength.
+  after the affine fit at full strength (the fit made at half resolution, scored at full). With Joint-ID's distance
+  two more rows hold one part of the estimate and search the other (``estimated veil and oracle attenuation``,
+  ``oracle veil and estimated attenuation``): which part the estimator misses. Every water is taken at each of
+  ``--strengths``.
 
 Every row is scored as the issue-46 instruments score (the affine-fit PSNR against the true clean scene, gain over the
 degraded input's own, paired over the scenes with the 95 % interval); the base ``jointid`` is printed first. The
@@ -77,19 +80,29 @@ def median_scaled(pred_m: np.ndarray, true_m: np.ndarray) -> np.ndarray:
     return (pred_m * (np.median(true_m[ok]) / np.median(pred_m[ok]))).astype(np.float32)
 
 
-def oracle_water(image: np.ndarray, dist_m: np.ndarray, clean: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def oracle_water(
+    image: np.ndarray,
+    dist_m: np.ndarray,
+    clean: np.ndarray,
+    *,
+    veil: np.ndarray | None = None,
+    attenuation_per_m: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """Per channel, the veil and attenuation of the grids whose inversion of Eq. (1) (transmission floored at
     :data:`T_MIN`, clipped to [0, 1]) leaves the least squared error against ``clean`` after the best gain and offset.
+    ``veil`` or ``attenuation_per_m`` given: that part is held (three numbers) and only the other is searched.
     Returns (veil, attenuation_per_m), three numbers each."""
-    veil, att = np.zeros(3), np.zeros(3)
+    found_veil, found_att = np.zeros(3), np.zeros(3)
     for c in range(3):
         x = image[..., c].astype(np.float64).ravel()
         y = clean[..., c].astype(np.float64).ravel()
         yc = y - y.mean()
+        atts = ATTENUATION_GRID_PER_M if attenuation_per_m is None else [float(attenuation_per_m[c])]
+        veils = VEIL_GRID if veil is None else [float(veil[c])]
         best = (math.inf, 0.0, 0.0)
-        for a in ATTENUATION_GRID_PER_M:
+        for a in atts:
             t = np.maximum(np.exp(-a * dist_m.astype(np.float64).ravel()), T_MIN)
-            for b in VEIL_GRID:
+            for b in veils:
                 j = np.clip((x - b * (1.0 - t)) / t, 0.0, 1.0)
                 jc = j - j.mean()
                 var = float(jc @ jc)
@@ -97,8 +110,8 @@ def oracle_water(image: np.ndarray, dist_m: np.ndarray, clean: np.ndarray) -> tu
                 err = float(yc @ yc) - (float(jc @ yc) ** 2 / var if var > 0 else 0.0)
                 if err < best[0]:
                     best = (err, b, a)
-        veil[c], att[c] = best[1], best[2]
-    return veil, att
+        found_veil[c], found_att[c] = best[1], best[2]
+    return found_veil, found_att
 
 
 def _half(a: np.ndarray) -> np.ndarray:
@@ -129,8 +142,15 @@ def score(data: HeldoutSet, synthesis: Any, strengths: list[float], oracle: bool
                 if dname == "true":
                     waters.append(("synthesis", np.asarray(medium.b_inf), np.asarray(medium.beta_per_m), strengths))
                 if oracle:
-                    veil, att = oracle_water(_half(image), _half(d), _half(clean))
+                    small = (_half(image), _half(d), _half(clean))
+                    veil, att = oracle_water(*small)
                     waters.append(("oracle", veil, att, strengths))
+                    if dname == "jointid":  # which part of the water the estimator misses
+                        est_veil, est_att = np.asarray(w.veil), np.asarray(w.attenuation_per_m)
+                        _, att = oracle_water(*small, veil=est_veil)
+                        waters.append(("estimated veil and oracle attenuation", est_veil, att, strengths))
+                        veil, _ = oracle_water(*small, attenuation_per_m=est_att)
+                        waters.append(("oracle veil and estimated attenuation", veil, est_att, strengths))
                 for wname, veil, att, ss in waters:
                     inverted = invert_eq1(image, d, veil, att, T_MIN)
                     for s in ss:

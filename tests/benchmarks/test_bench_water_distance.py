@@ -46,6 +46,14 @@ def test_the_oracle_finds_the_water_of_a_pure_eq1_image() -> None:
     np.testing.assert_allclose(found_veil, veil, atol=1e-6)
     restored = invert_eq1(image, dist, found_veil, found_att, bench.T_MIN)
     assert np.abs(restored - clean).max() < 1e-3
+    # one part held: it is kept, and the other is the best given it
+    held_veil, att_given_veil = bench.oracle_water(image, dist, clean, veil=veil)
+    np.testing.assert_array_equal(held_veil, veil)
+    np.testing.assert_allclose(att_given_veil, att, rtol=1e-6)
+    wrong_att = att * 2.0
+    veil_given_att, held_att = bench.oracle_water(image, dist, clean, attenuation_per_m=wrong_att)
+    np.testing.assert_array_equal(held_att, wrong_att)
+    assert not np.allclose(veil_given_att, veil)  # a wrong attenuation is made up for by another veil
 
 
 def test_median_scaled_takes_the_true_median() -> None:
@@ -64,4 +72,6 @@ def test_the_table_is_printed() -> None:
     assert rows[0] == "jointid (the base)"
     assert "true distance, synthesis water, strength 0.5" in rows
     assert "median-scaled distance, oracle water, strength 0.5" in rows
-    assert len(rows) == 1 + 3 * 2 + 1  # the base, three distances with two waters each, the synthesis water
+    assert "jointid distance, estimated veil and oracle attenuation water, strength 0.5" in rows
+    # the base, three distances with two waters each, the synthesis water, the two half-oracles
+    assert len(rows) == 1 + 3 * 2 + 1 + 2
