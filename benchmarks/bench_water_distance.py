@@ -24,7 +24,9 @@ taken) with one part swapped at a time:
 
 Every row is scored as the issue-46 instruments score (the affine-fit PSNR against the true clean scene, gain over the
 degraded input's own, paired over the scenes with the 95 % interval); the base ``jointid`` is printed first. The
-oracle rows are bounds, not methods: they read the truth.
+oracle rows are bounds, not methods: they read the truth. A second table sets the shipped estimator's water beside the
+synthesis's (what ``murk water estimate`` reports): the veil's error over RGB and its CIEDE2000, and the visibility's
+ratio to the true one (in Eq. (1)'s metres and in the scene's), median and quartiles over the scenes.
 """
 
 from __future__ import annotations
@@ -41,10 +43,11 @@ from murk._config import load_yaml, merge
 from murk.enhance.restorer import create
 from murk.metrics import affine_fit_psnr
 from murk.metrics.affine_psnr import affine_fit
+from murk.metrics.reference import ciede2000
 from murk.physics.medium import distance_map
 from murk.report.heldout import HeldoutSet, make_heldout
 from murk.report.study import ci95_half_width
-from murk.restore_ops.water import invert_eq1
+from murk.restore_ops.water import invert_eq1, visibility_m
 from murk.rng import derive_seed
 from murk.train.config import TrainConfig
 from murk.train.data import OnlineDegrader
@@ -55,21 +58,22 @@ VEIL_GRID = np.linspace(0.0, 1.2, 25)
 T_MIN = 0.1
 
 
-def true_distances(data: HeldoutSet, synthesis: Any) -> tuple[list[np.ndarray], list[Any]]:
-    """The distance map Eq. (1) degraded each held-out scene with, and the variant's water (``MediumParams``): the
-    scene's depth (open water, NaN in ``data.dist_m``, at the scene's far plane, as :func:`make_heldout` rendered it)
-    through :func:`distance_map` with the variant's mode, near and far distance (epoch 0, scene ``i``, as
-    :func:`make_heldout` degraded it)."""
+def true_distances(data: HeldoutSet, synthesis: Any) -> tuple[list[np.ndarray], list[Any], list[float]]:
+    """The distance map Eq. (1) degraded each held-out scene with, the variant's water (``MediumParams``) and the
+    scene's farthest depth in metres: the scene's depth (open water, NaN in ``data.dist_m``, at the scene's far plane,
+    as :func:`make_heldout` rendered it) through :func:`distance_map` with the variant's mode, near and far distance
+    (epoch 0, scene ``i``, as :func:`make_heldout` degraded it)."""
     from murk.scenes import sample_scene
 
     variants = OnlineDegrader(synthesis, seed=data.seed).params(0, range(len(data.dist_m)))
-    out = []
+    out, peaks = [], []
     for i, (d, v) in enumerate(zip(data.dist_m, variants, strict=True)):
         far_plane = sample_scene(derive_seed(data.seed, "heldout", i)).far_m
         depth = np.where(np.isfinite(d), d, far_plane).astype(np.float32)
         m = v.medium
         out.append(distance_map(depth, mode=m.distance_mode, near_m=m.near_m, far_m=m.far_m).astype(np.float32))
-    return out, [v.medium for v in variants]
+        peaks.append(float(depth.max()))
+    return out, [v.medium for v in variants], peaks
 
 
 def median_scaled(pred_m: np.ndarray, true_m: np.ndarray) -> np.ndarray:
@@ -120,9 +124,16 @@ def _half(a: np.ndarray) -> np.ndarray:
     return a.reshape(h // 2, 2, w // 2, 2, *a.shape[2:]).mean(axis=(1, 3))
 
 
-def score(data: HeldoutSet, synthesis: Any, strengths: list[float], oracle: bool) -> dict[str, list[float]]:
-    """Per row label, each scene's affine-fit PSNR gain over the input (dB)."""
-    truths, media = true_distances(data, synthesis)
+def score(
+    data: HeldoutSet,
+    synthesis: Any,
+    strengths: list[float],
+    oracle: bool,
+    estimates: dict[str, list[float]] | None = None,
+) -> dict[str, list[float]]:
+    """Per row label, each scene's affine-fit PSNR gain over the input (dB). ``estimates``: a dict that receives, per
+    distance (``jointid``, ``true``), each scene's :func:`estimate_error` as ``"<distance> <measure>"`` lists."""
+    truths, media, peaks = true_distances(data, synthesis)
     water = create("water")
     base, estimator = water.base, water.estimator  # type: ignore[attr-defined]
     gains: dict[str, list[float]] = {}
@@ -138,6 +149,9 @@ def score(data: HeldoutSet, synthesis: Any, strengths: list[float], oracle: bool
             dists = {"jointid": r.depth_m[k], "median-scaled": median_scaled(r.depth_m[k], truth), "true": truth}
             for dname, d in dists.items():
                 w = estimator.estimate(image, d)
+                if estimates is not None and dname != "median-scaled":
+                    for key, value in estimate_error(w, medium, peaks[i + k]).items():
+                        estimates.setdefault(f"{dname} {key}", []).append(value)
                 waters = [("estimated", np.asarray(w.veil), np.asarray(w.attenuation_per_m), strengths)]
                 if dname == "true":
                     waters.append(("synthesis", np.asarray(medium.b_inf), np.asarray(medium.beta_per_m), strengths))
@@ -158,6 +172,42 @@ def score(data: HeldoutSet, synthesis: Any, strengths: list[float], oracle: bool
                         label = f"{dname} distance, {wname} water, strength {s:g}"
                         gains.setdefault(label, []).append(affine_fit_psnr(out, clean, data_range=1.0) - floor)
     return gains
+
+
+def estimate_error(water: Any, medium: Any, scene_peak_m: float) -> dict[str, float]:
+    """The estimate against the water that degraded the scene: the veil's mean absolute error over RGB and its
+    CIEDE2000 (both colours clipped to [0, 1]), and the visibility's ratio to the true one (``ln 20 / min beta``) in
+    the metres of Eq. (1)'s distance and in the scene's own metres (the two differ in the paper's ``normalized``
+    mode, where the scene's depth, farthest ``scene_peak_m``, is stretched from ``near_m`` to ``far_m``; Joint-ID
+    learns the scene's)."""
+    est = np.asarray(water.veil, np.float64)
+    true = np.asarray(medium.b_inf, np.float64)
+    a, b = (np.clip(v, 0.0, 1.0).reshape(1, 1, 3) for v in (est, true))
+    seen_eq1 = visibility_m(np.asarray(medium.beta_per_m))
+    seen_scene = seen_eq1
+    if medium.distance_mode == "normalized":
+        seen_scene = max(seen_eq1 - medium.near_m, 1e-6) * scene_peak_m / (medium.far_m - medium.near_m)
+    return {
+        "veil_abs_error": float(np.mean(np.abs(est - true))),
+        "veil_ciede2000": ciede2000(a, b, data_range=1.0),
+        "visibility_ratio": float(water.visibility_m / seen_eq1),
+        "visibility_ratio_scene": float(water.visibility_m / seen_scene),
+    }
+
+
+def estimates_table(estimates: dict[str, list[float]]) -> str:
+    lines = [
+        "| distance given to the estimator | veil, mean abs error (RGB) | veil, CIEDE2000 | visibility / true, "
+        "Eq. (1)'s metres | visibility / true, the scene's metres |",
+        "|---|---|---|---|---|",
+    ]
+    for dname in ("jointid", "true"):
+        cells = []
+        for key in ("veil_abs_error", "veil_ciede2000", "visibility_ratio", "visibility_ratio_scene"):
+            q = np.percentile(estimates[f"{dname} {key}"], [25, 50, 75])
+            cells.append(f"{q[1]:.3g} ({q[0]:.3g} to {q[2]:.3g})")
+        lines.append(f"| {dname} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 def table(gains: dict[str, list[float]]) -> str:
@@ -191,7 +241,10 @@ def main() -> None:
     )
     floor = np.mean([affine_fit_psnr(a, b, data_range=1.0) for a, b in zip(data.degraded, data.clean, strict=True)])
     print(f"{args.config}: {args.heldout_scenes} held-out scenes, the input after the fit {floor:.2f} dB")
-    print(table(score(data, synthesis, strengths, not args.no_oracle_water)))
+    estimates: dict[str, list[float]] = {}
+    print(table(score(data, synthesis, strengths, not args.no_oracle_water, estimates)))
+    print("\nThe estimate against the synthesis's water, median (quartiles) over the scenes:")
+    print(estimates_table(estimates))
 
 
 if __name__ == "__main__":
