@@ -188,8 +188,8 @@ def score(
     estimates: dict[str, list[float]] | None = None,
 ) -> dict[str, list[float]]:
     """Per row label, each scene's affine-fit PSNR gain over the input (dB). ``estimates``: a dict that receives, per
-    distance given to the estimator (``jointid``, ``true``), each scene's :func:`estimate_error` as
-    ``"<distance> <measure>"`` lists (one pass of the base serves both tables)."""
+    distance given to the estimator (``jointid``, ``true``: in the scene's metres; ``Eq. (1)'s``: in that map's), each
+    scene's :func:`estimate_error` as ``"<distance> <measure>"`` lists (one pass of the base serves both tables)."""
     truths = true_waters(data, synthesis)
     water = create("water")
     base, estimator = water.base, water.estimator  # type: ignore[attr-defined]
