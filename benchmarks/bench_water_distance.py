@@ -45,14 +45,14 @@ import torch
 
 from murk._config import load_yaml, merge
 from murk.enhance.restorer import create
+from murk.enhance.water_restorer import restore_with_water
 from murk.metrics import affine_fit_psnr
-from murk.metrics.affine_psnr import affine_fit
 from murk.metrics.reference import ciede2000
 from murk.models.water import Water
 from murk.physics.medium import distance_map
 from murk.report.heldout import HeldoutSet, make_heldout
 from murk.report.study import ci95_half_width
-from murk.restore_ops.water import invert_eq1, visibility_m
+from murk.restore_ops.water import visibility_m
 from murk.rng import derive_seed
 from murk.synth.params import MediumParams
 from murk.train.config import TrainConfig
@@ -153,14 +153,9 @@ def restorations(
     attenuation_per_m: np.ndarray,
     strengths: list[float],
 ) -> list[tuple[float, np.ndarray]]:
-    """``water``'s steps 3-5 (:class:`murk.enhance.water_restorer.WaterRestorer`) with this distance and water: Eq. (1)
-    inverted, ``strength`` of the change, the base's colour; one output per strength."""
-    inverted = invert_eq1(image, dist_m, veil, attenuation_per_m, T_MIN)
-    outs = []
-    for s in strengths:
-        mixed = image + np.float32(s) * (inverted - image)
-        outs.append((s, np.clip(affine_fit(mixed, restored), 0.0, 1.0)))
-    return outs
+    """``water``'s last steps (:func:`murk.enhance.water_restorer.restore_with_water`) with this distance and water,
+    one output per strength."""
+    return [(s, restore_with_water(image, restored, dist_m, veil, attenuation_per_m, s, T_MIN)) for s in strengths]
 
 
 def _waters(

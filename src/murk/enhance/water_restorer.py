@@ -61,12 +61,29 @@ class WaterRestorer(Restorer):
         for image, restored, dist in zip(batch, base.images, base.depth_m, strict=True):
             water = self.estimator.estimate(image, dist)
             waters.append(water)
-            inverted = invert_eq1(image, dist, np.asarray(water.veil), np.asarray(water.attenuation_per_m), self.t_min)
-            mixed = image + np.float32(self.strength) * (inverted - image)
-            outs.append(np.clip(affine_fit(mixed, np.clip(restored, 0.0, 1.0)), 0.0, 1.0))
+            veil, attenuation = np.asarray(water.veil), np.asarray(water.attenuation_per_m)
+            outs.append(restore_with_water(image, restored, dist, veil, attenuation, self.strength, self.t_min))
         self.last_water = waters
         facts = tuple(WaterInView.of(w, d).as_dict() for w, d in zip(waters, base.depth_m, strict=True))
         return Restored(np.stack(outs).astype(np.float32), base.depth_m, facts)
+
+
+def restore_with_water(
+    image: np.ndarray,
+    restored: np.ndarray,
+    distance_m: np.ndarray,
+    veil: np.ndarray,
+    attenuation_per_m: np.ndarray,
+    strength: float,
+    t_min: float,
+) -> np.ndarray:
+    """Steps 3-5 of the method for one image (H, W, 3) in [0, 1]: Eq. (1) inverted with this distance and water,
+    ``strength`` of the change taken, then the per-channel gain and offset onto the base's restoration ``restored``
+    (clipped to [0, 1] first). Returns (H, W, 3) in [0, 1]. ``benchmarks/bench_water_distance.py`` calls it with other
+    distances and waters."""
+    inverted = invert_eq1(image, distance_m, veil, attenuation_per_m, t_min)
+    mixed = image + np.float32(strength) * (inverted - image)
+    return np.clip(affine_fit(mixed, np.clip(restored, 0.0, 1.0)), 0.0, 1.0)
 
 
 def create_water(o: Checked) -> WaterRestorer:
