@@ -29,6 +29,7 @@ REGISTERED = {
     "cast_gate.py": ("cast_gate", {"cast", "below"}),
     "tta.py": ("tta", {"target", "steps", "lr", "mix"}),
     "flip_average.py": ("flip_average", {"base", "views", "checkpoint"}),
+    "water_guided.py": ("water_guided", {"radius", "eps", "guide", "strength"}),
 }
 
 
@@ -158,6 +159,39 @@ def test_detail_contrast_keeps_the_parts_that_are_bright_specks_on_the_input() -
     out = probe._kept(image, restored, detailed)
     assert np.allclose(out[8, 8], 0.2, atol=0.02)  # kept: the input shows it
     assert np.allclose(out[28, 28], 0.5)  # dropped: the input is flat there
+
+
+def test_water_guided_keeps_a_distance_that_follows_the_frame_and_smooths_one_that_does_not() -> None:
+    try:
+        refine = _load(PROBES / "water_guided.py").refine_distance
+    finally:
+        unregister("water_guided")
+    rng = np.random.default_rng(5)
+    guide = cv2.GaussianBlur(rng.random((48, 64, 3), dtype=np.float32), (0, 0), 2.0)
+    grey = guide @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    follows_m = (2.0 + 30.0 * grey).astype(np.float32)  # a linear function of the guide: the filter keeps it
+    assert refine(guide, follows_m, 0.0, 1e-6) is follows_m
+    assert np.allclose(refine(guide, follows_m, 0.1, 1e-8), follows_m, rtol=1e-3)
+    flat = np.full_like(guide, 0.5)  # no edge to follow: two box means of side 2 * 6 + 1 (b, then its mean)
+    noisy_m = (4.0 + rng.random((48, 64))).astype(np.float32)
+    box = cv2.blur(cv2.blur(noisy_m, (13, 13), borderType=cv2.BORDER_REFLECT), (13, 13), borderType=cv2.BORDER_REFLECT)
+    assert np.allclose(refine(flat, noisy_m, 0.1, 1e-3), box, rtol=1e-4)
+
+
+def test_distance_error_where_splits_the_error_by_edges_and_rows() -> None:
+    split = _load(PROBES / "distance_error_where.py").error_split
+    true_m = np.full((40, 60), 3.0, np.float32)
+    true_m[10:30, 20:40] = 1.5  # a near block: its border is the depth edge
+    true_m[0, 0] = np.nan  # no surface: left out
+    exact = split(2.0 * true_m, true_m)  # only the scale is wrong
+    assert exact.abs_rel_median == pytest.approx(0.0, abs=1e-6) and exact.abs_rel_rows == pytest.approx(0, abs=1e-6)
+    trend = true_m * np.linspace(0.6, 1.4, 40, dtype=np.float32)[:, None]  # wrong from row to row only
+    by_rows = split(trend, true_m)
+    assert by_rows.abs_rel_median > 0.1 and by_rows.abs_rel_rows < 0.01
+    at_edge = true_m.copy()
+    at_edge[10, 20:40] *= 1.5  # wrong on the block's top edge only
+    edges = split(at_edge, true_m)
+    assert edges.near_edge_error_share == pytest.approx(1.0) and 0.1 < edges.near_edge_pixel_share < 0.5
 
 
 def test_the_analysis_probes_import_and_measure() -> None:
