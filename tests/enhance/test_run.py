@@ -7,7 +7,9 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import pytest
 
+from murk.enhance.job_common import OutputOptions
 from murk.enhance.post import PostRestorer
 from murk.enhance.run import run_enhance, weights_line
 
@@ -43,3 +45,13 @@ def test_video_runs_the_frame_job(tmp_path: Path) -> None:
     video = make_video(tmp_path / "dive.avi", 4)
     inp, report = run_enhance(str(video), tmp_path / "out.avi", PostRestorer())
     assert inp.kind == "video" and report.processed == 4 and report.outputs == [tmp_path / "out.avi"]
+
+
+def test_a_video_written_over_itself_is_refused_and_left_as_it_was(tmp_path: Path) -> None:
+    video = make_video(tmp_path / "dive.avi", 3)
+    before = video.read_bytes()
+    for out in (video, tmp_path / "." / "dive.avi"):
+        for overwrite in (False, True):
+            with pytest.raises(ValueError, match="would overwrite its input"):
+                run_enhance(str(video), out, PostRestorer(), OutputOptions(overwrite=overwrite))
+    assert video.read_bytes() == before

@@ -143,6 +143,8 @@ def test_url_helpers() -> None:
     assert redact_url("http://host/a") == "http://host/a"
     assert default_name("rtsp://admin:secret@10.0.0.5:554/live/ch1") == "10.0.0.5_live_ch1"
     assert default_name(2) == "camera2" and default_name("/data/dive 3.mp4") == "dive_3"
+    assert default_name("tauchgang ü.mp4") != default_name("tauchgang ä.mp4")  # not folded to one ASCII name
+    assert default_name("潜水.mp4") == "潜水" and default_name("a/b:c?.mp4") == "b_c"
 
 
 @pytest.mark.parametrize("suffix", [".mp4", ".mov", ".mkv", ".avi"])

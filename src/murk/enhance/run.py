@@ -55,8 +55,9 @@ def run_enhance(
 
     Raises:
         InputFileError: nothing usable at ``spec``; ValueError: an output location or option that cannot work
-            (bag options without a bag among them).
+            (bag options without a bag among them, a video's output that is the video itself).
     """
+    from murk.io.listing import real_path
     from murk.io.rosbag import is_bag
     from murk.io.video import CaptureSource
 
@@ -85,6 +86,8 @@ def run_enhance(
                 should_stop=should_stop,
             )
         return inp, report
+    if inp.kind == "video" and real_path(out) == real_path(str(inp.target)):
+        raise ValueError(f"--out {out}: the output would overwrite its input {inp.target}; choose another --out")
     with CaptureSource(inp.target) as source:  # type: ignore[arg-type]
         total = source.frame_count if max_frames is None else min(source.frame_count or max_frames, max_frames)
         method = _built(restorer)

@@ -215,7 +215,9 @@ def redact_url(url: str) -> str:
 
 
 def default_name(target: str | int | Path) -> str:
-    """A file-name-safe label: the file stem, ``camera0``, or host and path of a URL."""
+    """A file-name-safe label: the file stem, ``camera0``, or host and path of a URL. Letters and digits of any
+    script are kept (``tauchgang ü`` -> ``tauchgang_ü``), so that two videos whose names differ only there get
+    distinct frame names; white space and punctuation other than ``.``, ``_`` and ``-`` become ``_``."""
     if isinstance(target, int):
         return f"camera{target}"
     target = str(target)
@@ -224,7 +226,7 @@ def default_name(target: str | int | Path) -> str:
         raw = f"{parts.hostname or 'stream'}{parts.path}"
     else:
         raw = Path(target).stem
-    name = re.sub(r"[^A-Za-z0-9._-]+", "_", raw).strip("._")
+    name = re.sub(r"[^\w.-]+", "_", raw).strip("._")
     return name[:80] or "stream"
 
 
