@@ -258,6 +258,23 @@ def test_broken_frame_is_recorded_and_replaced_by_the_previous_one(tmp_path: Pat
     }
 
 
+def test_broken_leading_frames_take_the_first_good_frame_so_the_video_keeps_its_length(tmp_path: Path) -> None:
+    src = FakeSource(make_frames(6), live=False, broken=(0, 1))
+    report = enhance_frames(src, FakeDepth(), tmp_path / "v.avi", OutputOptions(depth_video=True))
+    assert (report.processed, report.failed) == (4, 2)
+    frames, depth = read_video(tmp_path / "v.avi"), read_video(tmp_path / "v_depth.avi")
+    assert len(frames) == 6 and len(depth) == 6  # length and timing kept
+    red = [float(f[:, :, 0].mean()) for f in frames]
+    assert abs(red[0] - red[2]) < 1 and abs(red[1] - red[2]) < 1 and abs(red[3] - red[2]) > 4
+    records = read_jsonl(tmp_path / "errors.jsonl")
+    assert [r["frame"] for r in records] == [0, 1]
+    assert all(r["error"].endswith("the next good frame takes its place in the video") for r in records)
+    folder = enhance_frames(FakeSource(make_frames(4), live=False, broken=(0,)), FakeDepth(), tmp_path / "f")
+    assert (folder.processed, folder.failed) == (3, 1)
+    assert sorted(p.name for p in (tmp_path / "f").glob("*.jpg")) == [f"fake_00000{i}.jpg" for i in (1, 2, 3)]
+    assert read_jsonl(tmp_path / "f" / "errors.jsonl")[0]["error"] == "frame could not be decoded"
+
+
 def test_live_source_disconnecting_leaves_a_closed_playable_video(tmp_path: Path) -> None:
     src = FakeSource(make_frames(7), live=True)
     opts = OutputOptions(video_backend="opencv")

@@ -114,6 +114,8 @@ class _FrameWriter:
         self.depth_sink: VideoSink | None = None
         self.last: np.ndarray | None = None
         self.last_depth: np.ndarray | None = None
+        self.owed = 0
+        """Broken frames before the first written one: the first good frame is written that many more times."""
         self.estimates = (
             out.with_name(f"{out.stem}_estimates.jsonl") if self.as_video else out / ESTIMATES_NAME
         )  # what the method estimated per frame
@@ -141,6 +143,7 @@ class _FrameWriter:
         self.estimates_log.add({"input": label, "frame": index, "output": str(output), **facts})
 
     def write(self, index: int, frame_u8: np.ndarray, depth_m: np.ndarray | None) -> None:
+        copies = 1 + self.owed if self.as_video else 1  # a video's broken leading frames take this frame
         if depth_m is not None and self.options.depth:
             write_depth_outputs(self.out_dir, f"{self.stem}_{index:06d}", depth_m, self.options)
             if self.options.depth_video and self.as_video:
@@ -149,19 +152,23 @@ class _FrameWriter:
                     path = self.out.with_name(f"{self.out.stem}_depth{self.out.suffix}")
                     self.depth_sink = self._open(path, (preview.shape[1], preview.shape[0]))
                 self.last_depth = self._fit(preview, self.depth_sink)
-                self.depth_sink.write(self.last_depth)
+                for _ in range(copies):
+                    self.depth_sink.write(self.last_depth)
         if not self.as_video:
             write_uint(self.frame_path(index), frame_u8, jpeg_quality=self.options.jpeg_quality)
             return
         if self.sink is None:
             self.sink = self._open(self.out, (frame_u8.shape[1], frame_u8.shape[0]))
         frame_u8 = self._fit(frame_u8, self.sink)
-        self.sink.write(frame_u8)
-        self.last = frame_u8
+        for _ in range(copies):
+            self.sink.write(frame_u8)
+        self.last, self.owed = frame_u8, 0
 
     def repeat_last(self) -> bool:
-        """Write the previous frame again (keeps a video's length and timing); False when there is none."""
+        """Write the previous frame again (keeps a video's length and timing); False when there is none. In a
+        video a broken frame before any written one is owed instead: the first good frame takes its place too."""
         if self.sink is None or self.last is None:
+            self.owed += int(self.as_video)
             return False
         self.sink.write(self.last)
         if self.depth_sink is not None and self.last_depth is not None:
@@ -218,7 +225,8 @@ def enhance_frames(
     A video from a finite source is written atomically: when ``should_stop`` interrupts it, the partial video
     is discarded. A live source is recorded directly and closed cleanly on disconnect, on ``max_frames`` and
     on ``should_stop``. Broken frames are recorded in ``errors.jsonl`` and, in a video, replaced by the
-    previous output frame.
+    previous output frame (broken frames before the first good one by that frame), so that it keeps the source's
+    length.
 
     With ``read_ahead`` (default) frames are decoded in a background thread while the previous ones are
     restored (:class:`murk.io.readahead.ReadAhead`); for a live source only the newest frame waits, and frames
@@ -325,7 +333,7 @@ def enhance_frames(
         if output is None:
             repeated = writer.repeat_last()
             stage = "read" if it.image is None else "restore"
-            errors.add(ErrorRecord(label, stage, _frame_error(it, repeated), frame=it.index))
+            errors.add(ErrorRecord(label, stage, _frame_error(it, repeated, owed=writer.owed > 0), frame=it.index))
             return
         image, depth, facts = output  # uint8
         panel = side_by_side(_as_u8(it.image), image) if options.side_by_side else image  # type: ignore[arg-type]
@@ -413,6 +421,8 @@ def _same_shape_runs(items: list[_FrameItem]) -> list[list[_FrameItem]]:
     return runs
 
 
-def _frame_error(item: _FrameItem, repeated: bool) -> str:
+def _frame_error(item: _FrameItem, repeated: bool, *, owed: bool = False) -> str:
     what = item.error or "frame could not be decoded"
-    return f"{what}; previous frame repeated in the video" if repeated else what
+    if repeated:
+        return f"{what}; previous frame repeated in the video"
+    return f"{what}; the next good frame takes its place in the video" if owed else what
