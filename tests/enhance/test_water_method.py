@@ -172,14 +172,16 @@ def test_murk_water_estimate_reports_every_image_and_names_a_broken_one(
 ) -> None:
     write_rgb(tmp_path / "a.png", image)
     (tmp_path / "broken.png").write_bytes(b"no image")
-    out = tmp_path / "water.jsonl"
+    out = tmp_path / "new" / "water.jsonl"  # its folder is made
     res = CliRunner().invoke(
         app,
         ["water", "estimate", str(tmp_path / "a.png"), str(tmp_path / "broken.png"), "--json", str(out),
          "--estimator", str(estimator_file)],
     )  # fmt: skip
     assert res.exit_code == 1
-    assert "broken.png" in res.output and "visibility" in res.output
+    assert "broken.png" in res.stderr and "broken.png" not in res.stdout
+    (line,) = res.stdout.splitlines()  # one line per image on stdout, however long
+    assert line.startswith(str(tmp_path / "a.png")) and "visibility" in line
     rows = [json.loads(line) for line in out.read_text().splitlines()]
     assert len(rows) == 1 and rows[0]["image"].endswith("a.png")
     assert len(rows[0]["veil_rgb"]) == 3 and rows[0]["visibility_m"] > 0

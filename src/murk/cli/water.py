@@ -24,13 +24,16 @@ def estimate(
     quiet: QuietOpt = False,
 ) -> None:
     """Estimate each image's water from the image and Joint-ID's distance map (docs/models/water.md). The figures
-    are what restores best with that distance map on murk's synthetic water, not a calibrated measurement."""
+    are what restores best with that distance map on murk's synthetic water, not a calibrated measurement. One line
+    per image on stdout (unless --quiet); errors on stderr."""
+    from murk.io.atomic import make_output_folder, write_text_atomic
     from murk.io.jobs import ErrorRecord
     from murk.models.water import MEASURABLE_FACTOR
     from murk.workflows.water_estimate import estimate_water
 
-    console = make_console(quiet)
     try:
+        if json_out is not None:
+            make_output_folder(json_out.parent)  # before the work: a --json that cannot be written fails at once
         results = estimate_water(inputs, estimator=estimator)
     except ValueError as exc:
         typer.echo(f"error: {exc}", err=True)
@@ -51,9 +54,10 @@ def estimate(
             if r.view.measurable
             else f"visibility beyond {MEASURABLE_FACTOR * r.view.far_distance_m:.0f} m (haze too faint to measure)"
         )
-        console.print(f"{r.path}: veil RGB {veil}, attenuation RGB {att} /m, {seen}")
+        if not quiet:
+            typer.echo(f"{r.path}: veil RGB {veil}, attenuation RGB {att} /m, {seen}")
     if json_out is not None:
-        json_out.write_text("".join(json.dumps(row) + "\n" for row in rows))
+        write_text_atomic(json_out, "".join(json.dumps(row) + "\n" for row in rows))
     if failed:
         raise typer.Exit(1)
 
