@@ -50,6 +50,24 @@ def test_folder_run_reports_counts_rate_and_stage_latency(folder: Path, tmp_path
     assert res.exit_code == 0 and "2 skipped" in _out(res)
 
 
+def test_an_existing_output_that_is_no_image_is_an_error_left_as_it_is(folder: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "a.png").write_text("my notes")  # not an image: not murk's, neither done nor to be replaced
+    (out / "sub").mkdir()
+    (out / "sub" / "b.png").write_bytes(b"")  # empty
+    res = runner.invoke(app, ["enhance", str(folder), "--out", str(out), "-r"])
+    assert res.exit_code == 1 and "2 failed" in _out(res) and "0 images processed" in _out(res)
+    assert (out / "a.png").read_text() == "my notes" and (out / "sub" / "b.png").read_bytes() == b""
+    records = sorted(read_jsonl(out / "errors.jsonl"), key=lambda r: r["input"])
+    assert records[0]["error"] == f"output {out / 'a.png'} exists and is not an image; pass --overwrite to replace it"
+    assert records[1]["error"].endswith("exists and is empty; pass --overwrite to replace it")
+    res = runner.invoke(app, ["enhance", str(folder), "--out", str(out), "-r", "--overwrite"])
+    assert res.exit_code == 0 and cv2.imread(str(out / "a.png")) is not None
+    one = runner.invoke(app, ["enhance", str(folder / "a.png"), "--out", str(out / "a.png")])
+    assert one.exit_code == 0 and "1 skipped" in _out(one) and "use --overwrite to redo it" in _out(one)
+
+
 def test_corrupt_input_exits_1_with_errors_jsonl(folder: Path, tmp_path: Path) -> None:
     (folder / "bad.jpg").write_bytes(b"\xff\xd8\xff not a jpeg")
     res = runner.invoke(app, ["enhance", str(folder), "--out", str(tmp_path / "out"), "--format", "png"])

@@ -7,7 +7,8 @@ visibility) is appended to ``estimates.jsonl``, one line per restored image (``i
 an image restored again by a later run gets another line, the newest last.
 
 Reliability: unreadable inputs are recorded in ``errors.jsonl`` (:mod:`murk.io.jobs`; rewritten by every run)
-and skipped; rerunning skips images whose output exists (``overwrite=True`` redoes them); a full disk stops the
+and skipped; rerunning skips images whose output exists (``overwrite=True`` redoes them; an existing output that
+is empty or not an image is recorded as an error and left as it is); a full disk stops the
 run with :class:`murk.errors.OutputError`, never a truncated file under a final name.
 """
 
@@ -38,7 +39,7 @@ from murk.enhance.preview import side_by_side
 from murk.enhance.restorer import Restorer
 from murk.errors import OutputError
 from murk.io.atomic import make_output_folder, remove_stale_temporaries
-from murk.io.images import BitDepth, read_image, to_float, to_uint, write_uint
+from murk.io.images import BitDepth, not_an_image, read_image, to_float, to_uint, write_uint
 from murk.io.jobs import ErrorLog, ErrorRecord
 from murk.io.jsonl import append_jsonl, json_safe
 from murk.io.listing import real_path
@@ -100,7 +101,17 @@ def enhance_images(
             continue
         claimed[key] = job.src
         if job.dst.exists() and not options.overwrite:
+            problem = not_an_image(job.dst)
+            if problem:  # murk writes atomically, so this is someone else's file: neither done nor to replace
+                errors.add(
+                    ErrorRecord(
+                        str(job.src), "plan", f"output {job.dst} exists and {problem}; pass --overwrite to replace it"
+                    )
+                )
+                continue
             report.skipped += 1
+            if len(jobs) == 1:
+                report.note(f"{job.dst} exists; skipped (use --overwrite to redo it)")
             continue
         t0 = time.perf_counter()
         try:

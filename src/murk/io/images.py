@@ -88,6 +88,14 @@ class ImageInfo:
     notes: tuple[str, ...] = field(default_factory=tuple)
 
 
+def not_an_image(path: str | Path) -> str:
+    """Why the existing file ``path`` cannot be an image murk wrote: ``"is empty"`` or ``"is not an image"``
+    (no image format's signature: OpenCV's check, which reads the header only); ``""`` when it looks like one."""
+    if Path(path).stat().st_size == 0:
+        return "is empty"
+    return "" if cv2.haveImageReader(str(path)) else "is not an image"
+
+
 def read_image(path: str | Path) -> tuple[np.ndarray, ImageInfo]:
     """Decode an image file to an RGB array of dtype uint8 or uint16, shape (H, W, 3).
 
