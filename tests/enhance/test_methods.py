@@ -142,3 +142,16 @@ def test_a_lazy_factory_builds_the_real_restorer() -> None:
     restorer = create("post?preset=paper", shared={"device": "cpu"})
     assert isinstance(restorer, PostRestorer)
     assert restorer.params == POST_PRESETS["paper"]
+
+
+@pytest.mark.parametrize(
+    "spec", ["colorbalance", "greyworld", "clahe", "udcp", "desnow", "detail", "lite", "post", "lite+detail"]
+)
+def test_every_method_refuses_integer_frames_and_names_the_conversion(spec: str) -> None:
+    import numpy as np
+
+    frames = np.full((1, 16, 16, 3), 128, np.uint8)  # 8-bit values: 85 % of them read as saturated floats
+    with pytest.raises(TypeError, match=r"expected a float array in \[0, 1\], got dtype uint8 \(murk.io.to_float"):
+        create(spec).restore(frames)
+    out = create(spec).restore(frames.astype(np.float32) / 255)
+    assert out.images.dtype == np.float32 and 0.0 <= out.images.min() and out.images.max() <= 1.0

@@ -94,7 +94,8 @@ def device_type(restorer: object) -> str:
 
 def as_batch(images: object) -> np.ndarray:
     """``images`` as a contiguous numpy batch (B, H, W, 3) with B, H, W >= 1 (an array or a list of equal-size
-    frames), or a :class:`murk.errors.ShapeError` saying what it got."""
+    frames) of floats in [0, 1]; a :class:`murk.errors.ShapeError` for another shape and a TypeError for integer
+    values (8- or 16-bit frames: :func:`murk.io.to_float` converts them), each saying what it got."""
     from murk.errors import ShapeError
 
     try:
@@ -104,6 +105,9 @@ def as_batch(images: object) -> np.ndarray:
     if batch.ndim != 4 or batch.shape[3] != 3 or min(batch.shape[:3]) < 1:
         hint = " (one image (H, W, 3): pass images[None])" if batch.ndim == 3 and batch.shape[2] == 3 else ""
         raise ShapeError(f"images: expected shape (B, H, W, 3), got {batch.shape}{hint}")
+    if not np.issubdtype(batch.dtype, np.floating):
+        hint = " (murk.io.to_float converts 8- and 16-bit frames)" if np.issubdtype(batch.dtype, np.integer) else ""
+        raise TypeError(f"images: expected a float array in [0, 1], got dtype {batch.dtype}{hint}")
     return batch
 
 
