@@ -104,7 +104,7 @@ def enhance(
         typer.Option("--he", help="post: equalise luma (y, colours kept; default), each channel (rgb), or CLAHE."),
     ] = None,
     sigma_px: Annotated[
-        float | None, typer.Option("--sigma-px", min=0.0, help="post: LoG sigma in pixels (Eq. 9; default 1.0).")
+        float | None, typer.Option("--sigma-px", min=0.0, help="post: LoG sigma in pixels, > 0 (Eq. 9; default 1.0).")
     ] = None,
     lam: Annotated[
         float | None,
@@ -115,7 +115,7 @@ def enhance(
         ),
     ] = None,
     clahe_clip: Annotated[
-        float | None, typer.Option("--clahe-clip", min=0.0, help="post --he clahe: clip limit (default 2.0).")
+        float | None, typer.Option("--clahe-clip", min=0.0, help="post --he clahe: clip limit, > 0 (default 2.0).")
     ] = None,
     clahe_tiles: Annotated[
         int | None, typer.Option("--clahe-tiles", min=1, help="post --he clahe: tiles per side (default 8).")
@@ -144,7 +144,12 @@ def enhance(
         Precision | None, typer.Option("--precision", help="jointid: fp32 (default), or bf16/fp16 autocast (GPU).")
     ] = None,
     tile: Annotated[
-        int | None, typer.Option("--tile", min=32, help="jointid: run large frames in tiles of this size (px).")
+        int | None,
+        typer.Option(
+            "--tile",
+            min=0,
+            help="jointid: run large frames in tiles of this size (px, a multiple of 32; 0: whole frames).",
+        ),
     ] = None,
     overlap: Annotated[
         int | None, typer.Option("--overlap", min=0, help="jointid: tile overlap in px (blended; default 64).")
