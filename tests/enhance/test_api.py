@@ -76,6 +76,10 @@ def test_resolve_input_errors(tmp_path: Path) -> None:
     (tmp_path / "empty").mkdir()
     with pytest.raises(InputFileError, match="no images found"):
         resolve_input(str(tmp_path / "empty"))
+    (tmp_path / "empty" / "b.mp4").write_bytes(b"")
+    (tmp_path / "empty" / "a.MOV").write_bytes(b"")
+    with pytest.raises(InputFileError, match=r"no images found \(videos are restored one at a time: murk enhance"):
+        resolve_input(str(tmp_path / "empty"))  # not "use --recursive"
     with pytest.raises(InputFileError, match="matches no image"):
         resolve_input(str(tmp_path / "*.png"))
 

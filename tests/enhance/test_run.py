@@ -55,3 +55,16 @@ def test_a_video_written_over_itself_is_refused_and_left_as_it_was(tmp_path: Pat
             with pytest.raises(ValueError, match="would overwrite its input"):
                 run_enhance(str(video), out, PostRestorer(), OutputOptions(overwrite=overwrite))
     assert video.read_bytes() == before
+
+
+def test_an_out_with_a_suffix_murk_does_not_write_is_a_folder_and_says_so(tmp_path: Path) -> None:
+    image = tmp_path / "a.png"
+    assert cv2.imwrite(str(image), np.full((8, 8, 3), 90, np.uint8))
+    _, report = run_enhance(str(image), tmp_path / "result.gif", PostRestorer())
+    assert (tmp_path / "result.gif" / "a.png").is_file()
+    assert any(n.startswith(f"--out {tmp_path / 'result.gif'}: .gif is not an image or video") for n in report.notes)
+    _, again = run_enhance(str(image), tmp_path / "result.gif", PostRestorer())  # now an existing folder
+    _, video_only = run_enhance(str(image), tmp_path / "v", PostRestorer(), OutputOptions(fps=5.0, depth_video=True))
+    assert "--fps and --depth-video: for video outputs; not used for images" in video_only.notes
+    _, plain = run_enhance(str(image), tmp_path / "plain", PostRestorer())
+    assert not any("is a folder" in n for n in again.notes + plain.notes)

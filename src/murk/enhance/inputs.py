@@ -48,7 +48,12 @@ def resolve_input(spec: str, *, recursive: bool = False, exclude: Path | None = 
     if path.is_dir():
         images = _exclude(list_images(path, recursive=recursive, unusable=True), exclude, path)
         if not images:
-            raise InputFileError(path, f"no images found{'' if recursive else ' (use --recursive for subfolders)'}")
+            videos = sorted(p.name for p in path.iterdir() if p.is_file() and p.suffix.lower() in VIDEO_SUFFIXES)
+            if videos:
+                hint = f" (videos are restored one at a time: murk enhance {path / videos[0]} --out ...)"
+            else:
+                hint = "" if recursive else " (use --recursive for subfolders)"
+            raise InputFileError(path, f"no images found{hint}")
         return EnhanceInput("images", str(path), tuple(images), root=path)
     if path.is_file() or (os.path.lexists(path) and not _GLOB_CHARS & set(spec)):  # a FIFO: its reader says so
         if path.suffix.lower() in VIDEO_SUFFIXES:

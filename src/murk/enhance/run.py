@@ -71,6 +71,7 @@ def run_enhance(
             "them out for this input"
         )
     inp = resolve_input(spec, recursive=recursive, exclude=out)
+    as_folder = _folder_note(out)
     if inp.kind == "images":
         jobs, out_dir = plan_images(inp, out, options.format)
         jobs = jobs[:max_frames] if max_frames else jobs
@@ -85,6 +86,13 @@ def run_enhance(
                 on_progress=None if d is None else d.update,
                 should_stop=should_stop,
             )
+        if as_folder:
+            report.note(as_folder)
+        unused = [
+            flag for flag, set_ in (("--fps", options.fps is not None), ("--depth-video", options.depth_video)) if set_
+        ]
+        if unused:
+            report.note(f"{' and '.join(unused)}: for video outputs; not used for images")
         return inp, report
     if inp.kind == "video" and real_path(out) == real_path(str(inp.target)):
         raise ValueError(f"--out {out}: the output would overwrite its input {inp.target}; choose another --out")
@@ -102,7 +110,21 @@ def run_enhance(
                 on_progress=None if d is None else d.update,
                 should_stop=should_stop,
             )
+    if as_folder:
+        report.note(as_folder)
     return inp, report
+
+
+def _folder_note(out: Path) -> str:
+    """What to tell a user whose ``--out`` looks like a file murk does not write (``result.gif``): it is a folder
+    name to murk. Empty when ``out`` is an existing folder, has no suffix or one murk writes."""
+    from murk.io.images import IMAGE_SUFFIXES
+    from murk.io.video import VIDEO_SUFFIXES
+
+    suffix = out.suffix.lower()
+    if not suffix or out.is_dir() or suffix in IMAGE_SUFFIXES or suffix in VIDEO_SUFFIXES:
+        return ""
+    return f"--out {out}: {suffix} is not an image or video format murk writes, so {out} is a folder"
 
 
 def _built(restorer: RestorerOrBuilder) -> Restorer:
