@@ -38,12 +38,22 @@ def test_it_inverts_the_image_formation_model_at_one_distance() -> None:
     assert np.abs(img - j).mean() > 0.15  # the water changed the image a lot
 
 
-def test_a_flat_channel_is_not_blown_up() -> None:
+def test_a_flat_channel_is_left_as_it_is() -> None:
     img = np.full((20, 30, 3), 0.5, np.float32)
     img[..., 0] += np.float32(0.5 * FLAT_RANGE) * np.random.default_rng(2).random((20, 30)).astype(np.float32)
+    img[..., 2] = np.linspace(0.2, 0.8, 30, dtype=np.float32)  # a channel with a range: stretched
     out = color_balance(img)
-    assert np.ptp(out[..., 0]) <= 0.5 + 1e-6  # stretched by at most 1 / FLAT_RANGE
-    assert np.all(np.isfinite(out)) and np.all(out[..., 1:] == 0.0)
+    assert np.array_equal(out[..., :2], img[..., :2])  # not blown up, not set to 0
+    assert out[..., 2].min() == 0.0 and out[..., 2].max() == 1.0
+    import torch
+
+    from murk.restore_ops.balance import color_balance_torch
+
+    for frame in (np.zeros((8, 8, 3)), np.ones((8, 8, 3)), np.tile([0.0, 0.0, 1.0], (8, 8, 1))):
+        frame = frame.astype(np.float32)  # a lens cap, a lamp's clipped white, a pure colour: kept
+        assert np.array_equal(color_balance(frame), frame)
+        torch_out = color_balance_torch(torch.from_numpy(frame).permute(2, 0, 1)[None])[0].permute(1, 2, 0).numpy()
+        assert np.array_equal(torch_out, frame)
 
 
 def test_the_numpy_levels_equal_the_torch_twins_bit_for_bit() -> None:
@@ -61,3 +71,18 @@ def test_the_numpy_levels_equal_the_torch_twins_bit_for_bit() -> None:
                 ref = balance_levels_torch(x, pct, pct).numpy()
                 got = np.stack([balance_levels(f.permute(1, 2, 0).numpy(), pct, pct) for f in x])
                 np.testing.assert_array_equal(got, ref)
+
+
+def test_the_export_graphs_balance_equals_the_numpy_twin_flat_channels_included() -> None:
+    import torch
+
+    from murk.models.balance_graph import color_balance_graph
+
+    rng = np.random.default_rng(4)
+    photo = rng.random((24, 32, 3), dtype=np.float32) * np.float32(0.6) + np.float32(0.2)
+    flat = photo.copy()
+    flat[..., 1] = 1.0  # a channel clipped everywhere
+    for frame in (photo, flat, np.zeros((24, 32, 3), np.float32)):
+        graph = color_balance_graph(torch.from_numpy(frame).permute(2, 0, 1)[None], 1.0, 1.0)
+        np.testing.assert_allclose(graph[0].permute(1, 2, 0).numpy(), color_balance(frame), atol=1e-6)
+    assert np.array_equal(color_balance(flat)[..., 1], flat[..., 1])

@@ -38,5 +38,6 @@ def color_balance_graph(image: Tensor, low: float, high: float) -> Tensor:
     ordered = sample.sort(dim=2).values
     lo = _percentile(ordered, n, low)[..., None]
     hi = _percentile(ordered, n, 100.0 - high)[..., None]
-    scale = 1.0 / (hi - lo).clamp(min=FLAT_RANGE)
-    return ((image - lo) * scale).clamp(0.0, 1.0)
+    flat = (hi - lo) < FLAT_RANGE  # a flat channel is left as it is (murk.restore_ops.balance)
+    scale = 1.0 / torch.where(flat, torch.ones_like(lo), hi - lo)
+    return ((image - torch.where(flat, torch.zeros_like(lo), lo)) * scale).clamp(0.0, 1.0)

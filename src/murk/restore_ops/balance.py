@@ -2,9 +2,11 @@
 On Line 1, 2011, doi:10.5201/ipol.2011.llmps-scb), numpy and torch twins side by side.
 
 Each channel is stretched affinely so that its ``low`` % darkest pixels become 0 and its ``high`` % brightest
-become 1 (saturated): ``out_c = clip((I_c - q_c) / max(Q_c - q_c, 1/255), 0, 1)`` with ``q_c`` and ``Q_c`` the
-channel's ``low`` and ``100 - high`` percentiles (linear interpolation between order statistics, numpy's and
-torch's default). The floor of 1/255 keeps a flat channel from being blown up past 8-bit steps.
+become 1 (saturated): ``out_c = clip((I_c - q_c) / (Q_c - q_c), 0, 1)`` with ``q_c`` and ``Q_c`` the channel's
+``low`` and ``100 - high`` percentiles (linear interpolation between order statistics, numpy's and torch's default).
+A flat channel, ``Q_c - q_c < 1/255`` (a lens cap's black, a lamp's clipped white, a channel clipped on nearly every
+pixel), holds nothing to stretch and is left as it is (before 2026-12-08 it was set to 0: a white frame came out
+black).
 
 Why it fits water: under the image formation model at one distance, ``I_c = J_c t_c + B_c (1 - t_c)`` (Eq. 1)
 is affine in ``J_c``, so when the clean scene spans the range in every channel (as photographs do) the stretch
@@ -25,7 +27,7 @@ if TYPE_CHECKING:
     from torch import Tensor
 
 FLAT_RANGE = 1.0 / 255.0
-"""The smallest percentile range a channel is stretched from (a flat channel is not amplified beyond this)."""
+"""The smallest percentile range a channel is stretched from; a channel whose range is smaller is left as it is."""
 STATS_PX = 128 * 160
 """The percentiles are taken over every ``s``-th row and column, ``s`` the smallest stride that leaves at most
 about this many pixels (:func:`stats_stride`): a 640x480 frame's percentiles come from 160x120 of its pixels
@@ -78,10 +80,12 @@ def sample_of(image: np.ndarray) -> np.ndarray:
 
 
 def apply_levels(image: np.ndarray, levels: np.ndarray) -> np.ndarray:
-    """``clip((image - lo) / max(hi - lo, FLAT_RANGE), 0, 1)`` per channel with ``levels = [lo, hi]`` (2, 3);
-    float32 (H, W, 3)."""
+    """``clip((image - lo) / (hi - lo), 0, 1)`` per channel with ``levels = [lo, hi]`` (2, 3), a channel with
+    ``hi - lo < FLAT_RANGE`` unchanged (clipped to [0, 1]); float32 (H, W, 3)."""
     lo, hi = np.asarray(levels, np.float32)
-    scale = np.float32(1.0) / np.maximum(hi - lo, np.float32(FLAT_RANGE))
+    flat = (hi - lo) < np.float32(FLAT_RANGE)
+    lo = np.where(flat, np.float32(0.0), lo).astype(np.float32)
+    scale = np.float32(1.0) / np.where(flat, np.float32(1.0), hi - lo).astype(np.float32)
     # OpenCV's per-channel scalar arithmetic: the same float32 subtract-then-multiply as numpy (bit-identical) in
     # one threaded pass each, 2.5x faster than numpy's ufuncs and clip at 640x480
     out = cv2.subtract(np.ascontiguousarray(image, dtype=np.float32), (*lo.tolist(), 0.0))  # type: ignore[call-overload]
@@ -124,9 +128,10 @@ def balance_levels_torch(images: Tensor, low: float = 1.0, high: float = 1.0) ->
 
 def apply_levels_torch(images: Tensor, levels: Tensor) -> Tensor:
     """The twin of :func:`apply_levels` for a batch (B, 3, H, W) and its levels (B, 2, 3)."""
-    lo = levels[:, 0, :, None, None]
-    scale = 1.0 / (levels[:, 1, :, None, None] - lo).clamp(min=FLAT_RANGE)
-    return (images.float() - lo).mul_(scale).clamp_(0.0, 1.0)
+    lo, span = levels[:, 0, :, None, None], levels[:, 1, :, None, None] - levels[:, 0, :, None, None]
+    flat = span < FLAT_RANGE  # left as it is (the twin's rule)
+    scale = 1.0 / span.masked_fill(flat, 1.0)
+    return (images.float() - lo.masked_fill(flat, 0.0)).mul_(scale).clamp_(0.0, 1.0)
 
 
 def color_balance_torch(images: Tensor, low: float = 1.0, high: float = 1.0) -> Tensor:
