@@ -89,3 +89,22 @@ def test_extract_video_every_nth_frame_and_partial_failure(tmp_path: Path) -> No
     b = load_bank(tmp_path / "b.npz")
     assert [s["frame"] for s in b.meta["sources"]] == [0, 2, 4] and len(b) == 6
     assert "bad.png: cannot decode image" in r.output
+
+
+def test_extract_refuses_a_bank_over_an_input_and_skips_earlier_banks_previews(tmp_path: Path) -> None:
+    footage = tmp_path / "f"
+    footage.mkdir()
+    image = footage / "x.jpg"
+    image.write_bytes((UW / "EASI.png").read_bytes())  # (a PNG under another suffix reads the same)
+    before = image.read_bytes()
+    args = ["--method", "tophat", "--threshold", "8", "--tophat-px", "9", "--open-px", "0", "--min-area", "3"]
+    for out in (image, footage / "b.bank"):
+        r = runner.invoke(app, ["snow", "extract", str(image), "--out", str(out), *args])
+        assert r.exit_code == 2 and image.read_bytes() == before
+        assert "a particle bank is a .npz file" in " ".join(r.output.split())
+    first = runner.invoke(app, ["snow", "extract", str(footage), "--out", str(footage / "b1.npz"), *args])
+    assert first.exit_code == 0 and (footage / "b1_preview" / "x.jpg").is_file()
+    second = runner.invoke(app, ["snow", "extract", str(footage), "--out", str(footage / "b2.npz"), *args])
+    assert second.exit_code == 0
+    assert len(load_bank(footage / "b2.npz")) == len(load_bank(footage / "b1.npz"))  # no preview read as footage
+    assert sorted(p.name for p in (footage / "b2_preview").iterdir()) == ["x.jpg"]

@@ -184,6 +184,11 @@ def test_murk_water_estimate_reports_every_image_and_names_a_broken_one(
     assert line.startswith(str(tmp_path / "a.png")) and "visibility" in line
     rows = [json.loads(line) for line in out.read_text().splitlines()]
     assert len(rows) == 1 and rows[0]["image"].endswith("a.png")
+    before = (tmp_path / "a.png").read_bytes()
+    for named in (tmp_path / "a.png", tmp_path):  # the image itself, or an image of a folder given
+        res = CliRunner().invoke(app, ["water", "estimate", str(named), "--json", str(tmp_path / "a.png")])
+        assert res.exit_code == 2 and "writing it would destroy it" in " ".join(res.stderr.split())
+    assert (tmp_path / "a.png").read_bytes() == before
     assert len(rows[0]["veil_rgb"]) == 3 and rows[0]["visibility_m"] > 0
 
 

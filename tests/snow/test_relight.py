@@ -93,3 +93,11 @@ def test_a_relit_bank_round_trips(tmp_path: Path) -> None:
     lit = relight_bank(make_bank(), (120.0, 130.0))
     back = load_bank(save_bank(lit, tmp_path / "lit.npz"))
     assert back.bank_id == lit.bank_id and back.meta["relight"] == lit.meta["relight"]
+
+
+def test_relighting_a_bank_over_itself_is_refused_and_leaves_it_as_cut(tmp_path: Path) -> None:
+    bank = save_bank(make_bank(), tmp_path / "cut.npz")
+    before = bank.read_bytes()
+    r = CliRunner().invoke(app, ["snow", "relight", str(bank), "--out", str(tmp_path / "." / "cut.npz")])
+    assert r.exit_code == 2 and "this is the input" in " ".join(r.output.split())
+    assert bank.read_bytes() == before

@@ -58,8 +58,8 @@ def extract(
     Grayscale -> binarise (--method) -> opening, closing -> connected components -> particles (original colours
     where the mask is 1). The preview shows, per source, the image beside its mask: white = kept particles,
     grey = components dropped by the area or elongation filters. Unreadable or rejected inputs are skipped and
-    listed in BANK_errors.jsonl beside the bank (exit code 1; rewritten by every run). BANK_preview/ may not lie
-    inside an input folder (it would be read back on a rerun).
+    listed in BANK_errors.jsonl beside the bank (exit code 1; rewritten by every run). BANK_preview/ may lie inside
+    an input folder: its images, and those of every earlier bank's X_preview/ beside X.npz, are not read as footage.
     """
     import numpy as np
 

@@ -27,12 +27,15 @@ def estimate(
     are what restores best with that distance map on murk's synthetic water, not a calibrated measurement. One line
     per image on stdout (unless --quiet); errors on stderr."""
     from murk.io.atomic import make_output_folder, write_text_atomic
+    from murk.io.images import IMAGE_SUFFIXES
     from murk.io.jobs import ErrorRecord
+    from murk.io.paths import check_output_file
     from murk.models.water import MEASURABLE_FACTOR
     from murk.workflows.water_estimate import estimate_water
 
     try:
         if json_out is not None:
+            check_output_file(json_out, inputs, option="--json", suffixes=IMAGE_SUFFIXES)
             make_output_folder(json_out.parent)  # before the work: a --json that cannot be written fails at once
         results = estimate_water(inputs, estimator=estimator)
     except ValueError as exc:

@@ -1,12 +1,14 @@
 """Planning output paths: where a command may write, and one distinct name per input.
 
-Two checks shared by ``murk synth``, ``murk enhance``, ``murk snow extract`` and ``murk compare``:
+Checks shared by ``murk synth``, ``murk enhance``, ``murk snow extract``, ``murk compare`` and the commands that
+write one file (a bank, a table):
 
 - :func:`check_output_location` refuses an output folder that is an input folder, and, where the command would
   read its own outputs back (a recursive listing on a rerun) or leave an inconsistent dataset (``murk synth``
   into its own RGB-D folder: ``depth/`` rewritten, resized by ``--size``, beside an ``rgb/`` that is not), one
   inside an input folder or one whose output subfolders hold inputs. The refusal is a one-line usage error
   (exit code 2) naming both paths, given before anything is written.
+- :func:`check_output_file` refuses an output file that is one of the command's input files.
 - :func:`output_names` gives every input a distinct output name, so that ``a/x.jpg`` and ``b/x.png`` never
   write the same ``x.png`` (the second silently replacing the first).
 
@@ -22,6 +24,32 @@ from pathlib import Path
 from typing import Literal
 
 Overlap = Literal["refuse", "allow"]
+
+
+def check_output_file(
+    out: str | Path, inputs: Iterable[str | Path | None], *, option: str = "--out", suffixes: Sequence[str] = ()
+) -> None:
+    """Refuse an output FILE ``out`` (a report, a bank, a table) that would replace a file the command reads: one
+    of the input files ``inputs``, or, for an input folder, an existing file inside it whose suffix is one of
+    ``suffixes`` (the kinds of file the command reads from folders). ``None`` inputs are skipped.
+
+    Raises:
+        ValueError: one line naming ``option``, ``out`` and the input.
+    """
+    out_real = Path(os.path.realpath(out))
+    read_here = Path(out).is_file() and Path(out).suffix.lower() in suffixes
+    for inp in inputs:
+        if inp is None:
+            continue
+        real = Path(os.path.realpath(inp))
+        if real == out_real:
+            raise ValueError(
+                f"{option} {out}: this is the input {inp}; writing it would destroy it; choose another file"
+            )
+        if read_here and real.is_dir() and out_real.is_relative_to(real):
+            raise ValueError(
+                f"{option} {out}: an input file of {inp}; writing it would destroy it; choose another file"
+            )
 
 
 def check_output_location(

@@ -175,7 +175,18 @@ def run_eval(
     **kwargs: Any,
 ) -> EvalResult:
     """:func:`evaluate`, then the JSON/CSV outputs and, beside them, ``errors.jsonl`` (removed when nothing
-    failed; without an output file the failures are only returned)."""
+    failed; without an output file the failures are only returned).
+
+    Raises:
+        ValueError: what :func:`evaluate` raises; before any work, a ``json_out`` or ``csv_out`` that is an input
+            file (named, or an existing image or depth file inside an input folder)."""
+    from murk.io.images import IMAGE_SUFFIXES
+    from murk.io.paths import check_output_file
+
+    inputs = [*images, *(kwargs.get(k) for k in ("ref", "depth", "depth_ref"))]
+    for option, out in (("--json", json_out), ("--csv", csv_out)):
+        if out is not None:
+            check_output_file(out, inputs, option=option, suffixes=(*IMAGE_SUFFIXES, ".npy", ".exr"))
     result = evaluate(images, **kwargs)
     if json_out is not None:
         write_eval_json(json_out, result)

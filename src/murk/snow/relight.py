@@ -62,8 +62,12 @@ def relight_bank_file(bank: str | Path, out: str | Path, luma: tuple[float, floa
     Raises:
         InputFileError: ``bank`` cannot be read or is not a valid bank, or ``out`` cannot be written (the message
             names the file).
-        ValueError: a bad ``luma`` range.
+        ValueError: a bad ``luma`` range; ``out`` is ``bank``.
     """
+    from murk.io.paths import check_output_file
+
+    if not str(bank).startswith("builtin:"):
+        check_output_file(out, [bank])  # the bank as cut: relighting cannot be undone
     relit = relight_bank(load_bank(bank), luma, seed=seed)
     save_bank(relit, out)
     return relit

@@ -69,6 +69,19 @@ def list_footage(inputs: Sequence[Path], exclude: Sequence[Path] = ()) -> list[P
     return files
 
 
+def bank_previews(inputs: Sequence[Path]) -> list[Path]:
+    """The preview folders of earlier banks inside the input folders (``X_preview/`` beside a bank ``X.npz``): their
+    images are an image beside its mask, never footage."""
+    found = []
+    for inp in inputs:
+        if inp.is_dir():
+            for bank in inp.rglob("*.npz"):
+                preview = bank.with_name(bank.stem + "_preview")
+                if preview.is_dir():
+                    found.append(preview)
+    return found
+
+
 def read_footage(
     files: Sequence[Path | ErrorRecord], every: int, problems: list[ErrorRecord], topic: str | None = None
 ) -> Iterator[tuple[dict[str, Any], np.ndarray]]:
@@ -145,9 +158,10 @@ def extract_snow_bank(
     particles, grey = components dropped by the area or elongation filters).
 
     Raises:
-        ValueError: ``every`` < 1; the preview folder is an input folder; no particle was found (the message
-            names the unreadable inputs first). A preview folder inside an input folder is fine: the recursive
-            listing leaves its images out, on the first run and on reruns.
+        ValueError: ``every`` < 1; ``out`` not a ``.npz`` file (so never an input image); the preview folder is an input
+            folder; no particle was found (the message names the unreadable inputs first). A preview folder inside an
+            input folder is fine: the recursive listing leaves its images out (and those of every earlier bank's
+            preview folder, :func:`bank_previews`), on the first run and on reruns.
         OutputError: no space left on the device.
     """
     import cv2
@@ -159,6 +173,8 @@ def extract_snow_bank(
 
     if every < 1:
         raise ValueError(f"--every: expected >= 1, got {every}")
+    if out.suffix.lower() != ".npz":
+        raise ValueError(f"--out {out}: a particle bank is a .npz file; name it so (e.g. {out.with_suffix('.npz')})")
     preview_dir = out.with_name(out.stem + "_preview")
     if preview:  # the preview folder may lie inside an input folder: its images are left out of the listing
         check_output_location(
@@ -169,7 +185,7 @@ def extract_snow_bank(
             why="its previews would be mixed with the footage",
         )
     summary = SnowExtractSummary(out=out, preview_dir=preview_dir if preview else None)
-    files = list_footage(inputs, exclude=[preview_dir])
+    files = list_footage(inputs, exclude=[preview_dir, *bank_previews(inputs)])
     problems: list[ErrorRecord] = []
     paths = [f for f in files if isinstance(f, Path)]
     names = {str(p): n for p, n in output_names(paths).items()}  # a/x.jpg and b/x.jpg: two previews
