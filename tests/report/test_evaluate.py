@@ -42,11 +42,11 @@ def test_run_eval_writes_errors_beside_the_json(tmp_path: Path) -> None:
 def test_a_table_over_an_input_file_is_refused_before_any_work(tmp_path: Path) -> None:
     imgs = _images(tmp_path / "imgs")
     before = (imgs / "a.png").read_bytes()
-    with pytest.raises(ValueError, match="--json .*a.png: this is the input"):
+    with pytest.raises(ValueError, match=r"--json .*a\.png: this is the input"):
         run_eval([imgs / "a.png"], json_out=imgs / "a.png")
-    with pytest.raises(ValueError, match="--csv .*b.png: an input file of"):
+    with pytest.raises(ValueError, match=r"--csv .*b\.png: an input file of"):
         run_eval([imgs], csv_out=imgs / "." / "b.png")
-    with pytest.raises(ValueError, match="--json .*: this is the input"):
+    with pytest.raises(ValueError, match=r"--json .*: this is the input"):
         run_eval([imgs / "b.png"], ref=imgs / "a.png", json_out=imgs / "a.png")
     assert (imgs / "a.png").read_bytes() == before
     fine = run_eval([imgs], csv_out=imgs / "scores.csv")  # a new file beside the inputs is fine

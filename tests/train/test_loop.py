@@ -132,6 +132,50 @@ def test_checkpoint_loads_for_inference_and_eval_metrics(synth_folder: Path, tmp
     assert load_yaml(TrainConfig, tmp_path / "config.yaml") == cfg  # the run's config.yaml reproduces it
 
 
+def test_a_jointid_trains_on_layout_distance_data_and_scores_no_depth_there(tmp_path: Path) -> None:
+    """``murk synth --depth-from layout`` data has no depth target (all invalid): validation scores the images and
+    leaves depth out, where it used to stop the run at the first evaluation."""
+    import cv2
+    from typer.testing import CliRunner
+
+    from murk.cli.main import app
+
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    rng = np.random.default_rng(0)
+    for i in range(4):
+        assert cv2.imwrite(str(photos / f"p{i}.png"), rng.integers(0, 256, (48, 64, 3), dtype=np.uint8))
+    r = CliRunner().invoke(
+        app, ["synth", str(photos), str(tmp_path / "lay"), "--variants", "1", "--depth-from", "layout", "-q"]
+    )
+    assert r.exit_code == 0, r.output
+    cfg = _config(tmp_path / "run", tmp_path / "lay", steps=2, data={"val_fraction": 0.5}, eval={"every": 1})
+    s = train(cfg)
+    assert "val_psnr" in s.last_eval and not any(k in s.last_eval for k in ("val_abs_rel", "val_silog"))
+
+
+def test_a_bad_eval_real_folder_stops_the_run_before_the_first_step(synth_folder: Path, tmp_path: Path) -> None:
+    from murk.errors import InputFileError
+
+    with pytest.raises(InputFileError, match=r"eval\.real .*not a folder"):
+        train(_config(tmp_path / "a", synth_folder, steps=2, eval={"every": 1, "real": str(tmp_path / "nope")}))
+    assert not (tmp_path / "a").exists()  # nothing written
+    real = tmp_path / "real"
+    real.mkdir()
+    (real / "bad.jpg").write_bytes(b"\xff\xd8 not a jpeg")
+    assert cv2_write(real / "good.png")
+    s = train(_config(tmp_path / "b", synth_folder, steps=2, eval={"every": 1, "real": str(real)}))
+    assert s.last_eval["real_images"] == 1.0 and s.failed == 1  # the bad image recorded, the run finished
+    (record,) = read_jsonl(tmp_path / "b" / "errors.jsonl")
+    assert record["input"] == str(real / "bad.jpg") and "left out of the real-image scores" in record["error"]
+
+
+def cv2_write(path: Path) -> bool:
+    import cv2
+
+    return bool(cv2.imwrite(str(path), np.random.default_rng(1).integers(0, 256, (40, 56, 3), dtype=np.uint8)))
+
+
 def test_epoch_batches_partition_and_shuffle() -> None:
     b0 = epoch_batches(20, 3, epoch=0, seed=1, rank=0, world=2)
     b1 = epoch_batches(20, 3, epoch=0, seed=1, rank=1, world=2)

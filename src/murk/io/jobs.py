@@ -76,11 +76,21 @@ class ErrorLog:
         self.path = Path(folder) / name
         self.count = 0
         self.summary = summary
+        self._once: set[tuple[str, str, str]] = set()
 
     def start(self) -> ErrorLog:
         self.path.unlink(missing_ok=True)
         self.count = 0
+        self._once.clear()
         return self
+
+    def add_once(self, record: ErrorRecord) -> None:
+        """:meth:`add`, unless this run already recorded the same input, stage and error (a failure met again at
+        every evaluation of a training run is one failure)."""
+        key = (record.input, record.stage, record.error)
+        if key not in self._once:
+            self._once.add(key)
+            self.add(record)
 
     def add(self, record: ErrorRecord) -> None:
         append_jsonl(self.path, [record.to_json()])

@@ -11,6 +11,7 @@ an exact copy being infinite), the headline depth errors (``val_<name>``) and th
 from __future__ import annotations
 
 from collections.abc import Sized
+from pathlib import Path
 from typing import Any, cast
 
 import numpy as np
@@ -18,7 +19,7 @@ import torch
 import torch.nn.functional as F
 from torch.utils.data import DataLoader
 
-from murk.io.jobs import ErrorLog
+from murk.io.jobs import ErrorLog, ErrorRecord
 from murk.metrics import table
 from murk.restore_ops.balance import color_balance_torch
 from murk.train.config import TrainConfig
@@ -33,6 +34,31 @@ def to_device(batch: dict[str, Any], device: torch.device) -> dict[str, Any]:
 
 
 @torch.no_grad()
+def check_real_folder(folder: str | Path) -> None:
+    """``eval.real`` (``murk train --eval-real``) checked before the first step: a folder holding images.
+
+    Raises:
+        InputFileError: not a folder, or no image in it (recursively).
+    """
+    from murk.errors import InputFileError
+    from murk.io.images import list_images
+
+    path = Path(folder)
+    if not path.is_dir():
+        raise InputFileError(path, "eval.real (--eval-real): not a folder")
+    if not list_images(path, recursive=True):
+        raise InputFileError(path, "eval.real (--eval-real): no images in this folder")
+
+
+def has_depth_target(depth_m: torch.Tensor) -> torch.Tensor:
+    """(B,) bool: which images of a batch of depth targets (B, H, W) or (B, 1, H, W) hold a valid pixel (finite, in
+    the depth metrics' range). Photographs with the layout prior's distance have none: their depth is no target."""
+    from murk.metrics.depth import MAX_DEPTH_M, MIN_DEPTH_M
+
+    d = depth_m.flatten(1)
+    return (torch.isfinite(d) & (d > MIN_DEPTH_M) & (d < MAX_DEPTH_M)).any(dim=1)
+
+
 def evaluate(
     model: torch.nn.Module,
     data: DataSetup,
@@ -81,7 +107,9 @@ def evaluate(
                     x = inputs.float().clamp(0, 1)
                     scores.setdefault(f"input_{m.name}", []).append(m.value(fn(x, targets, data_range=1.0)))
             if depth_m is not None and depth_twin is not None:  # networks without a depth head: no depth errors
-                errs.append(depth_twin(depth_m, batch["depth"]))
+                scored = has_depth_target(batch["depth"])  # a layout-prior distance is no target (all invalid)
+                if bool(scored.any()):
+                    errs.append(depth_twin(depth_m[scored], batch["depth"][scored]))
         if losses:
             out["val_loss"] = float(np.mean(losses))
             for m in refs:
@@ -98,7 +126,13 @@ def evaluate(
         norefs = [m for m in table.metrics("none") if m.headline and m.torch_function is not None]
         real: dict[str, list[torch.Tensor]] = {m.name: [] for m in norefs}
         for f in files:
-            img = read_rgb(f)
+            try:
+                img = read_rgb(f)
+            except (OSError, ValueError) as exc:  # one unreadable image costs its score, never the run
+                if errors is not None:
+                    why = str(exc) if str(f) in str(exc) else f"{f}: {exc}"
+                    errors.add_once(ErrorRecord(str(f), "eval", f"{why}; left out of the real-image scores"))
+                continue
             h, w = img.shape[:2]
             scale = min(1.0, config.eval.real_max_side / max(h, w))
             x = torch.from_numpy(img).permute(2, 0, 1)[None].to(device)
@@ -111,9 +145,10 @@ def evaluate(
             o = padding.crop(run_network(kind, model, xp)[0].float()).clamp(0, 1)
             for m in norefs:
                 real[m.name].append(m.value(m.load(torch=True)(o, data_range=1.0)))
-        if files:
+        scored_n = len(next(iter(real.values()), []))
+        if scored_n:
             out.update({f"real_{name}": float(torch.cat(values).mean()) for name, values in real.items()})
-            out["real_images"] = float(len(files))
+            out["real_images"] = float(scored_n)
     if was_training:
         model.train()
     return out

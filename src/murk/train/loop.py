@@ -44,7 +44,7 @@ from murk.rng import derive_seed
 from murk.train.augment import apply_augment, augment_map, sample_augment
 from murk.train.config import TrainConfig
 from murk.train.data import record_unreadable
-from murk.train.evaluation import evaluate, to_device
+from murk.train.evaluation import check_real_folder, evaluate, to_device
 from murk.train.losses import LossTerms, jointid_loss
 from murk.train.schedule import Schedule
 from murk.train.setup import (
@@ -213,6 +213,8 @@ def _set_up(
     out = Path(config.out)
     check_run_folder(out, config, resume=resume)
     data = _training_data(config)  # a bad source or snow bank stops here, before anything is written
+    if config.eval.real:  # and a bad --eval-real, not at the first evaluation, after steps that would be lost
+        check_real_folder(config.eval.real)
     if rt.main:
         make_output_folder(out, "run folder")
         write_text_atomic(out / "config.yaml", dump_yaml(config, murk_version=__version__, world_size=rt.world))
