@@ -253,3 +253,23 @@ def test_snow_pairs_add_the_luma_and_colour_residues(tmp_path: Path) -> None:
     (row,) = res.rows
     assert row["snow_residue"] == pytest.approx(1.0) and row["snow_colour_residue"] == pytest.approx(1.0)
     assert res.summary["raw"]["snow_colour_residue"]["mean"] == pytest.approx(1.0)
+
+
+def test_the_identity_scores_the_identity_values_after_a_max_side_resize(tmp_path: Path) -> None:
+    import cv2
+
+    rng = np.random.default_rng(6)
+    clean = (cv2.GaussianBlur(rng.random((150, 200, 3)).astype(np.float32), (0, 0), 3) * 0.6 + 0.2).astype(np.float32)
+    snowy = clean.copy()
+    for y, x in rng.integers(6, 140, (20, 2)):
+        snowy[y - 2 : y + 3, x - 2 : x + 3] += 0.35
+    for sub, img in (("snowy", snowy), ("clean", clean)):
+        (tmp_path / sub).mkdir()
+        cv2.imwrite(str(tmp_path / sub / "s.png"), cv2.cvtColor(to_uint(np.clip(img, 0, 1), 8), cv2.COLOR_RGB2BGR))
+    res = run_compare(
+        [tmp_path / "snowy" / "s.png"], [parse_method("raw")], tmp_path / "rep", snow_clean=tmp_path / "clean",
+        max_side=97,
+    )  # fmt: skip
+    (row,) = res.rows  # the 97-px copy was scored unrounded against the rounded output: GMS 0.97-0.99, flags
+    assert row["flags"] == "" and row["structure_gms"] == pytest.approx(1.0) and row["particle_residue_ratio"] == 1.0
+    assert row["snow_residue"] == pytest.approx(1.0)

@@ -323,6 +323,9 @@ def _run_compare(
         try:
             raw, info = read_image(path)
             img = downscale_to(to_float(raw), max_side)
+            # the input as the outputs are scored (at its bit depth): what the restoration measures and the snow
+            # sites compare with, so that `raw` (the identity) gets the identity values after a --max-side resize
+            img_q = to_float(to_uint(img, info.bit_depth))
         except (ValueError, OSError) as exc:  # unreadable, corrupt, a bomb: recorded, the others go on
             result.add_failure(ErrorRecord(str(path), "read", str(exc)))
             continue
@@ -333,7 +336,7 @@ def _run_compare(
             except (ValueError, OSError) as exc:
                 result.add_failure(ErrorRecord(str(path), "reference", str(exc)))
                 continue
-            input_scores = _reference_scores(to_float(to_uint(img, info.bit_depth)), ref)
+            input_scores = _reference_scores(img_q, ref)
         snow_free, sites = None, None
         if snow is not None:
             from murk.metrics.snow_pairs import snow_sites
@@ -343,7 +346,8 @@ def _run_compare(
             except (ValueError, OSError) as exc:
                 result.add_failure(ErrorRecord(str(path), "snow-clean", str(exc)))
                 continue
-            sites = snow_sites(img, snow_free)
+            snow_free_q = to_float(to_uint(snow_free, info.bit_depth))
+            sites = snow_sites(img_q, snow_free_q)
         outputs, rows = [], []
         for spec, rest in zip(methods, restorers, strict=True):
             t0 = time.perf_counter()
@@ -361,7 +365,7 @@ def _run_compare(
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
                 metrics = score(restored, uiqm_preset=uiqm_preset, uciqe_preset=uciqe_preset)
-                measured, raised = measures(resize_to(img, restored.shape[:2]), restored)
+                measured, raised = measures(resize_to(img_q, restored.shape[:2]), restored)
                 metrics.update(measured)
                 if snow_free is not None and sites is not None:
                     from murk.metrics.fidelity import structure_fidelity
@@ -369,7 +373,7 @@ def _run_compare(
 
                     out_free = snow_free if rest is None else rest.restore(snow_free[None]).images[0]
                     out_free = to_float(to_uint(np.clip(out_free, 0.0, 1.0), info.bit_depth))
-                    r = snow_residue(sites, snow_free, restored, out_free)
+                    r = snow_residue(sites, snow_free_q, restored, out_free)
                     metrics.update(
                         {
                             "snow_residue": r.residue,
@@ -378,7 +382,7 @@ def _run_compare(
                         }
                     )
                     if restored.shape == img.shape:  # the structure away from the particles, "not blurred"
-                        clear = structure_fidelity(img, restored, where=snow_free_mask(sites))
+                        clear = structure_fidelity(img_q, restored, where=snow_free_mask(sites))
                         metrics["snow_free_gms"] = clear.gms_mean
                 if ref is not None:
                     full = _reference_scores(restored, ref)
