@@ -246,3 +246,27 @@ def test_jointid_arms_are_scored_as_trained_without_the_affine_transfer_lite_or_
     restorer = create(arm_spec("jointid", "jointid"))
     assert restorer.refine_settings.radius == 0.0 and not isinstance(restorer, Blend)  # the options reach it
     assert restorer.depth_area == 0  # the depth of the frame's own pass, as trained
+
+
+def test_a_bad_evaluation_folder_stops_the_study_before_any_arm_trains(tmp_path: Path, monkeypatch) -> None:
+    from murk.report import study as report_study
+    from tests.train._study import study_with_one_arm
+
+    trained: list[str] = []
+    monkeypatch.setattr(report_study, "train_arms", lambda *a, **k: trained.append("arms") or [])
+    for flag, message in (
+        ("real_pairs", r"eval\.real_pairs: .* holds neither input/"),
+        ("snow_pairs", r"eval\.snow_pairs: .* must hold snowy/ and clean/"),
+    ):
+        (tmp_path / flag).mkdir()
+        study_with_one_arm(tmp_path / flag)
+        with pytest.raises(ValueError, match=message):
+            report_study.run_study(tmp_path / flag / "study.yaml", tmp_path / flag / "out", **{flag: tmp_path / "no"})
+    (tmp_path / "r").mkdir()
+    study_with_one_arm(tmp_path / "r")
+    (tmp_path / "r" / "real" / "a.png").unlink()  # eval.real now holds no image
+    with pytest.raises(ValueError, match=r"eval\.real: .* holds no images"):
+        report_study.run_study(tmp_path / "r" / "study.yaml", tmp_path / "r" / "out")
+    assert trained == []  # no arm trained for any of them
+    report_study.run_study(tmp_path / "r" / "study.yaml", tmp_path / "r" / "o2", train_only=True)  # needs none
+    assert trained == ["arms"]

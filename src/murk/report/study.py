@@ -66,6 +66,8 @@ def run_study(
     if snow_pairs is not None:
         study = merge(study, {"eval": {"snow_pairs": str(snow_pairs)}})
     out = Path(out_dir)
+    if not train_only:  # a typo in an evaluation folder is found now, not after hours of training
+        check_eval_inputs(study)
     result = StudyResult(out=out)
     result.arms = train_arms(study, base, out, on_event=on_event)
     result.processed = sum(a.status == "trained" for a in result.arms)
@@ -166,10 +168,9 @@ def evaluate_study(
         write_text_atomic(out / "heldout.json", json.dumps(json_safe(heldout), indent=2) + "\n")
     report["heldout"] = heldout
 
+    check_eval_inputs(study)
     real_dir = Path(resolve_builtin(ev.real))
     images = list_images(real_dir, recursive=True, unusable=True)
-    if not images:
-        raise ValueError(f"eval.real: {real_dir} holds no images")
     last = study.arms[-1].name
     specs = ["raw", f"post=post?preset=paper,lam={ev.post_lambda}"]
     specs += [arm_spec(method, f"{name}={method}:{p}") for name, p in ckpts.items()]
@@ -204,8 +205,6 @@ def evaluate_study(
         )
     if ev.snow_pairs:
         snow_dir = Path(resolve_builtin(ev.snow_pairs))
-        if not (snow_dir / "snowy").is_dir() or not (snow_dir / "clean").is_dir():
-            raise ValueError(f"eval.snow_pairs: {snow_dir} must hold snowy/ and clean/ folders (matched by file stem)")
         snowy = list_images(snow_dir / "snowy")
         snow_specs = ["raw", *specs[1:]]
         say(f"snow pairs: {len(snowy)} images x {len(snow_specs)} methods")
@@ -229,6 +228,29 @@ def evaluate_study(
     write_text_atomic(out / "study.json", json.dumps(json_safe(report), indent=2) + "\n")
     write_text_atomic(out / "study.md", study_markdown(report))
     return report
+
+
+def check_eval_inputs(study: StudyConfig) -> None:
+    """The folders the evaluation reads (``eval.real``, ``eval.real_pairs``, ``eval.snow_pairs``), checked before
+    any arm trains.
+
+    Raises:
+        ValueError: ``eval.real`` holds no images; ``eval.real_pairs`` holds no set (:func:`pair_sets`);
+            ``eval.snow_pairs`` lacks ``snowy/`` or ``clean/``.
+    """
+    from murk.data import resolve_builtin
+    from murk.io.images import list_images
+
+    ev = study.eval
+    real_dir = Path(resolve_builtin(ev.real))
+    if not real_dir.is_dir() or not list_images(real_dir, recursive=True, unusable=True):
+        raise ValueError(f"eval.real: {real_dir} holds no images")
+    if ev.real_pairs:
+        pair_sets(Path(resolve_builtin(ev.real_pairs)))
+    if ev.snow_pairs:
+        snow_dir = Path(resolve_builtin(ev.snow_pairs))
+        if not (snow_dir / "snowy").is_dir() or not (snow_dir / "clean").is_dir():
+            raise ValueError(f"eval.snow_pairs: {snow_dir} must hold snowy/ and clean/ folders (matched by file stem)")
 
 
 def pair_sets(folder: Path) -> dict[str, Path]:
