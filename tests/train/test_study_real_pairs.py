@@ -84,6 +84,8 @@ def test_real_pairs_flag_overrides_the_config(tmp_path: Path, monkeypatch) -> No
     train = {"model": {"variant": "tiny"}, "data": {"source": "scenes"}, "eval": {"real": None}, "steps": 1}
     (tmp_path / "train.yaml").write_text(yaml.safe_dump(train))
     (tmp_path / "study.yaml").write_text(yaml.safe_dump({"train": "train.yaml"}))
+    for sub in ("input", "reference"):  # checked before the arms train: it must be a set
+        (tmp_path / "pairs" / sub).mkdir(parents=True)
     run_study(tmp_path / "study.yaml", tmp_path / "out", real_pairs=tmp_path / "pairs")
     assert seen["real_pairs"] == str(tmp_path / "pairs")
 
