@@ -17,7 +17,9 @@ def export(
         typer.Option("--checkpoint", "-c", help="Joint-ID checkpoint (murk's or the official .pth), or a lite one."),
     ],
     out: Annotated[Path, typer.Option("--out", "-o", help="The .onnx file to write.")],
-    opset: Annotated[int, typer.Option("--opset", help="ONNX opset version (>= 14).")] = 17,
+    opset: Annotated[
+        int, typer.Option("--opset", help="ONNX opset version (>= 14, at most what the installed torch exports).")
+    ] = 17,
     verify: Annotated[
         bool,
         typer.Option(

@@ -53,6 +53,16 @@ class ExportedModel:
     """The only (H, W) the graph takes (the baselines); None for dynamic height and width."""
 
 
+def max_opset() -> int:
+    """The highest ONNX opset the installed torch's TorchScript-based exporter (the one murk uses) writes."""
+    try:
+        from torch.onnx import _constants
+
+        return int(_constants.ONNX_TORCHSCRIPT_EXPORTER_MAX_OPSET)
+    except (ImportError, AttributeError):  # a torch without the constant: let its exporter decide
+        return 10**6
+
+
 def export_checkpoint(
     checkpoint: str | Path,
     out: str | Path,
@@ -81,7 +91,8 @@ def export_checkpoint(
             networks: Joint-ID's restorer applies its ``exposure`` option outside the graph.
 
     Raises:
-        ValueError: ``out`` does not end in ``.onnx``, an unknown ``model``, a size the network cannot take, or
+        ValueError: ``out`` does not end in ``.onnx``, an unknown ``model``, an opset above :func:`max_opset`, a
+            size the network cannot take, or
             ONNX Runtime differs from torch by more than ``tolerance`` (the file is written all the same).
         InputFileError: the checkpoint cannot be read (or holds pickled objects and ``trust`` is False).
         ImportError: ``verify`` without onnxruntime installed.
@@ -95,6 +106,9 @@ def export_checkpoint(
         raise ValueError(f"exposure: expected input or network, got {exposure!r}")
     if exposure is not None and model != "auto":
         raise ValueError(f"exposure: applies to lite exports only, not to {model}; leave --exposure out")
+    top = max_opset()
+    if opset > top:
+        raise ValueError(f"opset: this torch exports opsets up to {top} (murk's exporter), got {opset}")
     checkpoint_file(checkpoint)  # a missing file is reported before torch and the networks are imported
     if model != "auto":
         done = _export_baseline(model, checkpoint, out, size_hw, opset, verify, trust)
