@@ -53,6 +53,18 @@ def test_a_table_over_an_input_file_is_refused_before_any_work(tmp_path: Path) -
     assert (imgs / "scores.csv").is_file() and fine.processed == 2
 
 
+def test_two_references_of_one_stem_are_named_as_paths(tmp_path: Path) -> None:
+    imgs = _images(tmp_path / "imgs")
+    refs = tmp_path / "refs"
+    refs.mkdir()
+    for name in ("a.png", "a.jpg"):
+        cv2.imwrite(str(refs / name), np.full((32, 40, 3), 90, np.uint8))
+    res = evaluate([imgs / "a.png"], ref=refs)
+    (rec,) = res.failures
+    assert f"several reference images with stem 'a' in --ref: {refs / 'a.jpg'}, {refs / 'a.png'}" in rec.error
+    assert "PosixPath" not in rec.error
+
+
 def test_usage_errors_name_the_option() -> None:
     with pytest.raises(ValueError, match="nothing to evaluate"):
         evaluate([])

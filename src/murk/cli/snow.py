@@ -100,12 +100,12 @@ def extract(
 def relight(
     bank: Annotated[str, typer.Argument(help="A particle bank (.npz) or builtin:snow-real.")],
     out: Annotated[Path, typer.Option("--out", help="The relit bank to write (.npz).")],
-    luma: Annotated[str, typer.Option("--luma", help="a,b: each particle's mean luma is drawn in [a, b] (0-255).")] = (
+    luma: Annotated[str, typer.Option("--luma", help="a,b: each particle's mean luma, drawn from a to b (0-255).")] = (
         "120,230"
     ),
     seed: Annotated[int, typer.Option("--seed", help="Seed of the per-particle draws.")] = 0,
 ) -> None:
-    """Relight a bank cut from dark footage: each particle grey with its own luma pattern, mean luma in [a, b].
+    """Relight a bank cut from dark footage: each particle grey with its own luma pattern, mean luma from a to b.
 
     Particles cut from dark water are too dim for Eq. (7), which composites them with their own colours; real
     marine snow is bright. Shapes and sizes are kept; the new bank records the range, the seed and the bank it

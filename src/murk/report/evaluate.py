@@ -243,7 +243,8 @@ def _match(path: Path, index: dict[str, list[Path]], option: str, what: str) -> 
     if not matches:
         raise InputFileError(path, f"no {what} image with stem {path.stem!r} in {option}")
     if len(matches) > 1:
-        raise InputFileError(path, f"several {what} images with stem {path.stem!r}: {matches}")
+        shown = ", ".join(str(m) for m in matches)
+        raise InputFileError(path, f"several {what} images with stem {path.stem!r} in {option}: {shown}")
     return matches[0]
 
 
