@@ -108,3 +108,10 @@ def test_extract_refuses_a_bank_over_an_input_and_skips_earlier_banks_previews(t
     assert second.exit_code == 0
     assert len(load_bank(footage / "b2.npz")) == len(load_bank(footage / "b1.npz"))  # no preview read as footage
     assert sorted(p.name for p in (footage / "b2_preview").iterdir()) == ["x.jpg"]
+
+
+def test_extract_refuses_a_scale_range_given_largest_first(tmp_path: Path) -> None:
+    for scale in ("0.6,0.3", "0,0.5", "0.3"):
+        r = runner.invoke(app, ["snow", "extract", str(UW), "--out", str(tmp_path / "b.npz"), "--scale", scale])
+        assert r.exit_code == 2 and "--scale: expected" in " ".join(r.output.split()), (scale, r.output)
+    assert not (tmp_path / "b.npz").exists()
