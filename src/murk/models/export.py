@@ -106,10 +106,10 @@ def export_checkpoint(
         raise ValueError(f"exposure: expected input or network, got {exposure!r}")
     if exposure is not None and model != "auto":
         raise ValueError(f"exposure: applies to lite exports only, not to {model}; leave --exposure out")
-    top = max_opset()
+    checkpoint_file(checkpoint)  # a missing file is reported before torch and the networks are imported
+    top = max_opset()  # (imports torch)
     if opset > top:
         raise ValueError(f"opset: this torch exports opsets up to {top} (murk's exporter), got {opset}")
-    checkpoint_file(checkpoint)  # a missing file is reported before torch and the networks are imported
     if model != "auto":
         done = _export_baseline(model, checkpoint, out, size_hw, opset, verify, trust)
     else:
