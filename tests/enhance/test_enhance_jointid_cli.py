@@ -42,6 +42,11 @@ def test_enhance_with_a_jointid_checkpoint_writes_images_and_depth(tmp_path: Pat
     d = cv2.imread(str(out / "depth" / "f0.png"), cv2.IMREAD_UNCHANGED)
     assert d.dtype == np.uint16 and d.shape == (40, 70) and 0 < d.max() <= 15000  # mm, Joint-ID's 15 m cap
     assert (out / "depth_preview" / "f1.jpg").exists()
+    r = runner.invoke(
+        app,
+        ["enhance", str(src), "--out", str(tmp_path / "o0"), "-m", "jointid", "--checkpoint", str(ckpt), "--tile", "0"],
+    )
+    assert r.exit_code == 0, r.output  # --tile 0: whole frames, as jointid?tile=0 (the flag refused 0 until 2026-12-08)
     r = runner.invoke(app, ["enhance", str(src), "--out", str(tmp_path / "o2"), "--method", "jointid+post"])
     assert r.exit_code == 0, r.output  # no --checkpoint: the shipped weights, named in the output
     assert "jointid weights:" in r.output and "jointid-small.pt" in r.output and "shipped" in r.output

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import os
 from pathlib import Path
 
 import cv2
@@ -54,6 +55,9 @@ def test_a_video_written_over_itself_is_refused_and_left_as_it_was(tmp_path: Pat
         for overwrite in (False, True):
             with pytest.raises(ValueError, match="would overwrite its input"):
                 run_enhance(str(video), out, PostRestorer(), OutputOptions(overwrite=overwrite))
+    os.link(video, tmp_path / "linked.avi")  # a hard link is the same file under another name
+    with pytest.raises(ValueError, match="would overwrite its input"):
+        run_enhance(str(video), tmp_path / "linked.avi", PostRestorer(), OutputOptions(overwrite=True))
     assert video.read_bytes() == before
 
 

@@ -48,6 +48,9 @@ def test_a_table_over_an_input_file_is_refused_before_any_work(tmp_path: Path) -
         run_eval([imgs], csv_out=imgs / "." / "b.png")
     with pytest.raises(ValueError, match=r"--json .*: this is the input"):
         run_eval([imgs / "b.png"], ref=imgs / "a.png", json_out=imgs / "a.png")
+    raw = _images(tmp_path / "raw")  # the --input folder (the raw frames beside the restorations)
+    with pytest.raises(ValueError, match=r"--json .*a\.png: an input file of"):
+        run_eval([imgs], inputs=raw, json_out=raw / "a.png")
     assert (imgs / "a.png").read_bytes() == before
     fine = run_eval([imgs], csv_out=imgs / "scores.csv")  # a new file beside the inputs is fine
     assert (imgs / "scores.csv").is_file() and fine.processed == 2

@@ -86,3 +86,17 @@ def test_the_export_graphs_balance_equals_the_numpy_twin_flat_channels_included(
         graph = color_balance_graph(torch.from_numpy(frame).permute(2, 0, 1)[None], 1.0, 1.0)
         np.testing.assert_allclose(graph[0].permute(1, 2, 0).numpy(), color_balance(frame), atol=1e-6)
     assert np.array_equal(color_balance(flat)[..., 1], flat[..., 1])
+
+
+def test_the_twins_agree_bit_for_bit_on_a_frame_with_one_flat_channel() -> None:
+    import torch
+
+    from murk.restore_ops.balance import color_balance_torch
+
+    rng = np.random.default_rng(9)
+    frame = (rng.random((30, 40, 3), dtype=np.float32) * np.float32(0.7) + np.float32(0.1)).astype(np.float32)
+    frame[..., 0] = np.float32(3 / 255)  # deep water: red one grey level everywhere; green and blue stretched
+    out = color_balance(frame)
+    twin = color_balance_torch(torch.from_numpy(frame).permute(2, 0, 1)[None])[0].permute(1, 2, 0).numpy()
+    assert np.array_equal(out, twin)
+    assert np.array_equal(out[..., 0], frame[..., 0]) and out[..., 1].max() == 1.0

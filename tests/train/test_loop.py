@@ -170,6 +170,22 @@ def test_a_bad_eval_real_folder_stops_the_run_before_the_first_step(synth_folder
     assert record["input"] == str(real / "bad.jpg") and "left out of the real-image scores" in record["error"]
 
 
+def test_evaluation_runs_without_autograd(synth_folder: Path, tmp_path: Path, monkeypatch) -> None:
+    """Validation keeps no graph: with one, every batch's scores held its activations alive (GPU memory)."""
+    from murk.train import networks
+
+    grad_seen: list[bool] = []
+    real_run = networks.run_network
+
+    def spy(*args, **kwargs):
+        grad_seen.append(torch.is_grad_enabled())
+        return real_run(*args, **kwargs)
+
+    monkeypatch.setattr(networks, "run_network", spy)
+    train(_config(tmp_path, synth_folder, steps=1, data={"val_fraction": 0.25}, eval={"every": 1}))
+    assert grad_seen == [True, False]  # the training step with autograd, the one validation batch without
+
+
 def cv2_write(path: Path) -> bool:
     import cv2
 

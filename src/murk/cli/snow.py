@@ -70,8 +70,6 @@ def extract(
         lo, hi = (float(v) for v in scale.split(","))
     except ValueError:
         raise ValueError(f"--scale: expected a,b (e.g. 0.3,0.6), got {scale!r}") from None
-    if not 0.0 < lo <= hi:
-        raise ValueError(f"--scale: expected 0 < a <= b (the smallest scale first, e.g. 0.3,0.6), got {scale!r}")
     config = ExtractConfig(
         method=method,  # type: ignore[arg-type]
         threshold=threshold,

@@ -3,7 +3,6 @@ the estimator that gives it."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated
 
@@ -26,22 +25,15 @@ def estimate(
     """Estimate each image's water from the image and Joint-ID's distance map (docs/models/water.md). The figures
     are what restores best with that distance map on murk's synthetic water, not a calibrated measurement. One line
     per image on stdout (unless --quiet); errors on stderr."""
-    from murk.io.atomic import make_output_folder, write_text_atomic
-    from murk.io.images import IMAGE_SUFFIXES
     from murk.io.jobs import ErrorRecord
-    from murk.io.paths import check_output_file
     from murk.models.water import MEASURABLE_FACTOR
     from murk.workflows.water_estimate import estimate_water
 
     try:
-        if json_out is not None:
-            check_output_file(json_out, inputs, option="--json", suffixes=IMAGE_SUFFIXES)
-            make_output_folder(json_out.parent)  # before the work: a --json that cannot be written fails at once
-        results = estimate_water(inputs, estimator=estimator)
+        results = estimate_water(inputs, estimator=estimator, json_out=json_out)
     except ValueError as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(2) from None
-    rows = []
     failed = 0
     for r in results:
         if isinstance(r, ErrorRecord):
@@ -49,7 +41,6 @@ def estimate(
             typer.echo(f"error: {r.error}", err=True)
             continue
         d = r.as_dict()
-        rows.append(d)
         veil = " ".join(f"{v:.2f}" for v in d["veil_rgb"])  # type: ignore[attr-defined]
         att = " ".join(f"{v:.3f}" for v in d["attenuation_per_m"])  # type: ignore[attr-defined]
         seen = (
@@ -59,8 +50,6 @@ def estimate(
         )
         if not quiet:
             typer.echo(f"{r.path}: veil RGB {veil}, attenuation RGB {att} /m, {seen}")
-    if json_out is not None:
-        write_text_atomic(json_out, "".join(json.dumps(row) + "\n" for row in rows))
     if failed:
         raise typer.Exit(1)
 

@@ -160,6 +160,7 @@ class Restorer:
 
         Raises:
             ShapeError: not a batch (B, H, W, 3) (one image (H, W, 3) is ``images[None]``).
+            TypeError: integer values (8- or 16-bit frames: :func:`murk.io.to_float` converts them).
         """
         import torch
 

@@ -183,10 +183,10 @@ def run_eval(
     from murk.io.images import IMAGE_SUFFIXES
     from murk.io.paths import check_output_file
 
-    inputs = [*images, *(kwargs.get(k) for k in ("ref", "depth", "depth_ref"))]
+    read = [*images, *(kwargs.get(k) for k in ("ref", "inputs", "depth", "depth_ref"))]  # every path evaluate reads
     for option, out in (("--json", json_out), ("--csv", csv_out)):
         if out is not None:
-            check_output_file(out, inputs, option=option, suffixes=(*IMAGE_SUFFIXES, ".npy", ".exr"))
+            check_output_file(out, read, option=option, suffixes=(*IMAGE_SUFFIXES, ".npy", ".exr"))
     result = evaluate(images, **kwargs)
     if json_out is not None:
         write_eval_json(json_out, result)

@@ -6,7 +6,9 @@ become 1 (saturated): ``out_c = clip((I_c - q_c) / (Q_c - q_c), 0, 1)`` with ``q
 ``low`` and ``100 - high`` percentiles (linear interpolation between order statistics, numpy's and torch's default).
 A flat channel, ``Q_c - q_c < 1/255`` (a lens cap's black, a lamp's clipped white, a channel clipped on nearly every
 pixel), holds nothing to stretch and is left as it is (before 2026-12-08 it was set to 0: a white frame came out
-black).
+black). The rule jumps at the threshold: a channel whose range is just under 1/255 stays as it is, one just over
+it is stretched about 255 times. For 8-bit frames the range is 0 or at least one grey level, so "flat" means one
+grey level over all but ``low + high`` % of the pixels.
 
 Why it fits water: under the image formation model at one distance, ``I_c = J_c t_c + B_c (1 - t_c)`` (Eq. 1)
 is affine in ``J_c``, so when the clean scene spans the range in every channel (as photographs do) the stretch

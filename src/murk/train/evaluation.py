@@ -33,7 +33,6 @@ def to_device(batch: dict[str, Any], device: torch.device) -> dict[str, Any]:
     return {k: v.to(device, non_blocking=True) if torch.is_tensor(v) else v for k, v in batch.items()}
 
 
-@torch.no_grad()
 def check_real_folder(folder: str | Path) -> None:
     """``eval.real`` (``murk train --eval-real``) checked before the first step: a folder holding images.
 
@@ -59,6 +58,7 @@ def has_depth_target(depth_m: torch.Tensor) -> torch.Tensor:
     return (torch.isfinite(d) & (d > MIN_DEPTH_M) & (d < MAX_DEPTH_M)).any(dim=1)
 
 
+@torch.no_grad()
 def evaluate(
     model: torch.nn.Module,
     data: DataSetup,

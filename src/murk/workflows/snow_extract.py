@@ -75,9 +75,9 @@ def bank_previews(inputs: Sequence[Path]) -> list[Path]:
     found = []
     for inp in inputs:
         if inp.is_dir():
-            for bank in inp.rglob("*.npz"):
+            for bank in inp.rglob("*"):
                 preview = bank.with_name(bank.stem + "_preview")
-                if preview.is_dir():
+                if bank.suffix.lower() == ".npz" and preview.is_dir():  # B.npz and B.NPZ alike
                     found.append(preview)
     return found
 
@@ -158,10 +158,11 @@ def extract_snow_bank(
     particles, grey = components dropped by the area or elongation filters).
 
     Raises:
-        ValueError: ``every`` < 1; ``out`` not a ``.npz`` file (so never an input image); the preview folder is an input
-            folder; no particle was found (the message names the unreadable inputs first). A preview folder inside an
-            input folder is fine: the recursive listing leaves its images out (and those of every earlier bank's
-            preview folder, :func:`bank_previews`), on the first run and on reruns.
+        ValueError: ``every`` < 1; ``scale`` not ``0 < a <= b``; ``out`` not a ``.npz`` file (so never an input
+            image); the preview folder is an input folder; no particle was found (the message names the unreadable
+            inputs first). A preview folder inside an input folder is fine: the recursive listing leaves its images
+            out (and those of every earlier bank's preview folder, :func:`bank_previews`), on the first run and on
+            reruns.
         OutputError: no space left on the device.
     """
     import cv2
@@ -173,6 +174,8 @@ def extract_snow_bank(
 
     if every < 1:
         raise ValueError(f"--every: expected >= 1, got {every}")
+    if not 0.0 < scale[0] <= scale[1]:
+        raise ValueError(f"--scale: expected 0 < a <= b (the smallest scale first, e.g. 0.3,0.6), got {scale}")
     if out.suffix.lower() != ".npz":
         raise ValueError(f"--out {out}: a particle bank is a .npz file; name it so (e.g. {out.with_suffix('.npz')})")
     preview_dir = out.with_name(out.stem + "_preview")

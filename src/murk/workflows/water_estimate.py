@@ -32,17 +32,28 @@ def estimate_water(
     depth_method: str = "jointid_net",
     estimator: Path | None = None,
     on_image: Callable[[WaterOfImage | ErrorRecord], None] | None = None,
+    json_out: Path | None = None,
 ) -> list[WaterOfImage | ErrorRecord]:
-    """Estimate the water of every image of ``paths`` (files, or folders of images), in order.
+    """Estimate the water of every image of ``paths`` (files, or folders of images), in order; with ``json_out``,
+    write the estimates there too (JSON lines, one per image estimated, atomically).
 
     Raises:
         InputFileError: the estimator file cannot be read.
-        ValueError: ``depth_method`` gives no distance map.
+        ValueError: ``depth_method`` gives no distance map; ``json_out`` is an image it reads (named, or in a
+            folder given), checked before any work (:func:`murk.io.paths.check_output_file`).
+        OSError: ``json_out``'s folder cannot be made (before any work) or the file cannot be written.
     """
+    import json
 
     from murk.enhance.restorer import create
-    from murk.io.images import list_images, read_rgb
+    from murk.io.atomic import make_output_folder, write_text_atomic
+    from murk.io.images import IMAGE_SUFFIXES, list_images, read_rgb
+    from murk.io.paths import check_output_file
     from murk.models.water import load_water_estimator
+
+    if json_out is not None:
+        check_output_file(json_out, paths, option="--json", suffixes=IMAGE_SUFFIXES)
+        make_output_folder(json_out.parent)  # a missing folder is made now, not after the work
 
     model = load_water_estimator(estimator)
     depth_net = create(depth_method)
@@ -70,4 +81,7 @@ def estimate_water(
         results.append(result)
         if on_image is not None:
             on_image(result)
+    if json_out is not None:
+        rows = [r.as_dict() for r in results if isinstance(r, WaterOfImage)]
+        write_text_atomic(json_out, "".join(json.dumps(row) + "\n" for row in rows))
     return results
