@@ -236,40 +236,36 @@ def test_scores_are_those_of_the_written_output(tmp_path: Path) -> None:
     assert row["uciqe"] == pytest.approx(uciqe(saved, data_range=1.0).uciqe, abs=1e-9)
 
 
-def test_snow_pairs_add_the_luma_and_colour_residues(tmp_path: Path) -> None:
+def _snow_pair(folder: Path, seed: int, hw: tuple[int, int], count: int, half_px: int) -> Path:
+    """``folder/snowy/s.png`` and ``folder/clean/s.png``: a smooth 8-bit scene with and without ``count`` bright
+    squares of side ``2 half_px + 1``; returns the snowy file."""
     import cv2
 
-    rng = np.random.default_rng(5)
-    clean = (cv2.GaussianBlur(rng.random((60, 80, 3)).astype(np.float32), (0, 0), 4) * 0.5 + 0.2).astype(np.float32)
+    rng = np.random.default_rng(seed)
+    h, w = hw
+    clean = (cv2.GaussianBlur(rng.random((h, w, 3)).astype(np.float32), (0, 0), 4) * 0.5 + 0.2).astype(np.float32)
     snowy = clean.copy()
-    for y, x in rng.integers(4, 56, (12, 2)):
-        snowy[y - 1 : y + 2, x - 1 : x + 2] += 0.35
+    for y, x in rng.integers(half_px + 3, min(h, w) - half_px - 3, (count, 2)):
+        snowy[y - half_px : y + half_px + 1, x - half_px : x + half_px + 1] += 0.35
     for sub, img in (("snowy", snowy), ("clean", clean)):
-        (tmp_path / sub).mkdir()
-        cv2.imwrite(str(tmp_path / sub / "s.png"), cv2.cvtColor(to_uint(np.clip(img, 0, 1), 8), cv2.COLOR_RGB2BGR))
-    res = run_compare(
-        [tmp_path / "snowy" / "s.png"], [parse_method("raw")], tmp_path / "rep", snow_clean=tmp_path / "clean"
-    )
+        (folder / sub).mkdir()
+        cv2.imwrite(str(folder / sub / "s.png"), cv2.cvtColor(to_uint(np.clip(img, 0, 1), 8), cv2.COLOR_RGB2BGR))
+    return folder / "snowy" / "s.png"
+
+
+def test_snow_pairs_add_the_luma_and_colour_residues(tmp_path: Path) -> None:
+    snowy = _snow_pair(tmp_path, 5, (60, 80), 12, 1)
+    res = run_compare([snowy], [parse_method("raw")], tmp_path / "rep", snow_clean=tmp_path / "clean")
     (row,) = res.rows
     assert row["snow_residue"] == pytest.approx(1.0) and row["snow_colour_residue"] == pytest.approx(1.0)
     assert res.summary["raw"]["snow_colour_residue"]["mean"] == pytest.approx(1.0)
 
 
 def test_the_identity_scores_the_identity_values_after_a_max_side_resize(tmp_path: Path) -> None:
-    import cv2
-
-    rng = np.random.default_rng(6)
-    clean = (cv2.GaussianBlur(rng.random((150, 200, 3)).astype(np.float32), (0, 0), 3) * 0.6 + 0.2).astype(np.float32)
-    snowy = clean.copy()
-    for y, x in rng.integers(6, 140, (20, 2)):
-        snowy[y - 2 : y + 3, x - 2 : x + 3] += 0.35
-    for sub, img in (("snowy", snowy), ("clean", clean)):
-        (tmp_path / sub).mkdir()
-        cv2.imwrite(str(tmp_path / sub / "s.png"), cv2.cvtColor(to_uint(np.clip(img, 0, 1), 8), cv2.COLOR_RGB2BGR))
+    snowy = _snow_pair(tmp_path, 6, (150, 200), 20, 2)
     res = run_compare(
-        [tmp_path / "snowy" / "s.png"], [parse_method("raw")], tmp_path / "rep", snow_clean=tmp_path / "clean",
-        max_side=97,
-    )  # fmt: skip
-    (row,) = res.rows  # the 97-px copy was scored unrounded against the rounded output: GMS 0.97-0.99, flags
+        [snowy], [parse_method("raw")], tmp_path / "rep", snow_clean=tmp_path / "clean", max_side=97
+    )  # the 97-px copy was scored unrounded against the rounded output: GMS 0.97-0.99, "particles not removed"
+    (row,) = res.rows
     assert row["flags"] == "" and row["structure_gms"] == pytest.approx(1.0) and row["particle_residue_ratio"] == 1.0
     assert row["snow_residue"] == pytest.approx(1.0)
