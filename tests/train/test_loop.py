@@ -160,6 +160,11 @@ def test_a_bad_eval_real_folder_stops_the_run_before_the_first_step(synth_folder
     with pytest.raises(InputFileError, match=r"eval\.real .*not a folder"):
         train(_config(tmp_path / "a", synth_folder, steps=2, eval={"every": 1, "real": str(tmp_path / "nope")}))
     assert not (tmp_path / "a").exists()  # nothing written
+    junk = tmp_path / "junk"
+    junk.mkdir()
+    (junk / "x.png").write_bytes(b"not a png")
+    with pytest.raises(InputFileError, match=r"none of its 1 images can be read"):
+        train(_config(tmp_path / "j", synth_folder, steps=2, eval={"every": 1, "real": str(junk)}))
     real = tmp_path / "real"
     real.mkdir()
     (real / "bad.jpg").write_bytes(b"\xff\xd8 not a jpeg")

@@ -37,16 +37,24 @@ def check_real_folder(folder: str | Path) -> None:
     """``eval.real`` (``murk train --eval-real``) checked before the first step: a folder holding images.
 
     Raises:
-        InputFileError: not a folder, or no image in it (recursively).
+        InputFileError: not a folder, no image in it (recursively), or none that can be read.
     """
     from murk.errors import InputFileError
-    from murk.io.images import list_images
+    from murk.io.images import list_images, read_image
 
     path = Path(folder)
     if not path.is_dir():
         raise InputFileError(path, "eval.real (--eval-real): not a folder")
-    if not list_images(path, recursive=True):
+    files = list_images(path, recursive=True)
+    if not files:
         raise InputFileError(path, "eval.real (--eval-real): no images in this folder")
+    for f in files:  # the first image that decodes ends the check (the rest are read at each evaluation)
+        try:
+            read_image(f)
+            return
+        except (OSError, ValueError):
+            continue
+    raise InputFileError(path, f"eval.real (--eval-real): none of its {len(files)} images can be read")
 
 
 def has_depth_target(depth_m: torch.Tensor) -> torch.Tensor:
