@@ -22,6 +22,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: the distance benchmark's helpers
+from bench_water_distance import HELDOUT_SEED, median_scaled
+
 EDGE_GRAD = 0.2
 """A depth edge: the Sobel gradient of log distance above this (per pixel, unnormalised Sobel)."""
 EDGE_REACH_PX = 4
@@ -43,7 +46,7 @@ class ErrorSplit:
 def error_split(pred_m: np.ndarray, true_m: np.ndarray) -> ErrorSplit:
     """The split of one scene's (H, W) distance error (``true_m`` NaN where no surface: left out)."""
     ok = np.isfinite(true_m) & (true_m > 0)
-    scaled = pred_m * (np.median(true_m[ok]) / np.median(pred_m[ok]))
+    scaled = median_scaled(pred_m, true_m)
     err = np.where(ok, np.abs(scaled - np.where(ok, true_m, 1.0)) / np.where(ok, true_m, 1.0), 0.0)
     log_t = np.log(np.where(ok, true_m, np.nanmax(true_m[ok]))).astype(np.float32)
     grad = np.hypot(cv2.Sobel(log_t, cv2.CV_32F, 1, 0), cv2.Sobel(log_t, cv2.CV_32F, 0, 1))
@@ -69,9 +72,6 @@ def main() -> None:
     from murk.enhance.restorer import create
     from murk.report.heldout import make_heldout
     from murk.train.config import TrainConfig
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from bench_water_distance import HELDOUT_SEED
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--config", type=Path, default=Path("configs/train-lite-mild-scratch-cpu.yaml"))

@@ -9,7 +9,7 @@ training. Measured: no change (docs/train.md, "Distance or water: what limits th
 spread over the frame, not at the edges (``distance_error_where.py``).
 
 ``water_guided?radius=R,eps=E,guide=G,strength=S``: as ``water?strength=S``, with the distance map replaced by
-``guided_filter(g, d, r, eps)`` before the estimator and the inversion; ``g`` is the grey of the input
+``guided_filter(g, d, r, eps)`` before the estimator and the inversion; ``g`` is the luma (BT.601) of the input
 (``guide=input``) or of the base's restoration (``guide=restored``); ``r`` is ``radius`` times the long side in
 pixels; ``d`` is filtered as ``d / max(d)`` and scaled back, clipped to be positive. The depth map returned is the
 refined one. ``radius=0`` is ``water`` itself.
@@ -23,12 +23,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from murk.enhance.equalize import luma
 from murk.enhance.restorer import Restored, Restorer, create, register
 from murk.enhance.water_restorer import WaterRestorer, restore_with_water
 from murk.models.water import WaterInView
 from murk.restore_ops.affine_transfer import guided_filter, transfer_radius_px
-
-_LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
 
 
 def refine_distance(guide_rgb: np.ndarray, distance_m: np.ndarray, radius: float, eps: float) -> np.ndarray:
@@ -36,7 +35,7 @@ def refine_distance(guide_rgb: np.ndarray, distance_m: np.ndarray, radius: float
     if radius <= 0:
         return distance_m
     h, w = distance_m.shape
-    grey = np.ascontiguousarray(guide_rgb @ _LUMA, np.float32)
+    grey = luma(guide_rgb)
     peak = float(distance_m.max()) or 1.0
     out = guided_filter(grey, (distance_m / peak).astype(np.float32), transfer_radius_px(h, w, radius), eps)
     return np.maximum(out * peak, 1e-3).astype(np.float32)

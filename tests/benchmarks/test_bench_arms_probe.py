@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from murk.data import sample_underwater_images
+from murk.enhance.equalize import luma
 from murk.enhance.restorer import options_of, unregister
 from murk.errors import InputFileError
 
@@ -168,7 +169,7 @@ def test_water_guided_keeps_a_distance_that_follows_the_frame_and_smooths_one_th
         unregister("water_guided")
     rng = np.random.default_rng(5)
     guide = cv2.GaussianBlur(rng.random((48, 64, 3), dtype=np.float32), (0, 0), 2.0)
-    grey = guide @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    grey = luma(guide)
     follows_m = (2.0 + 30.0 * grey).astype(np.float32)  # a linear function of the guide: the filter keeps it
     assert refine(guide, follows_m, 0.0, 1e-6) is follows_m
     assert np.allclose(refine(guide, follows_m, 0.1, 1e-8), follows_m, rtol=1e-3)

@@ -48,6 +48,15 @@ def test_clipping_and_validity() -> None:
     assert e.abs_rel == pytest.approx(np.mean(np.abs(g - p) / g))
 
 
+def test_the_valid_pixel_rule_and_its_torch_twin() -> None:
+    from murk.metrics.depth import valid_depth, valid_depth_torch
+
+    gt = np.array([[2.0, 0.0, 20.0, np.nan, 3.0, 0.001, 15.0, -1.0]])  # valid: 2 and 3 (the limits are open)
+    expected = np.array([[True, False, False, False, True, False, False, False]])
+    assert np.array_equal(valid_depth(gt), expected)
+    assert np.array_equal(valid_depth_torch(torch.from_numpy(gt)).numpy(), expected)
+
+
 def test_perfect_prediction() -> None:
     gt = np.linspace(0.5, 14.0, 30).reshape(5, 6)
     e = depth_errors(gt.copy(), gt)

@@ -57,6 +57,7 @@ def run_enhance(
         InputFileError: nothing usable at ``spec``; ValueError: an output location or option that cannot work
             (bag options without a bag among them, a video's output that is the video itself).
     """
+    from murk.io.paths import check_output_file
     from murk.io.rosbag import is_bag
     from murk.io.video import CaptureSource
 
@@ -93,8 +94,8 @@ def run_enhance(
         if unused:
             report.note(f"{' and '.join(unused)}: for video outputs; not used for images")
         return inp, report
-    if inp.kind == "video" and _same_file(out, Path(str(inp.target))):
-        raise ValueError(f"--out {out}: the output would overwrite its input {inp.target}; choose another --out")
+    if inp.kind == "video":
+        check_output_file(out, [str(inp.target)])  # a video written over its source, even with --overwrite
     with CaptureSource(inp.target) as source:  # type: ignore[arg-type]
         total = source.frame_count if max_frames is None else min(source.frame_count or max_frames, max_frames)
         method = _built(restorer)
@@ -112,21 +113,6 @@ def run_enhance(
     if as_folder:
         report.note(as_folder)
     return inp, report
-
-
-def _same_file(out: Path, source: Path) -> bool:
-    """``out`` names ``source``: the same path once symlinks are resolved, or an existing file that is the same file
-    (a hard link; another spelling on a case-insensitive file system)."""
-    import os
-
-    from murk.io.listing import real_path
-
-    if real_path(out) == real_path(source):
-        return True
-    try:
-        return out.exists() and os.path.samefile(out, source)
-    except OSError:
-        return False
 
 
 def _folder_note(out: Path) -> str:

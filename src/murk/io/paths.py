@@ -29,20 +29,23 @@ Overlap = Literal["refuse", "allow"]
 def check_output_file(
     out: str | Path, inputs: Iterable[str | Path | None], *, option: str = "--out", suffixes: Sequence[str] = ()
 ) -> None:
-    """Refuse an output FILE ``out`` (a report, a bank, a table) that would replace a file the command reads: one
-    of the input files ``inputs``, or, for an input folder, an existing file inside it whose suffix is one of
-    ``suffixes`` (the kinds of file the command reads from folders). ``None`` inputs are skipped.
+    """Refuse an output FILE ``out`` (a report, a bank, a table, a video) that would replace a file the command
+    reads: one of the input files ``inputs`` (the same path once symlinks are resolved or, ``out`` existing, the
+    same file: a hard link, another spelling on a case-insensitive file system), or, for an input folder, an
+    existing file inside it whose suffix is one of ``suffixes`` (the kinds of file the command reads from folders).
+    ``None`` inputs are skipped.
 
     Raises:
         ValueError: one line naming ``option``, ``out`` and the input.
     """
     out_real = Path(os.path.realpath(out))
-    read_here = Path(out).is_file() and Path(out).suffix.lower() in suffixes
+    exists = Path(out).is_file()
+    read_here = exists and Path(out).suffix.lower() in suffixes
     for inp in inputs:
         if inp is None:
             continue
         real = Path(os.path.realpath(inp))
-        if real == out_real:
+        if real == out_real or (exists and _same_file(out, inp)):  # a hard link; a case-insensitive spelling
             raise ValueError(
                 f"{option} {out}: this is the input {inp}; writing it would destroy it; choose another file"
             )
@@ -50,6 +53,13 @@ def check_output_file(
             raise ValueError(
                 f"{option} {out}: an input file of {inp}; writing it would destroy it; choose another file"
             )
+
+
+def _same_file(a: str | Path, b: str | Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one of them is not there (or cannot be looked at): not the same file
+        return False
 
 
 def check_output_location(

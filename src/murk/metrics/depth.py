@@ -78,6 +78,20 @@ class DepthErrorsBatch(NamedTuple):
     d3: torch.Tensor
 
 
+def valid_depth(gt_m: np.ndarray, min_depth_m: float = MIN_DEPTH_M, max_depth_m: float = MAX_DEPTH_M) -> np.ndarray:
+    """The ground-truth pixels the depth errors count: finite and in (``min_depth_m``, ``max_depth_m``)."""
+    return np.isfinite(gt_m) & (gt_m > min_depth_m) & (gt_m < max_depth_m)
+
+
+def valid_depth_torch(
+    gt_m: torch.Tensor, min_depth_m: float = MIN_DEPTH_M, max_depth_m: float = MAX_DEPTH_M
+) -> torch.Tensor:
+    """The twin of :func:`valid_depth` for tensors (a training batch: which images hold a depth target at all)."""
+    import torch
+
+    return torch.isfinite(gt_m) & (gt_m > min_depth_m) & (gt_m < max_depth_m)
+
+
 def _check_limits(min_depth_m: float, max_depth_m: float) -> tuple[float, float]:
     lo = check_positive("min_depth_m", min_depth_m)
     hi = check_positive("max_depth_m", max_depth_m)
@@ -128,7 +142,7 @@ def depth_errors(
     """
     lo, hi = _check_limits(min_depth_m, max_depth_m)
     pred, gt = _check_depth_pair_numpy(pred_m, gt_m)
-    valid = np.isfinite(gt) & (gt > lo) & (gt < hi)
+    valid = valid_depth(gt, lo, hi)
     n = int(np.count_nonzero(valid))
     if n == 0:
         raise ValueError(f"gt_m: no valid pixel (finite and in ({lo:g}, {hi:g}) m); nothing to evaluate")
@@ -201,7 +215,7 @@ def depth_errors_torch(
         raise ShapeError(f"pred_m: expected the shape of gt_m {tuple(gt_m.shape)}, got {tuple(pred_m.shape)}")
     pred = pred_m.detach().double().flatten(1)
     gt = gt_m.detach().double().flatten(1)
-    valid = torch.isfinite(gt) & (gt > lo) & (gt < hi)
+    valid = valid_depth_torch(gt, lo, hi)
     n = valid.sum(dim=1)
     if bool((n == 0).any()):
         bad = torch.nonzero(n == 0).flatten().tolist()

@@ -21,6 +21,7 @@ from torch.utils.data import DataLoader
 
 from murk.io.jobs import ErrorLog, ErrorRecord
 from murk.metrics import table
+from murk.metrics.depth import valid_depth_torch
 from murk.restore_ops.balance import color_balance_torch
 from murk.train.config import TrainConfig
 from murk.train.data import record_unreadable
@@ -55,15 +56,6 @@ def check_real_folder(folder: str | Path) -> None:
         except (OSError, ValueError):
             continue
     raise InputFileError(path, f"eval.real (--eval-real): none of its {len(files)} images can be read")
-
-
-def has_depth_target(depth_m: torch.Tensor) -> torch.Tensor:
-    """(B,) bool: which images of a batch of depth targets (B, H, W) or (B, 1, H, W) hold a valid pixel (finite, in
-    the depth metrics' range). Photographs with the layout prior's distance have none: their depth is no target."""
-    from murk.metrics.depth import MAX_DEPTH_M, MIN_DEPTH_M
-
-    d = depth_m.flatten(1)
-    return (torch.isfinite(d) & (d > MIN_DEPTH_M) & (d < MAX_DEPTH_M)).any(dim=1)
 
 
 @torch.no_grad()
@@ -115,7 +107,8 @@ def evaluate(
                     x = inputs.float().clamp(0, 1)
                     scores.setdefault(f"input_{m.name}", []).append(m.value(fn(x, targets, data_range=1.0)))
             if depth_m is not None and depth_twin is not None:  # networks without a depth head: no depth errors
-                scored = has_depth_target(batch["depth"])  # a layout-prior distance is no target (all invalid)
+                # a layout-prior distance is no target (all invalid): those images get no depth errors
+                scored = valid_depth_torch(batch["depth"]).flatten(1).any(dim=1)
                 if bool(scored.any()):
                     errs.append(depth_twin(depth_m[scored], batch["depth"][scored]))
         if losses:
